@@ -1,0 +1,21 @@
+//! Geometry shared by every stage: scalars (plain and dual), vectors,
+//! quaternions, rigid poses (Eq. 5–7 of the paper), pinhole cameras and rays.
+//!
+//! Everything that a gradient must flow through is generic over [`Real`], so
+//! the simulator runs the same code on `f64` and on [`Dual`] numbers.
+
+pub mod camera;
+pub mod dual;
+pub mod pose;
+pub mod quat;
+pub mod real;
+pub mod trimesh;
+pub mod vec3;
+
+pub use camera::{Camera, CameraError, Intrinsics, Ray};
+pub use dual::Dual;
+pub use pose::{left_jacobian, Pose};
+pub use quat::{rotation_distance, Quat};
+pub use real::Real;
+pub use trimesh::TriMesh;
+pub use vec3::{Mat3, Vec3};

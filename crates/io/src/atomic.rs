@@ -1,0 +1,70 @@
+//! Atomic file replacement: readers see either the old file or the whole new one.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{IoError, Result};
+
+/// Per-process counter so two threads writing the same target do not share a temp file.
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes `bytes` to `path` atomically.
+///
+/// The bytes go to a temporary file `.{filename}.tmp-{pid}-{n}` in the same
+/// folder (so the rename cannot cross file systems), which is flushed to disk
+/// and then renamed over `path`. Missing parent folders are created. On any
+/// error the temporary file is removed and `path` is left as it was.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let write_err = |source| IoError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let name = path.file_name().ok_or_else(|| {
+        write_err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the path does not name a file",
+        ))
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    fs::create_dir_all(dir).map_err(write_err)?;
+
+    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp: PathBuf = dir.join(format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n));
+    let result = write_then_rename(&tmp, path, bytes);
+    if result.is_err() {
+        // Best effort: the file may not exist if creating it was what failed.
+        let _ = fs::remove_file(&tmp);
+    }
+    result.map_err(write_err)?;
+    sync_dir(dir);
+    Ok(())
+}
+
+fn write_then_rename(tmp: &Path, target: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut file = fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(tmp)?;
+    file.write_all(bytes)?;
+    // fsync before rename, otherwise a crash can leave the new name on empty data.
+    file.sync_all()?;
+    drop(file);
+    fs::rename(tmp, target)
+}
+
+/// Makes the rename itself durable. Not possible on every platform (Windows
+/// cannot open folders this way), and the data is already safe, so errors are ignored.
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}

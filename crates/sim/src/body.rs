@@ -1,0 +1,153 @@
+//! A rigid body: its closed mesh in the body frame (origin at the centre of
+//! mass), mass properties, contact points, and its SDF for body–body contacts.
+
+use crate::mass_properties_mesh::{mass_properties, mesh_volume};
+use crate::mesh_check::{check_closed_mesh, MeshCheckError};
+use crate::sample_surface::sample_surface;
+use crate::sdf::{MeshDistance, SdfGrid, Shape};
+use geom::{Mat3, Pose, TriMesh, Vec3};
+use std::sync::Arc;
+
+/// How the body's mass is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MassSpec {
+    /// Total mass in kg.
+    Mass(f64),
+    /// Density in kg/m³ (mass = density · volume).
+    Density(f64),
+}
+
+/// Where the contact points come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ContactSampling {
+    /// `count` points uniform by area, from `seed`.
+    Surface { count: usize, seed: u64 },
+    /// The mesh vertices.
+    Vertices,
+}
+
+impl Default for ContactSampling {
+    fn default() -> Self {
+        ContactSampling::Surface { count: 1000, seed: 0 }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum BodyError {
+    #[error(transparent)]
+    Mesh(#[from] MeshCheckError),
+    #[error("mass must be positive and finite, got {0}")]
+    Mass(f64),
+    #[error("density must be positive and finite, got {0}")]
+    Density(f64),
+    #[error("contact point count must be at least 1")]
+    NoContactPoints,
+    #[error("a {0} cannot be a body (use a box, sphere, rounded box, capsule, wedge or a closed mesh)")]
+    NotASolid(&'static str),
+}
+
+#[derive(Clone, Debug)]
+pub struct RigidBody {
+    pub name: String,
+    /// The surface in the body frame (origin at the centre of mass).
+    pub mesh: TriMesh,
+    pub mass: f64,
+    /// Inertia about the centre of mass, body axes.
+    pub inertia: Mat3<f64>,
+    pub inertia_inv: Mat3<f64>,
+    /// Contact points in the body frame.
+    pub contact_points: Vec<Vec3<f64>>,
+    /// Radius of a ball about the origin holding the whole body.
+    pub bounding_radius: f64,
+    /// Signed distance in the body frame, for contacts with other bodies.
+    pub sdf: Shape,
+    /// Where the centre of mass was in the frame the mesh was given in:
+    /// `p_body = p_given − mesh_offset`.
+    pub mesh_offset: Vec3<f64>,
+}
+
+impl RigidBody {
+    /// A body from an analytic shape (meshed finely for its mass properties
+    /// and contact points; its exact SDF serves body–body contacts).
+    pub fn from_shape(name: &str, shape: &Shape, mass: MassSpec, sampling: ContactSampling) -> Result<Self, BodyError> {
+        let mesh = crate::tessellate::shape_mesh(shape, 24).ok_or(BodyError::NotASolid(match shape {
+            Shape::Plane(_) => "plane",
+            Shape::Grid(_) => "grid",
+            _ => "union",
+        }))?;
+        Self::from_mesh(name, &mesh, mass, sampling, Some(shape.clone()))
+    }
+
+    /// A body from a closed mesh in any frame; the mesh is moved so its centre
+    /// of mass is the origin. `sdf` is the body's signed distance in the
+    /// mesh's original frame (or `None` to bake one from the mesh).
+    pub fn from_mesh(
+        name: &str,
+        mesh: &TriMesh,
+        mass: MassSpec,
+        sampling: ContactSampling,
+        sdf: Option<Shape>,
+    ) -> Result<Self, BodyError> {
+        check_closed_mesh(mesh)?;
+        let mut mesh = mesh.clone();
+        let vol = mesh_volume(&mesh);
+        if !(vol.abs() > 1e-15) {
+            return Err(MeshCheckError::ZeroVolume.into());
+        }
+        if vol < 0.0 {
+            // Consistent but inside out: turn it the right way.
+            for f in &mut mesh.faces {
+                f.swap(1, 2);
+            }
+        }
+        let m = match mass {
+            MassSpec::Mass(m) if m > 0.0 && m.is_finite() => m,
+            MassSpec::Mass(m) => return Err(BodyError::Mass(m)),
+            MassSpec::Density(d) if d > 0.0 && d.is_finite() => d * vol.abs(),
+            MassSpec::Density(d) => return Err(BodyError::Density(d)),
+        };
+        let props = mass_properties(&mesh, m);
+        let com = props.center_of_mass;
+        for v in &mut mesh.vertices {
+            *v = (Vec3::cst(*v) - com).to_array();
+        }
+        let contact_points = match sampling {
+            ContactSampling::Surface { count: 0, .. } => return Err(BodyError::NoContactPoints),
+            ContactSampling::Surface { count, seed } => sample_surface(&mesh, count, seed),
+            ContactSampling::Vertices => mesh.vertices.iter().map(|v| Vec3::cst(*v)).collect(),
+        };
+        let bounding_radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
+        let sdf = match sdf {
+            Some(s) => s.transformed(Pose::from_translation(-com)),
+            None => Shape::Grid(Arc::new(bake_mesh_sdf(&mesh, bounding_radius))),
+        };
+        let inertia_inv = props.inertia.try_inverse().ok_or(BodyError::Mass(m))?;
+        Ok(Self {
+            name: name.to_string(),
+            mesh,
+            mass: m,
+            inertia: props.inertia,
+            inertia_inv,
+            contact_points,
+            bounding_radius,
+            sdf,
+            mesh_offset: com,
+        })
+    }
+}
+
+/// Bake a closed mesh's SDF on a grid of about 48 cells across, padded.
+fn bake_mesh_sdf(mesh: &TriMesh, radius: f64) -> SdfGrid {
+    let dist = MeshDistance::new(mesh).expect("mesh was checked closed");
+    let pad = 0.15 * radius + 0.005;
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for v in &mesh.vertices {
+        for a in 0..3 {
+            lo[a] = lo[a].min(v[a] - pad);
+            hi[a] = hi[a].max(v[a] + pad);
+        }
+    }
+    let longest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    SdfGrid::bake(&dist, lo, hi, longest / 48.0).expect("bounds are finite and ordered")
+}

@@ -1,0 +1,83 @@
+//! One body against the static scene, for one substep.
+
+use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
+use crate::sdf::{Sdf, Shape};
+use crate::{BodyState, RigidBody};
+use geom::{Mat3, Real, Vec3};
+
+/// Apply the contact impulse (if any point collides) and push the body out of
+/// the scene if it has sunk in. Returns whether an impulse was applied.
+pub(crate) fn contact_body_scene<S: Real>(
+    body: &RigidBody,
+    st: &mut BodyState<S>,
+    scene: &Shape,
+    restitution: S,
+    friction: S,
+    det: &Detection,
+) -> bool {
+    let delta = det.delta;
+    let t_re = st.pose.t.re();
+    // Cull: the scene is a distance bound, so no point is within Δ when the
+    // centre is farther than the bounding radius + Δ.
+    if scene.distance_local(t_re) > body.bounding_radius + delta {
+        return false;
+    }
+    // Detection (Eq. 8) runs on plain numbers: the set of colliding points is
+    // a discrete choice, its derivative is zero.
+    let rot_re = st.pose.q.re().to_mat();
+    let (v_re, w_re) = (st.v.re(), st.omega.re());
+    let mut sum = Vec3::<f64>::zero();
+    let mut sum_sq = 0.0;
+    let mut count = 0usize;
+    let mut deepest: Option<(f64, usize)> = None;
+    for (i, r) in body.contact_points.iter().enumerate() {
+        let rw = rot_re.mul_vec(*r);
+        let (d, g) = scene.distance_grad_local(t_re + rw);
+        if d > delta {
+            continue;
+        }
+        if d < deepest.map_or(0.0, |(dd, _)| dd) {
+            deepest = Some((d, i));
+        }
+        let vel = v_re + w_re.cross(rw);
+        let n = g.normalize_or(Vec3::zero());
+        if det.collides(d, vel.dot(n)) {
+            sum += *r;
+            sum_sq += r.norm_sq();
+            count += 1;
+        }
+    }
+    let rot = st.pose.q.to_mat();
+    let mut hit = false;
+    if count > 0 {
+        let rbar = sum * (1.0 / count as f64);
+        let r = rot.mul_vec(Vec3::lift(rbar));
+        let (_, g) = scene.distance_grad_local(st.pose.t + r);
+        if let Some(n) = g.try_normalize() {
+            let vc = st.v + st.omega.cross(r);
+            let iw_inv = world_inertia_inv(&rot, &body.inertia_inv);
+            let k = Mat3::identity()
+                .scale(S::cst(1.0 / body.mass))
+                .sub(&angular_term(r, &iw_inv));
+            if let Some(j) = contact_impulse(vc, n, &k, restitution, friction, det) {
+                st.v += j * S::cst(1.0 / body.mass);
+                st.omega += iw_inv.mul_vec(r.cross(j));
+                let radius = patch_radius(sum, sum_sq, count);
+                let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
+                st.omega += iw_inv.mul_vec(n * tau);
+                hit = true;
+            }
+        }
+    }
+    // Positional correction: move the deepest point back onto the surface.
+    if let Some((_, i)) = deepest {
+        let x = st.pose.t + rot.mul_vec(Vec3::lift(body.contact_points[i]));
+        let (d, g) = scene.distance_grad_local(x);
+        if d.re() < 0.0 {
+            if let Some(n) = g.try_normalize() {
+                st.pose.t -= n * d;
+            }
+        }
+    }
+    hit
+}

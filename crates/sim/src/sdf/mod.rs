@@ -1,0 +1,41 @@
+//! Signed distance functions: the only thing the simulator knows of geometry.
+//!
+//! The [`Sdf`] trait asks for local-frame queries and supplies world-frame
+//! ones (parry's `PointQuery` habit). Every query is generic over [`Real`], so
+//! the normal at a contact carries derivatives (its Hessian-vector products)
+//! into the impulse.
+
+mod sdf_grid;
+mod sdf_mesh;
+mod shape;
+mod shapes;
+
+pub use sdf_grid::{GridError, SdfGrid};
+pub use sdf_mesh::{MeshDistance, MeshSdfError};
+pub use shape::Shape;
+pub use shapes::{Capsule, Cuboid, Plane, RoundedBox, Sphere, Wedge};
+
+use geom::{Pose, Real, Vec3};
+
+/// A signed distance: negative inside, positive outside, gradient pointing out.
+pub trait Sdf: Send + Sync {
+    /// Distance and gradient at `p`, in the shape's own frame.
+    fn distance_grad_local<S: Real>(&self, p: Vec3<S>) -> (S, Vec3<S>);
+
+    /// Distance at `p`, in the shape's own frame.
+    fn distance_local<S: Real>(&self, p: Vec3<S>) -> S {
+        self.distance_grad_local(p).0
+    }
+
+    /// Distance and world-frame gradient at world point `p`, for the shape
+    /// placed at `pose` (shape frame to world).
+    fn distance_grad<S: Real>(&self, pose: &Pose<S>, p: Vec3<S>) -> (S, Vec3<S>) {
+        let (d, g) = self.distance_grad_local(pose.inverse_transform_point(p));
+        (d, pose.transform_vector(g))
+    }
+
+    /// Distance at world point `p` for the shape placed at `pose`.
+    fn distance<S: Real>(&self, pose: &Pose<S>, p: Vec3<S>) -> S {
+        self.distance_local(pose.inverse_transform_point(p))
+    }
+}

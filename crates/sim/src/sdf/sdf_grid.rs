@@ -1,0 +1,222 @@
+//! A signed distance sampled on a dense grid: trilinear value and its exact
+//! (piecewise bilinear) gradient, so the simulator never calls a network.
+//!
+//! File layout (little endian): magic `PGASDF01`, `u32 nx, ny, nz`,
+//! `f64 origin[3]`, `f64 spacing`, then `nx·ny·nz` `f32` values, x fastest.
+
+use super::Sdf;
+use geom::{Real, Vec3};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+const MAGIC: &[u8; 8] = b"PGASDF01";
+
+#[derive(Debug, thiserror::Error)]
+pub enum GridError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: not a pganeus SDF grid: {msg}")]
+    Format { path: PathBuf, msg: String },
+    #[error("grid bounds are invalid: {0}")]
+    Bounds(String),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SdfGrid {
+    /// Position of node (0, 0, 0).
+    pub origin: [f64; 3],
+    /// Distance between neighbouring nodes (the same on every axis).
+    pub spacing: f64,
+    /// Node counts, each ≥ 2.
+    pub dims: [usize; 3],
+    /// Values, x fastest then y then z.
+    pub values: Vec<f32>,
+}
+
+impl SdfGrid {
+    /// Sample `sdf` on a grid covering `[min, max]` with node spacing `spacing`.
+    pub fn bake(sdf: &(impl Sdf + ?Sized), min: [f64; 3], max: [f64; 3], spacing: f64) -> Result<Self, GridError> {
+        let dims = grid_dims(min, max, spacing)?;
+        let [nx, ny, _] = dims;
+        let values = (0..dims.iter().product::<usize>())
+            .into_par_iter()
+            .map(|idx| {
+                let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
+                let p = [
+                    min[0] + i as f64 * spacing,
+                    min[1] + j as f64 * spacing,
+                    min[2] + k as f64 * spacing,
+                ];
+                sdf.distance_local(Vec3::<f64>::cst(p)) as f32
+            })
+            .collect();
+        Ok(Self {
+            origin: min,
+            spacing,
+            dims,
+            values,
+        })
+    }
+
+    /// Build from values computed elsewhere (checks the length).
+    pub fn from_values(origin: [f64; 3], spacing: f64, dims: [usize; 3], values: Vec<f32>) -> Result<Self, GridError> {
+        if dims.iter().any(|&n| n < 2) || values.len() != dims.iter().product::<usize>() || !(spacing > 0.0) {
+            return Err(GridError::Bounds(format!(
+                "dims {dims:?} with spacing {spacing} do not match {} values",
+                values.len()
+            )));
+        }
+        Ok(Self {
+            origin,
+            spacing,
+            dims,
+            values,
+        })
+    }
+
+    /// The far corner.
+    pub fn max_corner(&self) -> [f64; 3] {
+        std::array::from_fn(|a| self.origin[a] + (self.dims[a] - 1) as f64 * self.spacing)
+    }
+
+    #[inline]
+    fn at(&self, i: usize, j: usize, k: usize) -> f64 {
+        self.values[i + self.dims[0] * (j + self.dims[1] * k)] as f64
+    }
+
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = Vec::with_capacity(8 + 12 + 32 + 4 * self.values.len());
+        b.extend_from_slice(MAGIC);
+        for &n in &self.dims {
+            b.extend_from_slice(&(n as u32).to_le_bytes());
+        }
+        for &o in &self.origin {
+            b.extend_from_slice(&o.to_le_bytes());
+        }
+        b.extend_from_slice(&self.spacing.to_le_bytes());
+        for &v in &self.values {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b
+    }
+
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, GridError> {
+        let err = |msg: String| GridError::Format {
+            path: path.to_path_buf(),
+            msg,
+        };
+        if bytes.len() < 52 || &bytes[..8] != MAGIC {
+            return Err(err("missing PGASDF01 header".into()));
+        }
+        let u = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes")) as usize;
+        let f = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
+        let dims = [u(8), u(12), u(16)];
+        let origin = [f(20), f(28), f(36)];
+        let spacing = f(44);
+        let n: usize = dims.iter().product();
+        if bytes.len() != 52 + 4 * n {
+            return Err(err(format!(
+                "dims {dims:?} need {} bytes, file has {}",
+                52 + 4 * n,
+                bytes.len()
+            )));
+        }
+        let values: Vec<f32> = bytes[52..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect();
+        if values.iter().any(|v| !v.is_finite()) || origin.iter().any(|v| !v.is_finite()) {
+            return Err(err("non-finite values".into()));
+        }
+        Self::from_values(origin, spacing, dims, values).map_err(|e| err(e.to_string()))
+    }
+
+    pub fn load(path: &Path) -> Result<Self, GridError> {
+        let bytes = std::fs::read(path).map_err(|source| GridError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Write to a temporary file beside `path`, then rename over it.
+    pub fn save(&self, path: &Path) -> Result<(), GridError> {
+        let io = |source| GridError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let tmp = path.with_extension("sdf.tmp");
+        std::fs::write(&tmp, self.to_bytes()).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+}
+
+fn grid_dims(min: [f64; 3], max: [f64; 3], spacing: f64) -> Result<[usize; 3], GridError> {
+    if !(spacing > 0.0) || min.iter().chain(&max).any(|v| !v.is_finite()) {
+        return Err(GridError::Bounds(format!("spacing {spacing}, bounds {min:?}..{max:?}")));
+    }
+    let mut dims = [0; 3];
+    for a in 0..3 {
+        let ext = max[a] - min[a];
+        if !(ext > 0.0) {
+            return Err(GridError::Bounds(format!("max {max:?} is not above min {min:?}")));
+        }
+        dims[a] = (ext / spacing).ceil() as usize + 1;
+    }
+    if dims.iter().product::<usize>() > 512 * 512 * 512 {
+        return Err(GridError::Bounds(format!("{dims:?} nodes is more than 512³")));
+    }
+    Ok(dims)
+}
+
+impl Sdf for SdfGrid {
+    /// Trilinear interpolation inside the grid; outside, the value at the
+    /// nearest point of the grid box plus the distance to it.
+    fn distance_grad_local<S: Real>(&self, p: Vec3<S>) -> (S, Vec3<S>) {
+        let hi = self.max_corner();
+        let pa = p.to_array();
+        let mut clamped = pa;
+        for a in 0..3 {
+            clamped[a] = pa[a].clamp(self.origin[a], hi[a]);
+        }
+        let outside = Vec3::from_array(pa) - Vec3::from_array(clamped);
+        let inv_h = 1.0 / self.spacing;
+        let mut cell = [0usize; 3];
+        let mut u = [S::zero(); 3];
+        for a in 0..3 {
+            let f = (clamped[a] - self.origin[a]) * inv_h;
+            let i = (f.re().floor().max(0.0) as usize).min(self.dims[a] - 2);
+            cell[a] = i;
+            u[a] = f - i as f64;
+        }
+        let [i, j, k] = cell;
+        let c = |di, dj, dk| self.at(i + di, j + dj, k + dk);
+        let (c000, c100, c010, c110) = (c(0, 0, 0), c(1, 0, 0), c(0, 1, 0), c(1, 1, 0));
+        let (c001, c101, c011, c111) = (c(0, 0, 1), c(1, 0, 1), c(0, 1, 1), c(1, 1, 1));
+        let [x, y, z] = u;
+        let one = S::one();
+        // Interpolate along x, then y, then z, keeping the pieces for the gradient.
+        let lerp = |a: f64, b: f64, t: S| t * (b - a) + a;
+        let x00 = lerp(c000, c100, x);
+        let x10 = lerp(c010, c110, x);
+        let x01 = lerp(c001, c101, x);
+        let x11 = lerp(c011, c111, x);
+        let y0 = (x10 - x00) * y + x00;
+        let y1 = (x11 - x01) * y + x01;
+        let d = (y1 - y0) * z + y0;
+        let (ym, zm) = (one - y, one - z);
+        let dx =
+            ((ym * zm) * (c100 - c000) + (y * zm) * (c110 - c010) + (ym * z) * (c101 - c001) + (y * z) * (c111 - c011))
+                * inv_h;
+        let dy = (zm * (x10 - x00) + z * (x11 - x01)) * inv_h;
+        let dz = (y1 - y0) * inv_h;
+        let grad = Vec3::new(dx, dy, dz);
+        let out_len = outside.norm_sq();
+        if out_len.re() > 0.0 {
+            let l = out_len.sqrt();
+            (d + l, (outside * l.recip()).normalize_or(grad))
+        } else {
+            (d, grad)
+        }
+    }
+}

@@ -1,0 +1,89 @@
+//! Shared test helpers. [`check_jacobian`] compares an analytic Jacobian with
+//! central finite differences and names every entry that disagrees.
+
+/// Tolerances of a finite-difference check: an entry passes when
+/// `|analytic − fd| ≤ abs_tol + rel_tol · max(|analytic|, |fd|)`.
+#[derive(Clone, Copy, Debug)]
+pub struct GradTolerance {
+    /// Step of the central difference.
+    pub eps: f64,
+    pub abs_tol: f64,
+    pub rel_tol: f64,
+    /// Fraction of entries that must pass (1.0 = all). Below 1 only where a
+    /// function has known kinks (cell boundaries of a grid, say).
+    pub pass_fraction: f64,
+}
+
+impl Default for GradTolerance {
+    fn default() -> Self {
+        Self {
+            eps: 1e-6,
+            abs_tol: 1e-8,
+            rel_tol: 1e-4,
+            pass_fraction: 1.0,
+        }
+    }
+}
+
+/// Central finite-difference Jacobian of `f` at `x`: `jac[out][in]`.
+pub fn finite_difference_jacobian(f: &dyn Fn(&[f64]) -> Vec<f64>, x: &[f64], eps: f64) -> Vec<Vec<f64>> {
+    let n_out = f(x).len();
+    let mut jac = vec![vec![0.0; x.len()]; n_out];
+    let mut xp = x.to_vec();
+    for j in 0..x.len() {
+        xp[j] = x[j] + eps;
+        let fp = f(&xp);
+        xp[j] = x[j] - eps;
+        let fm = f(&xp);
+        xp[j] = x[j];
+        for i in 0..n_out {
+            jac[i][j] = (fp[i] - fm[i]) / (2.0 * eps);
+        }
+    }
+    jac
+}
+
+/// Check `analytic[out][in]` against central differences of `f` at `x`.
+/// `input_names` label the columns in the report. Returns the worst relative
+/// error seen, or an error listing the failing entries.
+pub fn check_jacobian(
+    name: &str,
+    f: &dyn Fn(&[f64]) -> Vec<f64>,
+    x: &[f64],
+    analytic: &[Vec<f64>],
+    input_names: &[String],
+    tol: GradTolerance,
+) -> Result<f64, String> {
+    let fd = finite_difference_jacobian(f, x, tol.eps);
+    assert_eq!(fd.len(), analytic.len(), "{name}: output count differs");
+    let mut failures = Vec::new();
+    let mut total = 0usize;
+    let mut worst = 0.0f64;
+    for (i, (row_fd, row_an)) in fd.iter().zip(analytic).enumerate() {
+        assert_eq!(row_fd.len(), row_an.len(), "{name}: input count differs in row {i}");
+        for (j, (&n, &a)) in row_fd.iter().zip(row_an).enumerate() {
+            total += 1;
+            let scale = a.abs().max(n.abs());
+            let err = (a - n).abs();
+            if scale > tol.abs_tol {
+                worst = worst.max(err / scale);
+            }
+            if !(err <= tol.abs_tol + tol.rel_tol * scale) {
+                let col = input_names.get(j).cloned().unwrap_or_else(|| format!("x{j}"));
+                failures.push(format!(
+                    "  out[{i}] / {col}: analytic {a:.9e}, finite difference {n:.9e}"
+                ));
+            }
+        }
+    }
+    let passed = total - failures.len();
+    if (passed as f64) < tol.pass_fraction * total as f64 {
+        let shown: Vec<_> = failures.iter().take(40).cloned().collect();
+        return Err(format!(
+            "{name}: {} of {total} Jacobian entries disagree with finite differences:\n{}",
+            failures.len(),
+            shown.join("\n")
+        ));
+    }
+    Ok(worst)
+}
