@@ -14,8 +14,14 @@ use testkit::{check_jacobian, GradTolerance};
 
 fn corner_box(half: [f64; 3], mass: f64) -> RigidBody {
     let c = Cuboid { half };
-    RigidBody::from_mesh("box", &cuboid_mesh(&c, 1), MassSpec::Mass(mass), ContactSampling::Vertices, Some(Shape::Cuboid(c)))
-        .unwrap()
+    RigidBody::from_mesh(
+        "box",
+        &cuboid_mesh(&c, 1),
+        MassSpec::Mass(mass),
+        ContactSampling::Vertices,
+        Some(Shape::Cuboid(c)),
+    )
+    .unwrap()
 }
 
 /// Check d(all states)/d(params[wrt]) and the tangency of quaternion derivatives.
@@ -37,7 +43,10 @@ fn check_world(name: &str, w: &World, wrt: &[usize], tol: GradTolerance) {
             p[j] = x[i];
         }
         let t = w.simulate(&p);
-        t.frames.iter().flat_map(|f| f.iter().flat_map(|s| s.to_array())).collect::<Vec<f64>>()
+        t.frames
+            .iter()
+            .flat_map(|f| f.iter().flat_map(|s| s.to_array()))
+            .collect::<Vec<f64>>()
     };
     let x0: Vec<f64> = wrt.iter().map(|&j| p0[j]).collect();
     let names: Vec<String> = wrt.iter().map(|&j| w.param_names()[j].clone()).collect();
@@ -48,20 +57,30 @@ fn check_world(name: &str, w: &World, wrt: &[usize], tol: GradTolerance) {
             let q = g.frames[k][b].pose.q.to_array_re();
             for col in 0..wrt.len() {
                 let radial: f64 = (0..4).map(|i| q[i] * g.d(k, b, 3 + i, col)).sum();
-                assert!(radial.abs() < 1e-9, "{name}: frame {k} radial quaternion derivative {radial}");
+                assert!(
+                    radial.abs() < 1e-9,
+                    "{name}: frame {k} radial quaternion derivative {radial}"
+                );
             }
         }
     }
     // Something actually depends on every parameter somewhere.
     for (col, n) in names.iter().enumerate() {
         let any = (0..g.frames.len()).any(|k| (0..nb).any(|b| (0..STATE_LEN).any(|c| g.d(k, b, c, col).abs() > 1e-9)));
-        assert!(any || n.ends_with("restitution") || n.ends_with("friction"), "{name}: nothing depends on {n}");
+        assert!(
+            any || n.ends_with("restitution") || n.ends_with("friction"),
+            "{name}: nothing depends on {n}"
+        );
     }
 }
 
 /// Smaller steps for paths with contacts, so no perturbation crosses a switch.
 fn contact_tolerance() -> GradTolerance {
-    GradTolerance { eps: 1e-7, abs_tol: 1e-7, ..GradTolerance::default() }
+    GradTolerance {
+        eps: 1e-7,
+        abs_tol: 1e-7,
+        ..GradTolerance::default()
+    }
 }
 
 #[test]
@@ -69,7 +88,16 @@ fn free_flight_gradients_match_finite_differences() {
     let w = world_with(
         config(60.0, 30, 10),
         ground(),
-        vec![(corner_box([0.05, 0.02, 0.01], 0.3), BodyState::new([0.0, 0.0, 10.0], [0.9, 0.1, 0.3, 0.2], [0.4, -0.3, 1.0], [3.0, 1.0, 5.0]), contact(0.3, 0.4))],
+        vec![(
+            corner_box([0.05, 0.02, 0.01], 0.3),
+            BodyState::new(
+                [0.0, 0.0, 10.0],
+                [0.9, 0.1, 0.3, 0.2],
+                [0.4, -0.3, 1.0],
+                [3.0, 1.0, 5.0],
+            ),
+            contact(0.3, 0.4),
+        )],
     );
     let wrt: Vec<usize> = (0..14).collect();
     check_world("free flight", &w, &wrt, GradTolerance::default());
@@ -84,15 +112,30 @@ fn corner_impact_gradients_match_finite_differences() {
         ground(),
         vec![(
             corner_box([0.03, 0.02, 0.015], 0.2),
-            BodyState::new([0.0, 0.0, 0.06], [0.93, 0.25, 0.2, 0.18], [0.8, 0.2, -1.0], [1.0, -2.0, 0.5]),
+            BodyState::new(
+                [0.0, 0.0, 0.06],
+                [0.93, 0.25, 0.2, 0.18],
+                [0.8, 0.2, -1.0],
+                [1.0, -2.0, 0.5],
+            ),
             contact(0.4, 0.3),
         )],
     );
     let traj = w.simulate(&w.params());
-    assert!(traj.contacts.iter().any(|c| c.scene[0]), "the corner must hit the ground");
+    assert!(
+        traj.contacts.iter().any(|c| c.scene[0]),
+        "the corner must hit the ground"
+    );
     let g = simulate_with_gradients(&w, &w.params(), &[12, 13]);
-    let sens = |col| (0..g.frames.len()).map(|k| g.d(k, 0, 7, col).abs() + g.d(k, 0, 9, col).abs()).fold(0.0, f64::max);
-    assert!(sens(0) > 1e-3 && sens(1) > 1e-3, "restitution and friction both shape the path");
+    let sens = |col| {
+        (0..g.frames.len())
+            .map(|k| g.d(k, 0, 7, col).abs() + g.d(k, 0, 9, col).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        sens(0) > 1e-3 && sens(1) > 1e-3,
+        "restitution and friction both shape the path"
+    );
     let wrt: Vec<usize> = (0..14).collect();
     // eps 1e-6 moves a second corner across the Δ switch in a later frame; 1e-7 does not.
     check_world("corner impact", &w, &wrt, contact_tolerance());
@@ -102,11 +145,29 @@ fn corner_impact_gradients_match_finite_differences() {
 fn body_pair_gradients_match_finite_differences() {
     // Two boxes meet corner-first in zero gravity: pair restitution and
     // friction, and both bodies' initial states.
-    let cfg = SimConfig { gravity: [0.0; 3], ..config(60.0, 16, 10) };
+    let cfg = SimConfig {
+        gravity: [0.0; 3],
+        ..config(60.0, 16, 10)
+    };
     let mut w = World::new(cfg, ground());
     let c = contact(0.5, 0.3);
-    w.add_body(corner_box([0.03, 0.02, 0.015], 0.2), BodyState::new([-0.1, 0.005, 0.5], [0.95, 0.2, 0.1, 0.2], [1.0, 0.0, 0.0], [0.0, 1.0, 0.5]), c, c);
-    w.add_body(corner_box([0.025, 0.025, 0.02], 0.3), BodyState::new([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0], [-0.2, 0.05, 0.0], [0.0; 3]), c, c);
+    w.add_body(
+        corner_box([0.03, 0.02, 0.015], 0.2),
+        BodyState::new(
+            [-0.1, 0.005, 0.5],
+            [0.95, 0.2, 0.1, 0.2],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.5],
+        ),
+        c,
+        c,
+    );
+    w.add_body(
+        corner_box([0.025, 0.025, 0.02], 0.3),
+        BodyState::new([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0], [-0.2, 0.05, 0.0], [0.0; 3]),
+        c,
+        c,
+    );
     w.pair_contact[0] = contact(0.6, 0.2);
     w.validate().unwrap();
     let traj = w.simulate(&w.params());
@@ -117,5 +178,8 @@ fn body_pair_gradients_match_finite_differences() {
     check_world("body pair", &w, &wrt, contact_tolerance());
     let g = simulate_with_gradients(&w, &w.params(), &[pair, pair + 1]);
     let last = g.frames.len() - 1;
-    assert!(g.d(last, 1, 7, 0).abs() > 1e-3, "pair restitution changes body 1's velocity");
+    assert!(
+        g.d(last, 1, 7, 0).abs() > 1e-3,
+        "pair restitution changes body 1's velocity"
+    );
 }

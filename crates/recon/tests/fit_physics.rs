@@ -1,0 +1,91 @@
+//! The PGA step recovers v0 (within 1 %) and k_n, mu (within 0.02) of a body
+//! from a pose sequence the simulator made itself, starting 50 % off.
+use geom::{Pose, Vec3};
+use recon::{PhysicsFit, PhysicsFitConfig};
+use sim::sdf::{Cuboid, Plane, Shape};
+use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
+
+/// A box thrown onto the table: it bounces (k_n), slides (mu) and hits a wall.
+pub fn tabletop(v0: [f64; 3], omega0: [f64; 3], c: ContactParams) -> World {
+    let ground = Shape::Plane(Plane {
+        normal: [0.0, 0.0, 1.0],
+        offset: 0.0,
+    });
+    let wall = Shape::Cuboid(Cuboid {
+        half: [0.02, 0.3, 0.05],
+    })
+    .transformed(Pose::from_translation(Vec3::new(0.45, 0.0, 0.05)));
+    let mut w = World::new(
+        SimConfig {
+            fps: 30.0,
+            frames: 40,
+            substeps: 20,
+            ..SimConfig::default()
+        },
+        Shape::Union(vec![ground, wall]),
+    );
+    let body = RigidBody::from_shape(
+        "toy",
+        &Shape::Cuboid(Cuboid {
+            half: [0.025, 0.02, 0.015],
+        }),
+        MassSpec::Mass(0.1),
+        ContactSampling::Surface { count: 500, seed: 1 },
+    )
+    .unwrap();
+    w.add_body(
+        body,
+        BodyState::new([0.0, 0.0, 0.08], [1.0, 0.0, 0.0, 0.0], v0, omega0),
+        c,
+        c,
+    );
+    w.validate().unwrap();
+    w
+}
+
+fn poses_of(w: &World) -> Vec<Pose<f64>> {
+    w.simulate(&w.params()).frames.iter().map(|f| f[0].pose).collect()
+}
+
+#[test]
+fn recovers_velocity_and_contact_parameters_from_its_own_poses() {
+    let truth = ContactParams {
+        restitution: 0.5,
+        friction: 0.3,
+    };
+    let (v0, w0) = ([1.6, 0.1, 0.6], [0.0, 0.0, 2.0]);
+    let observed = poses_of(&tabletop(v0, w0, truth));
+    // The body must really bounce off the ground and the wall.
+    let xs: Vec<f64> = observed.iter().map(|p| p.t.x).collect();
+    assert!(
+        xs.windows(2).any(|w| w[1] < w[0] - 1e-3),
+        "the box must rebound from the wall"
+    );
+
+    {
+        let guess = ContactParams {
+            restitution: 0.25,
+            friction: 0.45,
+        };
+        let start = tabletop([0.8, 0.05, 0.3], [0.0, 0.0, 1.0], guess);
+        let cfg = PhysicsFitConfig::default();
+        let mut fit = PhysicsFit::new(cfg, start, 0, observed.clone(), None).unwrap();
+        let t0 = std::time::Instant::now();
+        let stats = fit.run();
+        let secs = t0.elapsed().as_secs_f64();
+        let p = fit.fitted_body_params();
+        let v_err = ((p[0] - v0[0]).powi(2) + (p[1] - v0[1]).powi(2) + (p[2] - v0[2]).powi(2)).sqrt()
+            / (v0[0] * v0[0] + v0[1] * v0[1] + v0[2] * v0[2]).sqrt();
+        let msg = format!(
+            "fitted {p:?} after {} iterations in {secs:.2} s, loss {}",
+            stats.len(),
+            fit.loss()
+        );
+        assert!(v_err < 0.01, "v0 off by {:.2} %: {msg}", v_err * 100.0);
+        assert!((p[6] - truth.restitution).abs() < 0.02, "restitution: {msg}");
+        assert!((p[7] - truth.friction).abs() < 0.02, "friction: {msg}");
+        let worst = fit.pose_errors().iter().map(|e| e.translation).fold(0.0, f64::max);
+        assert!(worst < 2e-3, "worst pose error {worst} m: {msg}");
+        assert!(secs < 30.0, "{msg}");
+    }
+}
