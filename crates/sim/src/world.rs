@@ -216,6 +216,11 @@ impl World {
     /// Run the simulation with parameters `p` (see [`World::params`]); the
     /// scalar type decides whether derivatives are carried.
     pub fn simulate<S: Real>(&self, p: &[S]) -> Trajectory<S> {
+        self.simulate_with_progress(p, &mut |_| {})
+    }
+
+    /// [`World::simulate`], calling `on_frame(k)` after each frame is done.
+    pub fn simulate_with_progress<S: Real>(&self, p: &[S], on_frame: &mut dyn FnMut(usize)) -> Trajectory<S> {
         assert_eq!(p.len(), self.param_count(), "parameter count");
         let cfg = &self.config;
         let dt = cfg.dt();
@@ -275,6 +280,7 @@ impl World {
             }
             frames.push(states.clone());
             contacts.push(log);
+            on_frame(frames.len() - 1);
         }
         Trajectory { frames, contacts }
     }

@@ -1,0 +1,95 @@
+//! Turning simulated trajectories into `trajectory.json` (FORMATS.md).
+
+use pganeus_io::{BodyState as IoState, Contact, Pose as IoPose, Trajectory as IoTrajectory, VideoBody};
+use serde_json::{json, Map, Value};
+use sim::{BodyState, Trajectory, World};
+
+fn io_pose(s: &BodyState<f64>) -> IoPose {
+    IoPose {
+        t: s.pose.t.to_array(),
+        q: s.pose.q.to_array_re(),
+    }
+}
+
+fn io_state(s: &BodyState<f64>) -> IoState {
+    IoState {
+        t: s.pose.t.to_array(),
+        q: s.pose.q.to_array_re(),
+        v: s.v.to_array(),
+        omega: s.omega.to_array(),
+    }
+}
+
+/// The trajectory file of a simulated world. `extra` keys are added at the top level.
+pub fn trajectory_json(
+    capture: &str,
+    world: &World,
+    traj: &Trajectory<f64>,
+    extra: Map<String, Value>,
+) -> IoTrajectory {
+    let bodies = world
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(b, body)| {
+            let mut e = Map::new();
+            e.insert("mass".into(), json!(body.mass));
+            e.insert(
+                "contact".into(),
+                json!({"restitution": world.scene_contact[b].restitution, "friction": world.scene_contact[b].friction}),
+            );
+            e.insert(
+                "velocities".into(),
+                json!(traj
+                    .frames
+                    .iter()
+                    .map(|f| [f[b].v.to_array(), f[b].omega.to_array()])
+                    .collect::<Vec<_>>()),
+            );
+            e.insert(
+                "scene_contact".into(),
+                json!(traj.contacts.iter().map(|c| c.scene[b]).collect::<Vec<_>>()),
+            );
+            VideoBody {
+                name: body.name.clone(),
+                initial: io_state(&traj.frames[0][b]),
+                poses: traj.frames.iter().map(|f| io_pose(&f[b])).collect(),
+                extra: e,
+            }
+        })
+        .collect();
+    let pairs: Vec<Value> = world
+        .pairs()
+        .iter()
+        .zip(&world.pair_contact)
+        .enumerate()
+        .map(|(k, (&(i, j), c))| {
+            json!({
+                "bodies": [world.bodies[i].name, world.bodies[j].name],
+                "restitution": c.restitution,
+                "friction": c.friction,
+                "contact": traj.contacts.iter().map(|f| f.pairs[k]).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    let mut contact_extra = Map::new();
+    contact_extra.insert("pairs".into(), Value::Array(pairs));
+    let mut top = extra;
+    top.insert(
+        "sim".into(),
+        serde_json::to_value(&world.config).expect("config serialises"),
+    );
+    let c0 = world.scene_contact.first().copied().unwrap_or_default();
+    IoTrajectory {
+        capture: capture.to_string(),
+        fps: world.config.fps,
+        bodies,
+        contact: Contact {
+            restitution: c0.restitution,
+            friction: c0.friction,
+            model: "pganeus".into(),
+            extra: contact_extra,
+        },
+        extra: top,
+    }
+}

@@ -1,0 +1,255 @@
+//! The `pganeus` binary end to end: simulate → fit-physics, target, and the
+//! bad-input contract (a message naming the file and field, a non-zero exit,
+//! no output written and earlier outputs intact).
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pganeus"))
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A fresh, empty folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pganeus-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+const GOOD_BODY: &str = r#"
+[[scene]]
+shape = "plane"
+
+[[body]]
+name = "toy"
+mass = 0.1
+t = [0.0, 0.0, 0.05]
+[body.shape]
+shape = "box"
+half = [0.02, 0.02, 0.02]
+"#;
+
+#[test]
+fn simulate_then_fit_physics_recovers_the_launch() {
+    let d = scratch("fit");
+    let traj = d.join("tabletop.json");
+    let o = bin()
+        .args(["simulate", "--scene"])
+        .arg(repo().join("scenes/tabletop.toml"))
+        .arg("--out")
+        .arg(&traj)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let t = pganeus_io::read_trajectory(&traj).unwrap();
+    assert_eq!(t.bodies[0].poses.len(), 40);
+    assert_eq!(t.contact.model, "pganeus");
+    let fitted = d.join("fitted.json");
+    let o = bin()
+        .args(["fit-physics", "--poses"])
+        .arg(&traj)
+        .arg("--scene")
+        .arg(repo().join("scenes/tabletop_guess.toml"))
+        .arg("--out")
+        .arg(&fitted)
+        .output()
+        .unwrap();
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    let f = pganeus_io::read_trajectory(&fitted).unwrap();
+    let v = f.bodies[0].initial.v;
+    assert!((v[0] - 1.6).abs() < 0.016 && (v[2] - 0.6).abs() < 0.006, "{out}");
+    let c = &f.bodies[0].extra["contact"];
+    assert!((c["restitution"].as_f64().unwrap() - 0.5).abs() < 0.02, "{out}");
+    assert!((c["friction"].as_f64().unwrap() - 0.3).abs() < 0.02, "{out}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn simulate_two_bodies_records_their_collision() {
+    let d = scratch("two");
+    let out = d.join("two.json");
+    let o = bin()
+        .args(["simulate", "--scene"])
+        .arg(repo().join("scenes/two_body.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let t = pganeus_io::read_trajectory(&out).unwrap();
+    let hits = t.contact.extra["pairs"][0]["contact"].as_array().unwrap();
+    assert!(hits.iter().any(|h| h.as_bool().unwrap()), "box and ball must collide");
+    let ball = t.body("ball").unwrap();
+    assert!(
+        ball.poses.last().unwrap().t[0] > ball.poses[0].t[0] + 0.05,
+        "the ball is pushed away"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Run `simulate` on a scene text; expect failure naming `needles`, and that
+/// an existing output file is left as it was.
+fn expect_rejected(name: &str, scene: &str, needles: &[&str]) {
+    let d = scratch(name);
+    let file = d.join("scene.toml");
+    std::fs::write(&file, scene).unwrap();
+    let out = d.join("out.json");
+    std::fs::write(&out, "previous output").unwrap();
+    let o = bin()
+        .args(["simulate", "--scene"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let msg = text(&o);
+    assert!(!o.status.success(), "{name}: accepted a bad scene:\n{msg}");
+    assert!(
+        msg.contains("scene.toml"),
+        "{name}: the message does not name the file:\n{msg}"
+    );
+    for n in needles {
+        assert!(msg.contains(n), "{name}: the message does not mention {n:?}:\n{msg}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap(),
+        "previous output",
+        "{name}: earlier output damaged"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 2, "{name}: stray files {leftovers:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn bad_scenes_are_rejected_with_the_field_named() {
+    expect_rejected(
+        "restitution",
+        &format!("[contact]\nrestitution = 1.5\nfriction = 0.3\n{GOOD_BODY}"),
+        &["contact.restitution", "between 0 and 1"],
+    );
+    expect_rejected(
+        "friction0",
+        &format!("[contact]\nrestitution = 0.5\nfriction = 0.0\n{GOOD_BODY}"),
+        &["contact.friction"],
+    );
+    expect_rejected(
+        "nan",
+        &GOOD_BODY.replace("t = [0.0, 0.0, 0.05]", "t = [nan, 0.0, 0.05]"),
+        &["body[0] (toy).t", "NaN"],
+    );
+    expect_rejected(
+        "inf",
+        &GOOD_BODY.replace("half = [0.02, 0.02, 0.02]", "half = [inf, 0.02, 0.02]"),
+        &["body[0] (toy).shape.half"],
+    );
+    expect_rejected(
+        "zero-mass",
+        &GOOD_BODY.replace("mass = 0.1", "mass = 0.0"),
+        &["body[0] (toy).mass", "positive"],
+    );
+    expect_rejected(
+        "unknown-shape",
+        &GOOD_BODY.replace("shape = \"box\"", "shape = \"torus\""),
+        &["body[0] (toy).shape.shape", "unknown shape \"torus\""],
+    );
+    expect_rejected(
+        "unknown-field",
+        &GOOD_BODY.replace("mass = 0.1", "mass = 0.1\nmas = 2"),
+        &["unknown field `mas`"],
+    );
+    expect_rejected(
+        "missing-mesh",
+        &GOOD_BODY.replace(
+            "[body.shape]\nshape = \"box\"\nhalf = [0.02, 0.02, 0.02]",
+            "mesh = \"nowhere.ply\"",
+        ),
+        &["nowhere.ply"],
+    );
+    expect_rejected("no-fps", &format!("[sim]\nfps = 0\n{GOOD_BODY}"), &["sim.fps"]);
+    expect_rejected("no-frames", &format!("[sim]\nframes = 0\n{GOOD_BODY}"), &["sim.frames"]);
+}
+
+#[test]
+fn an_open_mesh_is_rejected() {
+    let d = scratch("open-mesh");
+    // A box with one face missing.
+    let mut ply = String::from("ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\nelement face 11\nproperty list uchar int vertex_indices\nend_header\n");
+    for i in 0..8 {
+        ply += &format!(
+            "{} {} {}\n",
+            (i & 1) as f64 * 0.04 - 0.02,
+            ((i >> 1) & 1) as f64 * 0.04 - 0.02,
+            ((i >> 2) & 1) as f64 * 0.04 - 0.02
+        );
+    }
+    for f in [
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+    ] {
+        ply += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    }
+    std::fs::write(d.join("open.ply"), ply).unwrap();
+    let scene = GOOD_BODY.replace(
+        "[body.shape]\nshape = \"box\"\nhalf = [0.02, 0.02, 0.02]",
+        "mesh = \"open.ply\"",
+    );
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let out = d.join("out.json");
+    let o = bin()
+        .args(["simulate", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let msg = text(&o);
+    assert!(!o.status.success(), "{msg}");
+    assert!(msg.contains("open.ply") && msg.contains("not closed"), "{msg}");
+    assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn fit_physics_rejects_a_bad_pose_file() {
+    let d = scratch("bad-poses");
+    let poses = d.join("poses.json");
+    std::fs::write(&poses, r#"{"capture": "x", "fps": 30, "bodies": [{"name": "toy", "initial": {"t": [0,0,0], "q": [1,0,0,0], "v": [0,0,0], "omega": [0,0,0]}, "poses": [{"t": [0,0,0], "q": [2,0,0,0]}]}], "contact": {"restitution": 0.5, "friction": 0.5, "model": "pganeus"}}"#).unwrap();
+    let o = bin()
+        .args(["fit-physics", "--poses"])
+        .arg(&poses)
+        .arg("--scene")
+        .arg(repo().join("scenes/tabletop.toml"))
+        .output()
+        .unwrap();
+    let msg = text(&o);
+    assert!(!o.status.success());
+    assert!(msg.contains("poses.json") && msg.contains("poses[0].q"), "{msg}");
+    let _ = std::fs::remove_dir_all(&d);
+}
