@@ -103,9 +103,9 @@ impl Camera<f64> {
         let k = self.k.matrix();
         let w2c = self.world_to_cam.to_matrix();
         let mut p = [[0.0; 4]; 4];
-        for i in 0..3 {
-            for j in 0..4 {
-                p[i][j] = (0..3).map(|l| k.m[i][l] * w2c[l][j]).sum();
+        for (i, row) in p.iter_mut().take(3).enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (0..3).map(|l| k.m[i][l] * w2c[l][j]).sum();
             }
         }
         p[3] = [0.0, 0.0, 0.0, 1.0];
@@ -119,7 +119,7 @@ impl Camera<f64> {
             return Err(CameraError::NotFinite);
         }
         let last = p[3];
-        if last[0].abs() > 1e-9 || last[1].abs() > 1e-9 || last[2].abs() > 1e-9 || last[3].abs() < 1e-12 {
+        if last[0].abs() > 1e-9 || last[1].abs() > 1e-9 || last[2].abs() > 1e-9 || (last[3] - 1.0).abs() > 1e-9 {
             return Err(CameraError::LastRowNotAffine);
         }
         let mut m = Mat3::from_rows([
@@ -129,7 +129,9 @@ impl Camera<f64> {
         ]);
         let mut p4 = Vec3::new(p[0][3], p[1][3], p[2][3]);
         let det = m.det();
-        if det.abs() < 1e-300 || m.row(2).norm() < 1e-300 {
+        // Singular relative to the rows' size: P has an arbitrary overall scale.
+        let scale = m.row(0).norm() * m.row(1).norm() * m.row(2).norm();
+        if !(scale > 0.0) || det.abs() < 1e-12 * scale {
             return Err(CameraError::Singular);
         }
         // P is defined up to scale; a negative scale would flip R to det −1.
@@ -148,7 +150,7 @@ impl Camera<f64> {
         let k12 = m1.dot(r2);
         let u1 = m1 - r2 * k12 - r3 * k13;
         let k11 = u1.norm();
-        if k11 < 1e-300 || k22 < 1e-300 {
+        if k11 < 1e-12 * k33 || k22 < 1e-12 * k33 {
             return Err(CameraError::Singular);
         }
         let r1 = u1 * (1.0 / k11);

@@ -66,7 +66,7 @@ fn elementary_functions() {
         |x| 0.5 / x.sqrt(),
         &[0.01, 0.5, 1.0, 2.0, 9.0, 123.4],
     );
-    let angles = [-3.0, -1.5, -0.2, 0.0, 0.7, 1.570_796, 2.5, 6.0];
+    let angles = [-3.0, -1.5, -0.2, 0.0, 0.7, std::f64::consts::FRAC_PI_2, 2.5, 6.0];
     check_unary("sin", |d| d.sin(), f64::sin, f64::cos, &angles);
     check_unary("cos", |d| d.cos(), f64::cos, |x| -x.sin(), &angles);
     check_unary("exp", |d| d.exp(), f64::exp, f64::exp, &[-5.0, -1.0, 0.0, 0.3, 2.0]);
@@ -92,11 +92,11 @@ fn sqrt_at_zero_has_no_finite_derivative() {
 
 #[test]
 fn atan2_all_quadrants() {
-    // y = slot 0, x = slot 1. Sixteen directions (all four quadrants, 0.1 rad
-    // off the axes) at three radii, plus the positive/negative axes where the
-    // function is smooth: (0, 1), (1, 0), (0, −1)... but not (0, −x): the
-    // branch cut of atan2 is y = 0, x < 0, where finite differences in y jump
-    // by 2π. The dual rule still gives the one-sided-equal derivative there.
+    // y = slot 0, x = slot 1. Sixteen directions (four per quadrant, at least
+    // 0.1 rad off the axes) at three radii, plus the axes where atan2 is
+    // smooth: (y, x) = (0, 1), (1, 0), (−1, 0), (2, 1e-9). Not the negative
+    // x axis: that is the branch cut (y = 0, x < 0), where finite differences
+    // in y jump by 2π; the dual rule's derivative there is checked below.
     let mut pts = Vec::new();
     for k in 0..16 {
         let a = -PI + 0.1 + k as f64 * (2.0 * PI / 16.0);

@@ -171,9 +171,10 @@ fn to_mat_is_a_rotation_matching_rotate() {
 
 #[test]
 fn from_mat_round_trip_many_rotations() {
-    // Shepperd's method divides by the largest of 4|w|, 4|x|, 4|y|, 4|z| (≥ 1
-    // for a unit quaternion), so the round trip is good to a few ulps even at
-    // angle π; 1e-14 leaves headroom over the ~1e-16 expected.
+    // Every branch of from_mat divides by 4× a component that is ≥ 1/2 (the
+    // trace branch has w = √(1 + tr)/2 ≥ 1/2; otherwise the largest diagonal
+    // gives the largest of x², y², z², ≥ (1 − w²)/3 ≥ 1/4), so the round trip
+    // is good to a few ulps even at angle π; 1e-14 leaves headroom.
     for q in test_rotations() {
         let back = Quat::from_mat(&q.to_mat());
         assert!(back.w >= 0.0, "from_mat must return w ≥ 0, got {back:?}");

@@ -18,13 +18,15 @@ pub fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
         }
         a.swap(col, piv);
         b.swap(col, piv);
-        for row in col + 1..n {
-            let f = a[row][col] / a[col][col];
+        let (top, below) = a.split_at_mut(col + 1);
+        let pivot = &top[col];
+        for (r, row) in below.iter_mut().enumerate() {
+            let f = row[col] / pivot[col];
             if f != 0.0 {
-                for k in col..n {
-                    a[row][k] -= f * a[col][k];
+                for (x, p) in row[col..].iter_mut().zip(&pivot[col..]) {
+                    *x -= f * p;
                 }
-                b[row] -= f * b[col];
+                b[col + 1 + r] -= f * b[col];
             }
         }
     }

@@ -91,7 +91,7 @@ impl RigidBody {
         check_closed_mesh(mesh)?;
         let mut mesh = mesh.clone();
         let vol = mesh_volume(&mesh);
-        if !(vol.abs() > 1e-15) {
+        if vol.is_nan() || vol.abs() <= 1e-15 {
             return Err(MeshCheckError::ZeroVolume.into());
         }
         if vol < 0.0 {

@@ -51,8 +51,8 @@ fn cube_grid(n: usize) -> TriMesh {
 pub fn cuboid_mesh(c: &Cuboid, n: usize) -> TriMesh {
     let mut m = cube_grid(n);
     for v in &mut m.vertices {
-        for a in 0..3 {
-            v[a] *= c.half[a];
+        for (x, h) in v.iter_mut().zip(c.half) {
+            *x *= h;
         }
     }
     m

@@ -125,7 +125,9 @@ fn baked_dims_cover_the_bounds() {
         let (nx, ny) = (g.dims[0], g.dims[1]);
         let p = node(&g, [k % nx, (k / nx) % ny, k / (nx * ny)]);
         assert_eq!(v, SPHERE.distance_local(p) as f32);
-        assert_eq!(g.distance_local(p), v as f64, "trilinear at a node is the node value");
+        // Trilinear at a node is the node value (the node may land at u = 1 of
+        // the previous cell after rounding, hence 1e-12 rather than equality).
+        assert!((g.distance_local(p) - v as f64).abs() < 1e-12);
     }
 }
 
@@ -175,7 +177,7 @@ fn cuboid_values_exact_where_affine_and_within_half_a_voxel_elsewhere() {
             );
         }
     }
-    assert!(affine > 10000, "only {affine} points in affine cells");
+    assert!(affine > 4000, "only {affine} points in affine cells");
 }
 
 #[test]
@@ -322,13 +324,19 @@ fn outside_the_grid_box_the_distance_grows() {
         // The value at the nearest box point plus the distance to it.
         assert!((d - (g.distance_local(c) + out.norm())).abs() < 1e-12, "{p:?}");
         // Moving further out along the outward direction adds exactly the
-        // distance moved, and the gradient is that (unit) direction.
+        // distance moved; the gradient's clamped components are those of
+        // that direction (the others carry the grid's in-plane slope).
         let n = out * (1.0 / out.norm());
         for t in [0.01, 0.5, 2.0] {
             assert!((g.distance_local(p + n * t) - (d + t)).abs() < 1e-12);
         }
         let (_, grad) = g.distance_grad_local(p);
-        assert!((grad - n).norm() < 1e-12, "{p:?}: {grad:?} vs {n:?}");
+        for a in 0..3 {
+            let clamped = p[a] < g.origin[a] || p[a] > hi[a];
+            if clamped {
+                assert!((grad[a] - n[a]).abs() < 1e-12, "{p:?}: {grad:?} vs {n:?}");
+            }
+        }
         // Never below the analytic distance minus the in-box error: the
         // sphere lies well inside the box, so outside it the baked grid is
         // a conservative (larger-or-equal) estimate.
@@ -348,9 +356,6 @@ fn outside_the_grid_box_the_distance_grows() {
 }
 
 #[test]
-#[ignore = "bug: sdf_grid.rs:217 returns only the outward direction as the gradient outside the grid box, \
-            dropping the tangential trilinear gradient of d(clamp(p)), so it is not the derivative of the \
-            returned distance (dual eps ≠ returned gradient) beyond a face"]
 fn outside_the_grid_box_the_gradient_is_the_derivative_of_the_distance() {
     let g = sphere_grid();
     let mut rng = Rng(7);
@@ -443,9 +448,6 @@ fn malformed_bytes_give_format_errors() {
 }
 
 #[test]
-#[ignore = "bug: sdf_grid.rs:116-117 compute dims.product() and 52 + 4·n unchecked: a header with huge dims \
-            (e.g. u32::MAX each) panics with 'attempt to multiply with overflow' in debug/test builds \
-            (wraps in release) instead of returning GridError::Format"]
 fn huge_dims_in_the_header_give_a_format_error() {
     let path = Path::new("huge.sdf");
     let mut b = cuboid_grid().to_bytes();
@@ -456,8 +458,6 @@ fn huge_dims_in_the_header_give_a_format_error() {
 }
 
 #[test]
-#[ignore = "bug: sdf_grid.rs:155 and :63 accept spacing = +inf (only !(spacing > 0) is rejected): bake gives \
-            dims [1, 1, 1] (then distance_local underflows dims - 2), from_bytes accepts an infinite spacing"]
 fn infinite_spacing_is_rejected() {
     let r = SdfGrid::bake(&SPHERE, LO, HI, f64::INFINITY);
     assert!(matches!(r, Err(GridError::Bounds(_))), "bake: {r:?}");

@@ -137,11 +137,12 @@ impl SurfaceSamples {
     }
 }
 
-/// A parametric grid `a + i/n (b − a) + j/m (c − a)` over a parallelogram
-/// (or the triangle half of it when `triangle`), boundaries included. The
-/// cover of a grid of cells with sides `du`, `dv` is at most half the cell
-/// diagonal; for the triangle the cells cut by the hypotenuse are covered by
-/// the hypotenuse's own samples as well, so the full diagonal is a safe bound.
+/// A parametric grid `a + (i/n)(b − a) + (j/n)(c − a)` over a parallelogram
+/// (or the triangle half of it when `triangle`), boundaries included. Every
+/// surface point lies in a grid cell whose corner (i, j) is a sample (for the
+/// triangle too: s_i + t_j ≤ s + t ≤ 1), and no two points of a cell are
+/// further apart than its longer diagonal, which is therefore the cover.
+/// The hypotenuse gets its own samples as well (harmless extra points).
 fn sample_face(a: V, b: V, c: V, n: usize, triangle: bool, out: &mut SurfaceSamples) {
     let (u, v) = (b - a, c - a);
     for i in 0..=n {
@@ -188,8 +189,10 @@ fn wedge_samples(w: &Wedge, n: usize) -> SurfaceSamples {
     s
 }
 
-/// Latitude/longitude samples of a sphere; a cell is at most `r dθ × r dφ`
-/// of arc (chords are shorter), so half its diagonal bounds the cover.
+/// Latitude/longitude samples of a sphere. From any surface point, walking
+/// at most r·dθ/2 along its meridian and then at most r·dφ/2 along a
+/// parallel reaches a sample (chords are shorter than arcs), so the cover is
+/// at most r (dθ + dφ) / 2.
 fn sphere_samples(r: f64, m: usize) -> SurfaceSamples {
     let n = 2 * m;
     let (dth, dph) = (std::f64::consts::PI / m as f64, 2.0 * std::f64::consts::PI / n as f64);
@@ -203,7 +206,7 @@ fn sphere_samples(r: f64, m: usize) -> SurfaceSamples {
     }
     SurfaceSamples {
         pts,
-        cover: 0.5 * r * (dth * dth + dph * dph).sqrt(),
+        cover: 0.5 * r * (dth + dph),
     }
 }
 
@@ -552,7 +555,7 @@ fn sampled_bounds_are_tight_enough_to_mean_something() {
     let w = wedge_samples(&WEDGE, 150);
     assert!(w.cover < 0.012, "wedge cover {}", w.cover);
     let s = sphere_samples(SPHERE.radius, 150);
-    assert!(s.cover < 0.011, "sphere cover {}", s.cover);
+    assert!(s.cover < 0.015, "sphere cover {}", s.cover);
 }
 
 #[test]
@@ -590,7 +593,10 @@ fn world_frame_queries_rotate_the_gradient() {
             let (d, g) = case.shape.distance_grad(&pose, p);
             let (dl, gl) = case.shape.distance_grad_local(l);
             assert!((d - dl).abs() < 1e-12);
-            assert!((g - pose.transform_vector(gl)).norm() < 1e-15);
+            // p round-trips through the pose with ~1e-15 error, which moves
+            // the gradient by up to that over the distance to the nearest
+            // kink carrier (≥ |d| here).
+            assert!((g - pose.transform_vector(gl)).norm() < 1e-14 * (1.0 + 1.0 / dl.abs()));
             assert!((case.shape.distance(&pose, p) - d).abs() < 1e-15);
             let f = |x: &[f64]| vec![case.shape.distance(&pose, V::new(x[0], x[1], x[2]))];
             check_jacobian(case.name, &f, &p.to_array(), &[g.to_array().to_vec()], &names, tol)
@@ -605,7 +611,10 @@ fn seeded(p: V) -> Vec3<Dual<3>> {
 
 #[test]
 fn dual_derivative_of_the_distance_is_the_gradient() {
-    // Same formulas on both paths, different rounding: 1e-12.
+    // Same formulas on both paths, different rounding (the dual path divides
+    // by multiplying with a reciprocal). Shapes that normalise `p − closest`
+    // (the wedge's polygon, the box outside) amplify that rounding by 1/|d|,
+    // so the bound is 1e-14 · (1 + 1/|d|).
     for case in cases() {
         for p in random_points(106, 1000, case.reach) {
             if !(case.smooth)(p) {
@@ -613,11 +622,17 @@ fn dual_derivative_of_the_distance_is_the_gradient() {
             }
             let (d, g) = case.shape.distance_grad_local(seeded(p));
             let (df, gf) = case.shape.distance_grad_local(p);
+            let tol = 1e-14 * (1.0 + 1.0 / df.abs());
             assert!((d.re - df).abs() < 1e-14, "{} at {p:?}", case.name);
-            assert!((g.re() - gf).norm() < 1e-14, "{} at {p:?}", case.name);
+            assert!(
+                (g.re() - gf).norm() < tol,
+                "{} at {p:?}: {:?} vs {gf:?}",
+                case.name,
+                g.re()
+            );
             for a in 0..3 {
                 assert!(
-                    (d.eps[a] - gf[a]).abs() < 1e-12,
+                    (d.eps[a] - gf[a]).abs() < tol,
                     "{} at {p:?}: ∂d/∂x{a} = {} but gradient {}",
                     case.name,
                     d.eps[a],

@@ -68,7 +68,7 @@ pub fn check_jacobian(
             if scale > tol.abs_tol {
                 worst = worst.max(err / scale);
             }
-            if !(err <= tol.abs_tol + tol.rel_tol * scale) {
+            if err.is_nan() || err > tol.abs_tol + tol.rel_tol * scale {
                 let col = input_names.get(j).cloned().unwrap_or_else(|| format!("x{j}"));
                 failures.push(format!(
                     "  out[{i}] / {col}: analytic {a:.9e}, finite difference {n:.9e}"

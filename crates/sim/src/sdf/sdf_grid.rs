@@ -60,7 +60,11 @@ impl SdfGrid {
 
     /// Build from values computed elsewhere (checks the length).
     pub fn from_values(origin: [f64; 3], spacing: f64, dims: [usize; 3], values: Vec<f32>) -> Result<Self, GridError> {
-        if dims.iter().any(|&n| n < 2) || values.len() != dims.iter().product::<usize>() || !(spacing > 0.0) {
+        if dims.iter().any(|&n| n < 2)
+            || values.len() != dims.iter().product::<usize>()
+            || !spacing.is_finite()
+            || spacing <= 0.0
+        {
             return Err(GridError::Bounds(format!(
                 "dims {dims:?} with spacing {spacing} do not match {} values",
                 values.len()
@@ -113,11 +117,14 @@ impl SdfGrid {
         let dims = [u(8), u(12), u(16)];
         let origin = [f(20), f(28), f(36)];
         let spacing = f(44);
-        let n: usize = dims.iter().product();
-        if bytes.len() != 52 + 4 * n {
+        let need = dims
+            .iter()
+            .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+            .and_then(|n| n.checked_mul(4))
+            .and_then(|b| b.checked_add(52));
+        if need != Some(bytes.len()) {
             return Err(err(format!(
-                "dims {dims:?} need {} bytes, file has {}",
-                52 + 4 * n,
+                "dims {dims:?} do not match the file's {} bytes",
                 bytes.len()
             )));
         }
@@ -152,13 +159,13 @@ impl SdfGrid {
 }
 
 fn grid_dims(min: [f64; 3], max: [f64; 3], spacing: f64) -> Result<[usize; 3], GridError> {
-    if !(spacing > 0.0) || min.iter().chain(&max).any(|v| !v.is_finite()) {
+    if !spacing.is_finite() || spacing <= 0.0 || min.iter().chain(&max).any(|v| !v.is_finite()) {
         return Err(GridError::Bounds(format!("spacing {spacing}, bounds {min:?}..{max:?}")));
     }
     let mut dims = [0; 3];
     for a in 0..3 {
         let ext = max[a] - min[a];
-        if !(ext > 0.0) {
+        if ext.is_nan() || ext <= 0.0 {
             return Err(GridError::Bounds(format!("max {max:?} is not above min {min:?}")));
         }
         dims[a] = (ext / spacing).ceil() as usize + 1;
@@ -213,8 +220,16 @@ impl Sdf for SdfGrid {
         let grad = Vec3::new(dx, dy, dz);
         let out_len = outside.norm_sq();
         if out_len.re() > 0.0 {
+            // d(clamp(p)) + |p − clamp(p)|: along a clamped axis only the
+            // second term changes, along the others only the first.
             let l = out_len.sqrt();
-            (d + l, (outside * l.recip()).normalize_or(grad))
+            let mut g = grad;
+            for (a, gc) in [&mut g.x, &mut g.y, &mut g.z].into_iter().enumerate() {
+                if pa[a].re() < self.origin[a] || pa[a].re() > hi[a] {
+                    *gc = S::zero();
+                }
+            }
+            (d + l, g + outside * l.recip())
         } else {
             (d, grad)
         }

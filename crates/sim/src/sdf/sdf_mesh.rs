@@ -61,6 +61,13 @@ impl MeshDistance {
             }
             tris.push(f.map(|i| V::cst(mesh.vertices[i as usize])));
         }
+        // An inside-out mesh (negative volume) would flip every sign: turn it.
+        let volume: f64 = tris.iter().map(|t| t[0].dot(t[1].cross(t[2]))).sum();
+        if volume < 0.0 {
+            for t in &mut tris {
+                t.swap(1, 2);
+            }
+        }
         let mut order: Vec<u32> = (0..tris.len() as u32).collect();
         let mut nodes = Vec::with_capacity(2 * tris.len() / 3 + 1);
         nodes.push(placeholder());
@@ -70,7 +77,13 @@ impl MeshDistance {
 
     /// Unsigned distance and the closest point on the surface.
     pub fn closest_point(&self, p: V) -> (f64, V) {
-        let mut best = (f64::INFINITY, p);
+        let (d, c, _) = self.closest_point_triangle(p);
+        (d, c)
+    }
+
+    /// Unsigned distance, closest point and the triangle it lies on.
+    fn closest_point_triangle(&self, p: V) -> (f64, V, usize) {
+        let mut best = (f64::INFINITY, p, 0usize);
         let mut stack = vec![0usize];
         while let Some(ni) = stack.pop() {
             let n = &self.nodes[ni];
@@ -82,7 +95,7 @@ impl MeshDistance {
                     let c = closest_on_triangle(p, &self.tris[t as usize]);
                     let d2 = (c - p).norm_sq();
                     if d2 < best.0 {
-                        best = (d2, c);
+                        best = (d2, c, t as usize);
                     }
                 }
             } else {
@@ -101,7 +114,7 @@ impl MeshDistance {
                 }
             }
         }
-        (best.0.sqrt(), best.1)
+        (best.0.sqrt(), best.1, best.2)
     }
 
     /// Generalized winding number: ~1 inside a closed outward-oriented mesh, ~0 outside.
@@ -128,13 +141,15 @@ impl MeshDistance {
 
     /// Signed distance (negative inside) and the unit gradient at `p`.
     pub fn signed_distance(&self, p: V) -> (f64, V) {
-        let (d, c) = self.closest_point(p);
+        let (d, c, tri) = self.closest_point_triangle(p);
         let inside = self.winding_number(p) > 0.5;
         let s = if inside { -1.0 } else { 1.0 };
-        let g = if d > 1e-12 {
+        let g = if d > 1e-9 {
             (p - c) * (s / d)
         } else {
-            V::new(0.0, 0.0, 1.0)
+            // On the surface: the face normal.
+            let [a, b, cc] = self.tris[tri];
+            (b - a).cross(cc - a).normalize_or(V::new(0.0, 0.0, 1.0))
         };
         (s * d, g)
     }
