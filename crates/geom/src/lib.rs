@@ -9,6 +9,7 @@ pub mod dual;
 pub mod pose;
 pub mod quat;
 pub mod real;
+pub mod rng;
 pub mod trimesh;
 pub mod vec3;
 
@@ -17,5 +18,6 @@ pub use dual::Dual;
 pub use pose::{left_jacobian, Pose};
 pub use quat::{rotation_distance, Quat};
 pub use real::Real;
+pub use rng::SplitMix64;
 pub use trimesh::TriMesh;
 pub use vec3::{Mat3, Vec3};

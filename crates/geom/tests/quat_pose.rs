@@ -10,53 +10,7 @@
 use geom::{left_jacobian, rotation_distance, Mat3, Pose, Quat, Vec3};
 use std::f64::consts::PI;
 
-/// splitmix64: a tiny deterministic PRNG so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    fn vec(&mut self, r: f64) -> Vec3<f64> {
-        Vec3::new(self.range(-r, r), self.range(-r, r), self.range(-r, r))
-    }
-    /// Uniform direction (rejection from the cube).
-    fn dir(&mut self) -> Vec3<f64> {
-        loop {
-            let v = self.vec(1.0);
-            let n = v.norm();
-            if n > 0.1 && n <= 1.0 {
-                return v * (1.0 / n);
-            }
-        }
-    }
-    /// Uniform rotation (rejection from the 4-cube), `w` of either sign.
-    fn quat(&mut self) -> Quat<f64> {
-        loop {
-            let a = [
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-            ];
-            let n = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if n > 0.1 && n <= 1.0 {
-                return Quat::cst(a.map(|v| v / n));
-            }
-        }
-    }
-}
+use geom::SplitMix64 as Rng;
 
 /// The unit quaternion of angle `theta` about unit `axis`, built directly
 /// (not through `Quat::exp`).

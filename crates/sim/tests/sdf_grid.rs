@@ -25,29 +25,7 @@ use testkit::{check_jacobian, GradTolerance};
 
 type V = Vec3<f64>;
 
-/// splitmix64, so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
-    }
-    /// A point inside the box [lo, hi]³.
-    fn in_box(&mut self, lo: [f64; 3], hi: [f64; 3]) -> V {
-        V::new(
-            self.range(lo[0], hi[0]),
-            self.range(lo[1], hi[1]),
-            self.range(lo[2], hi[2]),
-        )
-    }
-}
+use geom::SplitMix64 as Rng;
 
 const H: f64 = 0.05;
 const LO: [f64; 3] = [-1.0, -0.9, -1.1];

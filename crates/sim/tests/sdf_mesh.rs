@@ -12,24 +12,7 @@ use sim::tessellate::{cuboid_mesh, sphere_mesh, wedge_mesh};
 
 type V = Vec3<f64>;
 
-/// splitmix64, so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
-    }
-    fn vec(&mut self, r: f64) -> V {
-        V::new(self.range(-r, r), self.range(-r, r), self.range(-r, r))
-    }
-}
+use geom::SplitMix64 as Rng;
 
 const CUBOID: Cuboid = Cuboid { half: [0.5, 0.3, 0.4] };
 const SPHERE: Sphere = Sphere { radius: 0.6 };
