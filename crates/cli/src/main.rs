@@ -20,6 +20,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
+    Synth(commands::synth::SynthArgs),
     /// Simulate the bodies of a scene file and write trajectory.json.
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
@@ -38,6 +40,7 @@ fn main() {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Synth(a) => commands::synth::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),

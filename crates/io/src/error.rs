@@ -1,7 +1,7 @@
 //! The one error type of the crate. Every variant carries the file's path so a
 //! message read on its own says which file is wrong.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Everything that can go wrong reading or writing a pganeus file.
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +58,66 @@ pub enum IoError {
         /// What is wrong, in plain words.
         msg: String,
     },
+    /// The PNG file is malformed, truncated or of a kind this crate does not
+    /// read; or an image to write is inconsistent.
+    #[error("{}: bad PNG file: {msg}", path.display())]
+    Png {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, in plain words.
+        msg: String,
+    },
+    /// The NPY or NPZ file is malformed (header, dtype, ZIP structure, CRC, ...).
+    /// For an entry of an NPZ archive, `msg` starts with the entry's name.
+    #[error("{}: bad NPY/NPZ file: {msg}", path.display())]
+    Npz {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, in plain words.
+        msg: String,
+    },
+    /// A capture folder breaks the layout of FORMATS.md ("A capture"): a
+    /// missing mask or camera, images of different sizes, ... `path` is the
+    /// offending file (or folder).
+    #[error("{}: {msg}", path.display())]
+    Capture {
+        /// The offending file or folder.
+        path: PathBuf,
+        /// What is wrong, in plain words.
+        msg: String,
+    },
+}
+
+impl IoError {
+    /// The file (or folder) the error is about.
+    pub fn path(&self) -> &Path {
+        match self {
+            IoError::Open { path, .. }
+            | IoError::Write { path, .. }
+            | IoError::Json { path, .. }
+            | IoError::Ply { path, .. }
+            | IoError::Obj { path, .. }
+            | IoError::Invalid { path, .. }
+            | IoError::Png { path, .. }
+            | IoError::Npz { path, .. }
+            | IoError::Capture { path, .. } => path,
+        }
+    }
+
+    /// The message without the path, e.g. `bad PNG file: truncated`.
+    pub(crate) fn detail(&self) -> String {
+        match self {
+            IoError::Open { source, .. } => format!("cannot read: {source}"),
+            IoError::Write { source, .. } => format!("cannot write: {source}"),
+            IoError::Json { source, .. } => format!("bad JSON: {source}"),
+            IoError::Ply { msg, .. } => format!("bad PLY file: {msg}"),
+            IoError::Obj { msg, .. } => format!("bad OBJ file: {msg}"),
+            IoError::Invalid { field, msg, .. } => format!("invalid value at `{field}`: {msg}"),
+            IoError::Png { msg, .. } => format!("bad PNG file: {msg}"),
+            IoError::Npz { msg, .. } => format!("bad NPY/NPZ file: {msg}"),
+            IoError::Capture { msg, .. } => msg.clone(),
+        }
+    }
 }
 
 /// `std::result::Result` with [`IoError`].

@@ -5,7 +5,16 @@
 //!   round-tripping any extra keys;
 //! - PLY meshes and point clouds ([`read_ply`], [`write_ply`]): ASCII and binary
 //!   of either byte order;
-//! - OBJ meshes ([`read_obj`]).
+//! - OBJ meshes ([`read_obj`]);
+//! - PNG images ([`read_png`], [`write_png`]), brought to 8-bit gray, RGB or
+//!   RGBA ([`Image`]); deterministic, fast encoding;
+//! - NumPy arrays: `.npy` ([`read_npy`], [`write_npy`]) and `.npz` archives
+//!   ([`read_npz`], [`write_npz`]), with a small ZIP reader (stored and
+//!   DEFLATE entries, CRC-checked) and writer (stored, deterministic);
+//! - the NeuS capture folder of FORMATS.md, "A capture": [`open_capture`]
+//!   lists and checks `image/`, `mask/`, `mask_<name>/`, `cameras_sphere.npz`
+//!   ([`read_cameras_npz`], [`write_cameras_npz`]) and `capture.json`
+//!   ([`CaptureInfo`]).
 //!
 //! Every write goes through [`write_atomic`], so a crash never leaves half a
 //! file. Errors are one [`IoError`] enum whose variants carry the path.
@@ -18,11 +27,19 @@ pub mod formats;
 
 pub use atomic::write_atomic;
 pub use error::{IoError, Result};
+pub use formats::neus::{
+    open_capture, read_cameras_npz, read_capture_info, write_cameras_npz, write_capture_info, CameraMats, CaptureIndex,
+    CaptureInfo, CaptureKind, CAMERAS_FILE, CAPTURE_INFO_FILE, EXTRA_MASK_PREFIX, IMAGE_DIR, MASK_DIR,
+};
+pub use formats::npz::{
+    npy_bytes, npz_bytes, read_npy, read_npy_bytes, read_npz, read_npz_bytes, write_npy, write_npz, NpyArray, NpyData,
+};
 pub use formats::obj::{read_obj, read_obj_bytes};
 pub use formats::ply::{
     read_ply, read_ply_bytes, write_ply, write_ply_bytes, write_ply_bytes_with, write_ply_with, PlyEncoding, PlyMesh,
     PlyWriteOptions,
 };
+pub use formats::png::{encode_png, read_png, read_png_bytes, read_png_size, write_png, Image};
 pub use formats::trajectory::{
     read_trajectory, read_trajectory_bytes, read_truth, read_truth_bytes, write_trajectory, write_trajectory_bytes,
     write_truth, write_truth_bytes, Background, BodyState, Contact, Pose, StaticCapture, Trajectory, Truth, TruthBody,

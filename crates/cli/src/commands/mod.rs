@@ -1,6 +1,7 @@
 pub mod bench_sim;
 pub mod fit_physics;
 pub mod simulate;
+pub mod synth;
 pub mod target;
 
 use indicatif::{ProgressBar, ProgressStyle};

@@ -1,5 +1,8 @@
 //! One module per file format.
 
+pub mod neus;
+pub mod npz;
 pub mod obj;
 pub mod ply;
+pub mod png;
 pub mod trajectory;

@@ -1,0 +1,128 @@
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use std::path::{Path, PathBuf};
+use synth::{preset, Scale, SynthScene, PRESETS};
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ScaleArg {
+    Small,
+    Large,
+}
+
+#[derive(Args)]
+pub struct SynthArgs {
+    /// A built-in scene: tabletop or two-body.
+    #[arg(long, conflicts_with = "scene")]
+    pub preset: Option<String>,
+    /// A scene description (TOML); see `--print-preset`.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Image size, views and frames of a preset: small (160×120, 24 views, 30 frames) or large (320×240, 48, 48).
+    #[arg(long, value_enum, default_value = "small")]
+    pub scale: ScaleArg,
+    /// The dataset folder to write.
+    #[arg(long, required_unless_present = "print_preset")]
+    pub out: Option<PathBuf>,
+    /// Replace `--out` if it exists (the old folder is kept until the new one is complete).
+    #[arg(long)]
+    pub force: bool,
+    /// Also write contact_sheet.png: a few frames of every capture.
+    #[arg(long)]
+    pub contact_sheet: bool,
+    /// Print a preset's scene description as TOML and exit.
+    #[arg(long, value_name = "PRESET")]
+    pub print_preset: Option<String>,
+}
+
+fn scale(a: ScaleArg) -> Scale {
+    match a {
+        ScaleArg::Small => Scale::Small,
+        ScaleArg::Large => Scale::Large,
+    }
+}
+
+fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
+    preset(name, s).ok_or_else(|| anyhow!("unknown preset \"{name}\" (presets: {})", PRESETS.join(", ")))
+}
+
+pub fn run(a: SynthArgs) -> Result<()> {
+    if let Some(name) = &a.print_preset {
+        print!("{}", toml::to_string(&named_preset(name, scale(a.scale))?)?);
+        return Ok(());
+    }
+    let out = a.out.clone().expect("clap requires --out");
+    let (scene, base, label) = match (&a.preset, &a.scene) {
+        (Some(p), None) => (
+            named_preset(p, scale(a.scale))?,
+            PathBuf::from("."),
+            format!("preset {p}"),
+        ),
+        (None, Some(f)) => {
+            let text = std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
+            let scene: SynthScene = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+            (
+                scene,
+                f.parent().unwrap_or(Path::new(".")).to_path_buf(),
+                f.display().to_string(),
+            )
+        }
+        _ => bail!("give --preset NAME or --scene FILE"),
+    };
+    if out.exists() && std::fs::read_dir(&out).map(|mut d| d.next().is_some()).unwrap_or(true) && !a.force {
+        bail!("{} exists and is not empty; use --force to replace it", out.display());
+    }
+    // Write beside the target, then swap, so a failure leaves the old dataset whole.
+    let partial = out.with_file_name(format!(
+        ".{}.partial-{}",
+        out.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "synth".into()),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&partial);
+    let t0 = std::time::Instant::now();
+    let pb = super::progress(0, "render");
+    let result = synth::generate(&scene, &base, &partial, &mut |name, done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+        pb.set_message(name.to_string());
+    });
+    pb.finish_and_clear();
+    let summary = match result {
+        Ok(s) => s,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&partial);
+            return Err(anyhow!("{label}: {e}"));
+        }
+    };
+    if a.contact_sheet {
+        let (sheet, rows) = synth::contact_sheet::contact_sheet(&partial)?;
+        pganeus_io::write_png(&partial.join("contact_sheet.png"), &sheet)?;
+        println!("contact sheet rows: {}", rows.join(", "));
+    }
+    if out.exists() {
+        let old = out.with_file_name(format!(
+            ".{}.old-{}",
+            out.file_name().expect("a name").to_string_lossy(),
+            std::process::id()
+        ));
+        std::fs::rename(&out, &old).with_context(|| format!("cannot move {} aside", out.display()))?;
+        std::fs::rename(&partial, &out).with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
+        let _ = std::fs::remove_dir_all(&old);
+    } else {
+        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        std::fs::rename(&partial, &out).with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
+    }
+    for (name, n) in &summary.captures {
+        println!("  {name}: {n} images");
+    }
+    println!(
+        "rendered {} images in {:.1} s into {}",
+        summary.images,
+        t0.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,491 @@
+//! Making a dataset: simulate each video, render every capture, and write
+//! the NeuS-layout folders, meshes and `truth.json`.
+
+use crate::build::{body_object, build_bodies, build_static, field, resting_pose, unit_quat, SynthError};
+use crate::cameras::{framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
+use crate::desc::SynthScene;
+use crate::render::{render, scene_distance, RenderScene, Rendered};
+use geom::{Camera, Pose, TriMesh, Vec3};
+use pganeus_io::{
+    BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, Contact, Image, PlyEncoding, PlyMesh, Pose as IoPose,
+    StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
+};
+use sim::{BodyState, ContactParams, SimConfig, World};
+use std::path::{Path, PathBuf};
+
+/// One capture to render: its cameras and what they see.
+struct CapturePlan {
+    name: String,
+    kind: CaptureKind,
+    fps: Option<f64>,
+    cameras: Vec<Camera<f64>>,
+    /// One scene per image (videos move), or one for all.
+    scenes: Vec<RenderScene>,
+    region: (Vec3<f64>, f64),
+    /// Mask folders: `mask` holds these bodies; `mask_<name>` one each.
+    mask_bodies: Vec<usize>,
+    per_body_masks: bool,
+}
+
+/// What `generate` made.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    pub captures: Vec<(String, usize)>,
+    pub images: usize,
+}
+
+/// Progress: capture name, images done in it, images in it.
+pub type OnImage<'a> = &'a mut dyn FnMut(&str, usize, usize);
+
+/// Simulate the videos of `scene`. Returns the world and trajectory of each.
+pub fn simulate_videos(scene: &SynthScene, base: &Path) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
+    let stat = build_static(scene, base, true)?;
+    let bodies = build_bodies(scene, base)?;
+    let mut out = Vec::new();
+    if scene.videos.is_empty() {
+        return Err(field("videos", "the scene has no videos"));
+    }
+    for (vi, v) in scene.videos.iter().enumerate() {
+        let f = format!("videos[{vi}] ({})", v.name);
+        let cfg = SimConfig {
+            fps: v.fps,
+            frames: v.frames,
+            substeps: v.substeps,
+            ..SimConfig::default()
+        };
+        cfg.validate().map_err(|e| field(format!("{f}.{}", e.field), e.msg))?;
+        v.contact
+            .validate(&format!("{f}.contact"))
+            .map_err(|e| field(e.field, e.msg))?;
+        let mut world = World::new(cfg, stat.shape.clone());
+        if v.bodies.is_empty() {
+            return Err(field(format!("{f}.bodies"), "a video needs at least one body"));
+        }
+        for (bi, vb) in v.bodies.iter().enumerate() {
+            let bf = format!("{f}.bodies[{bi}] ({})", vb.name);
+            let k = scene
+                .bodies
+                .iter()
+                .position(|b| b.name == vb.name)
+                .ok_or_else(|| field(&bf, "no body of this name in `bodies`"))?;
+            if v.bodies[..bi].iter().any(|o| o.name == vb.name) {
+                return Err(field(&bf, "the body appears twice"));
+            }
+            for (name, val) in [("t", vb.t), ("v", vb.v), ("omega", vb.omega)] {
+                if val.iter().any(|x| !x.is_finite()) {
+                    return Err(field(
+                        format!("{bf}.{name}"),
+                        format!("has NaN or infinite values: {val:?}"),
+                    ));
+                }
+            }
+            let q = unit_quat(&format!("{bf}.q"), vb.q)?;
+            let state = BodyState::new(vb.t, q.to_array_re(), vb.v, vb.omega);
+            world.add_body(bodies.bodies[k].clone(), state, v.contact, v.contact);
+        }
+        check_start(&world, &f)?;
+        let traj = world.simulate(&world.params());
+        out.push((world, traj));
+    }
+    Ok(out)
+}
+
+/// Bodies must not start inside the board, an obstacle or each other (1 mm slack).
+fn check_start(world: &World, f: &str) -> Result<(), SynthError> {
+    use sim::sdf::Sdf;
+    for (b, body) in world.bodies.iter().enumerate() {
+        let pose = world.initial[b].pose;
+        let deepest = body
+            .contact_points
+            .iter()
+            .map(|r| world.scene.distance_local(pose.transform_point(*r)))
+            .fold(f64::INFINITY, f64::min);
+        if deepest < -1e-3 {
+            return Err(field(
+                format!("{f}.bodies[{b}] ({})", body.name),
+                format!("starts {:.1} mm inside the board or an obstacle", -deepest * 1e3),
+            ));
+        }
+        for (o, other) in world.bodies.iter().enumerate().take(b) {
+            let op = world.initial[o].pose;
+            let d = body
+                .contact_points
+                .iter()
+                .map(|r| other.sdf.distance(&op, pose.transform_point(*r)))
+                .fold(f64::INFINITY, f64::min);
+            if d < -1e-3 {
+                return Err(field(
+                    format!("{f}.bodies[{b}] ({})", body.name),
+                    format!("starts {:.1} mm inside {}", -d * 1e3, other.name),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_camera(cam: &Camera<f64>, scene: &RenderScene, f: &str) -> Result<(), SynthError> {
+    let c = cam.center();
+    let d = scene_distance(scene, c);
+    if d < 1e-3 {
+        return Err(field(
+            f,
+            format!("camera at {:?} is inside (or touching) the geometry", c.to_array()),
+        ));
+    }
+    Ok(())
+}
+
+fn mesh_radius(m: &TriMesh) -> f64 {
+    m.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max)
+}
+
+/// Everything a dataset holds, before rendering.
+struct DatasetPlan {
+    captures: Vec<CapturePlan>,
+    truth: Truth,
+    /// `<name>.ply` files: the background and each body (body frame).
+    meshes: Vec<(String, TriMesh)>,
+}
+
+/// Everything to render, checked: background, two static captures per body, videos.
+fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
+    let rig = &scene.cameras;
+    if rig.width == 0 || rig.height == 0 {
+        return Err(field("cameras.width", "image size must be positive"));
+    }
+    if rig.views == 0 {
+        return Err(field("cameras.views", "must be at least 1"));
+    }
+    if rig.spp == 0 {
+        return Err(field("cameras.spp", "must be at least 1"));
+    }
+    if !(rig.fov_deg > 1.0 && rig.fov_deg < 170.0) {
+        return Err(field(
+            "cameras.fov_deg",
+            format!("must be between 1 and 170, got {}", rig.fov_deg),
+        ));
+    }
+    for (name, e) in [
+        ("cameras.background_elevation", rig.background_elevation),
+        ("cameras.object_elevation", rig.object_elevation),
+    ] {
+        if !(e[0] > 0.0 && e[1] < 90.0 && e[0] <= e[1]) {
+            return Err(field(
+                name,
+                format!("must satisfy 0 < low ≤ high < 90 degrees, got {e:?}"),
+            ));
+        }
+    }
+    let videos = simulate_videos(scene, base)?;
+    let stat = build_static(scene, base, true)?;
+    let bare = build_static(scene, base, false)?;
+    let bodies = build_bodies(scene, base)?;
+    let k = intrinsics(rig.width, rig.height, rig.fov_deg);
+    let (w, h) = (rig.width, rig.height);
+    let light = scene.light.clone();
+    let mut plans = Vec::new();
+
+    // Background: the board and obstacles from the upper hemisphere.
+    let bg_scene = RenderScene {
+        objects: stat.objects.clone(),
+        light: light.clone(),
+    };
+    let (centre, radius) = stat.region;
+    let dist = framing_distance(radius, &k, w, h, 1.05);
+    let cams: Vec<_> = hemisphere_views(rig.views, rig.background_elevation)
+        .iter()
+        .map(|&(e, a)| orbit(centre, dist, e, a, k, w, h))
+        .collect();
+    for (i, c) in cams.iter().enumerate() {
+        check_camera(c, &bg_scene, &format!("background view {i}"))?;
+    }
+    plans.push(CapturePlan {
+        name: "background".into(),
+        kind: CaptureKind::Static,
+        fps: None,
+        cameras: cams,
+        scenes: vec![bg_scene],
+        region: stat.region,
+        mask_bodies: vec![],
+        per_body_masks: false,
+    });
+
+    // Each body alone on the board, upright and turned over; views from above.
+    let mut truth_bodies = Vec::new();
+    let mut meshes = vec![("background".to_string(), concat(&stat.meshes))];
+    for (bi, (desc, body)) in scene.bodies.iter().zip(&bodies.bodies).enumerate() {
+        let mut statics = Vec::new();
+        for (s, suffix) in ["a", "b"].iter().enumerate() {
+            let q = unit_quat("static", desc.static_orientations[s]).expect("checked in build_bodies");
+            let pose = resting_pose(body, q, [0.0, 0.0]);
+            let mut objects = bare.objects.clone();
+            objects.push(body_object(body, &bodies.textures[bi], pose, bi));
+            let rs = RenderScene {
+                objects,
+                light: light.clone(),
+            };
+            let r_obj = mesh_radius(&body.mesh);
+            let dist = framing_distance(r_obj, &k, w, h, 1.6);
+            let cams: Vec<_> = hemisphere_views(rig.views, rig.object_elevation)
+                .iter()
+                .map(|&(e, a)| orbit(pose.t, dist, e, a, k, w, h))
+                .collect();
+            let name = format!("{}_{suffix}", desc.name);
+            for (i, c) in cams.iter().enumerate() {
+                check_camera(c, &rs, &format!("{name} view {i}"))?;
+            }
+            plans.push(CapturePlan {
+                name: name.clone(),
+                kind: CaptureKind::Static,
+                fps: None,
+                cameras: cams,
+                scenes: vec![rs],
+                region: (pose.t, r_obj * 1.15 + 0.005),
+                mask_bodies: vec![bi],
+                per_body_masks: false,
+            });
+            statics.push(StaticCapture {
+                capture: name,
+                pose: io_pose(&pose),
+                extra: Default::default(),
+            });
+        }
+        truth_bodies.push(TruthBody {
+            name: desc.name.clone(),
+            mesh: format!("{}.ply", desc.name),
+            mass: Some(body.mass),
+            static_captures: statics,
+            extra: Default::default(),
+        });
+        meshes.push((desc.name.clone(), body.mesh.clone()));
+    }
+
+    // Videos: one fixed camera, bodies where the simulator put them.
+    let mut truth_videos = Vec::new();
+    for ((vdesc, (world, traj)), vi) in scene.videos.iter().zip(&videos).zip(0..) {
+        let f = format!("videos[{vi}] ({})", vdesc.name);
+        let c = &vdesc.camera;
+        if !(c.elevation_deg > 0.0 && c.elevation_deg < 90.0) {
+            return Err(field(format!("{f}.camera.elevation_deg"), "must be between 0 and 90"));
+        }
+        if !(c.distance.is_finite() && c.distance > 0.0) {
+            return Err(field(format!("{f}.camera.distance"), "must be positive"));
+        }
+        let cam = orbit(
+            Vec3::cst(c.look_at),
+            c.distance,
+            c.elevation_deg,
+            c.azimuth_deg,
+            k,
+            w,
+            h,
+        );
+        let ids: Vec<usize> = vdesc
+            .bodies
+            .iter()
+            .map(|vb| scene.bodies.iter().position(|b| b.name == vb.name).expect("checked"))
+            .collect();
+        let scenes: Vec<RenderScene> = traj
+            .frames
+            .iter()
+            .map(|frame| {
+                let mut objects = stat.objects.clone();
+                for (slot, &bi) in ids.iter().enumerate() {
+                    objects.push(body_object(
+                        &bodies.bodies[bi],
+                        &bodies.textures[bi],
+                        frame[slot].pose,
+                        bi,
+                    ));
+                }
+                RenderScene {
+                    objects,
+                    light: light.clone(),
+                }
+            })
+            .collect();
+        check_camera(&cam, &scenes[0], &format!("{f}.camera"))?;
+        plans.push(CapturePlan {
+            name: vdesc.name.clone(),
+            kind: CaptureKind::Video,
+            fps: Some(vdesc.fps),
+            cameras: vec![cam; traj.frames.len()],
+            scenes,
+            region: stat.region,
+            mask_bodies: ids.clone(),
+            per_body_masks: true,
+        });
+        truth_videos.push(video_truth(&vdesc.name, world, traj, vdesc.contact));
+    }
+    let truth = Truth {
+        gravity: SimConfig::default().gravity,
+        background: Some(pganeus_io::Background {
+            capture: "background".into(),
+            mesh: "background.ply".into(),
+            extra: Default::default(),
+        }),
+        bodies: truth_bodies,
+        videos: truth_videos,
+        extra: Default::default(),
+    };
+    Ok(DatasetPlan {
+        captures: plans,
+        truth,
+        meshes,
+    })
+}
+
+fn io_pose(p: &Pose<f64>) -> IoPose {
+    IoPose {
+        t: p.t.to_array(),
+        q: p.q.to_array_re(),
+    }
+}
+
+fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, contact: ContactParams) -> Trajectory {
+    let bodies = world
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(b, body)| {
+            let s = traj.frames[0][b];
+            VideoBody {
+                name: body.name.clone(),
+                initial: IoState {
+                    t: s.pose.t.to_array(),
+                    q: s.pose.q.to_array_re(),
+                    v: s.v.to_array(),
+                    omega: s.omega.to_array(),
+                },
+                poses: traj.frames.iter().map(|f| io_pose(&f[b].pose)).collect(),
+                extra: Default::default(),
+            }
+        })
+        .collect();
+    let mut extra = serde_json::Map::new();
+    extra.insert(
+        "sim".into(),
+        serde_json::to_value(&world.config).expect("config serialises"),
+    );
+    Trajectory {
+        capture: name.into(),
+        fps: world.config.fps,
+        bodies,
+        contact: Contact {
+            restitution: contact.restitution,
+            friction: contact.friction,
+            model: "pganeus".into(),
+            extra: Default::default(),
+        },
+        extra,
+    }
+}
+
+fn concat(meshes: &[TriMesh]) -> TriMesh {
+    let mut out = TriMesh::default();
+    for m in meshes {
+        let off = out.vertices.len() as u32;
+        out.vertices.extend_from_slice(&m.vertices);
+        out.faces.extend(m.faces.iter().map(|f| f.map(|i| i + off)));
+    }
+    out
+}
+
+fn rgb_image(r: &Rendered) -> Image {
+    let mut img = Image::new(r.width, r.height, 3);
+    for (px, c) in img.data.chunks_exact_mut(3).zip(&r.rgb) {
+        for k in 0..3 {
+            px[k] = crate::render::to_srgb8(c[k]);
+        }
+    }
+    img
+}
+
+fn mask_image(r: &Rendered, keep: impl Fn(usize) -> bool) -> Image {
+    let mut img = Image::new(r.width, r.height, 1);
+    for (px, id) in img.data.iter_mut().zip(&r.ids) {
+        *px = if id.is_some_and(&keep) { 255 } else { 0 };
+    }
+    img
+}
+
+/// File name of image `i` of `n`: zero-padded to at least three digits.
+pub fn frame_name(i: usize, n: usize) -> String {
+    let digits = n.saturating_sub(1).to_string().len().max(3);
+    format!("{i:0digits$}.png")
+}
+
+/// Render and write every capture of `scene` into `out` (which must not exist
+/// or be empty), with `truth.json`, meshes and the scene description.
+pub fn generate(scene: &SynthScene, base: &Path, out: &Path, on_image: OnImage) -> Result<Summary, SynthError> {
+    let DatasetPlan {
+        captures: plans,
+        truth,
+        meshes,
+    } = plan(scene, base)?;
+    std::fs::create_dir_all(out).map_err(|e| SynthError::File {
+        path: out.display().to_string(),
+        msg: e.to_string(),
+    })?;
+    let mut summary = Summary {
+        captures: vec![],
+        images: 0,
+    };
+    for p in &plans {
+        write_capture(p, out, scene, on_image)?;
+        summary.captures.push((p.name.clone(), p.cameras.len()));
+        summary.images += p.cameras.len();
+    }
+    for (name, m) in &meshes {
+        pganeus_io::write_ply(
+            &out.join(format!("{name}.ply")),
+            &PlyMesh::from_mesh(m.clone()),
+            PlyEncoding::BinaryLittleEndian,
+        )?;
+    }
+    pganeus_io::write_truth(&out.join("truth.json"), &truth)?;
+    let desc = toml::to_string(scene).map_err(|e| field("scene", e.to_string()))?;
+    pganeus_io::write_atomic(&out.join("synth.toml"), desc.as_bytes())?;
+    Ok(summary)
+}
+
+fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnImage) -> Result<(), SynthError> {
+    let dir = out.join(&p.name);
+    let n = p.cameras.len();
+    let mut mats = Vec::with_capacity(n);
+    let smat = scale_mat(p.region.0, p.region.1);
+    for (i, cam) in p.cameras.iter().enumerate() {
+        let rs = if p.scenes.len() == 1 {
+            &p.scenes[0]
+        } else {
+            &p.scenes[i]
+        };
+        let r = render(rs, cam, scene.cameras.spp);
+        let file = frame_name(i, n);
+        pganeus_io::write_png(&dir.join("image").join(&file), &rgb_image(&r))?;
+        if !p.mask_bodies.is_empty() {
+            let ids = &p.mask_bodies;
+            pganeus_io::write_png(&dir.join("mask").join(&file), &mask_image(&r, |id| ids.contains(&id)))?;
+            if p.per_body_masks {
+                for &b in ids {
+                    let sub: PathBuf = dir.join(format!("mask_{}", scene.bodies[b].name)).join(&file);
+                    pganeus_io::write_png(&sub, &mask_image(&r, |id| id == b))?;
+                }
+            }
+        }
+        mats.push(CameraMats {
+            world_mat: cam.world_mat(),
+            scale_mat: smat,
+        });
+        on_image(&p.name, i + 1, n);
+    }
+    pganeus_io::write_cameras_npz(&dir.join("cameras_sphere.npz"), &mats)?;
+    let info = CaptureInfo {
+        kind: p.kind,
+        fps: p.fps,
+        extra: Default::default(),
+    };
+    pganeus_io::write_capture_info(&dir.join("capture.json"), &info)?;
+    Ok(())
+}

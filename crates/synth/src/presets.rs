@@ -1,0 +1,213 @@
+//! Built-in scenes. `tabletop`: a box slides into a wall and bounces back, and
+//! is dropped with spin in a second video. `two-body`: a box slides into a
+//! resting block.
+
+use crate::desc::*;
+use crate::render::Light;
+use crate::texture::{Pattern, Texture};
+use sim::ContactParams;
+
+pub const PRESETS: [&str; 2] = ["tabletop", "two-body"];
+
+/// Image size, view and frame counts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    /// 160×120, 24 views, 30 frames: a preset renders in seconds.
+    Small,
+    /// 320×240, 48 views, 48 frames.
+    Large,
+}
+
+fn board() -> Board {
+    Board {
+        half: [0.3, 0.3],
+        thickness: 0.01,
+        texture: Texture {
+            detail: 0.45,
+            ..Texture::new(Pattern::Checker, 0.03, vec![[0.92, 0.9, 0.85], [0.18, 0.2, 0.24]], 11)
+        },
+        table: Texture {
+            direction: [0.2, 1.0, 0.0],
+            ..Texture::new(
+                Pattern::Marble,
+                0.05,
+                vec![[0.42, 0.27, 0.15], [0.62, 0.43, 0.26], [0.35, 0.22, 0.12]],
+                12,
+            )
+        },
+    }
+}
+
+fn rig(scale: Scale) -> CameraRig {
+    let (width, height, views) = match scale {
+        Scale::Small => (160, 120, 24),
+        Scale::Large => (320, 240, 48),
+    };
+    CameraRig {
+        width,
+        height,
+        fov_deg: 45.0,
+        views,
+        spp: 4,
+        background_elevation: [20.0, 70.0],
+        object_elevation: [25.0, 75.0],
+    }
+}
+
+fn frames(scale: Scale) -> usize {
+    match scale {
+        Scale::Small => 30,
+        Scale::Large => 48,
+    }
+}
+
+fn toy() -> BodyDesc {
+    BodyDesc {
+        name: "toy".into(),
+        shape: ShapeDesc::RoundedBox {
+            half: [0.03, 0.022, 0.018],
+            radius: 0.005,
+        },
+        mass: 0.08,
+        texture: Texture {
+            detail: 0.5,
+            ..Texture::new(
+                Pattern::Noise,
+                0.012,
+                vec![[0.85, 0.2, 0.15], [0.95, 0.75, 0.2], [0.15, 0.45, 0.8]],
+                21,
+            )
+        },
+        contact_points: 1000,
+        static_orientations: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]],
+    }
+}
+
+fn camera() -> VideoCamera {
+    VideoCamera {
+        elevation_deg: 42.0,
+        azimuth_deg: -65.0,
+        distance: 0.42,
+        look_at: [0.07, 0.0, 0.0],
+    }
+}
+
+/// A preset scene by name (`tabletop`, `two-body`).
+pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
+    let n = frames(scale);
+    Some(match name {
+        "tabletop" => SynthScene {
+            name: "tabletop".into(),
+            board: board(),
+            obstacles: vec![ObstacleDesc {
+                name: "wall".into(),
+                shape: ShapeDesc::Box {
+                    half: [0.02, 0.12, 0.035],
+                },
+                t: [0.22, 0.0, 0.035],
+                q: [1.0, 0.0, 0.0, 0.0],
+                texture: Texture {
+                    direction: [0.0, 0.3, 1.0],
+                    ..Texture::new(Pattern::Stripes, 0.012, vec![[0.2, 0.55, 0.3], [0.9, 0.9, 0.8]], 31)
+                },
+            }],
+            bodies: vec![toy()],
+            light: Light::default(),
+            cameras: rig(scale),
+            videos: vec![
+                VideoDesc {
+                    name: "slide".into(),
+                    fps: 30.0,
+                    frames: n,
+                    substeps: 20,
+                    camera: camera(),
+                    contact: ContactParams {
+                        restitution: 0.5,
+                        friction: 0.25,
+                    },
+                    bodies: vec![VideoBodyDesc {
+                        name: "toy".into(),
+                        t: [-0.12, -0.02, 0.018],
+                        q: [1.0, 0.0, 0.0, 0.0],
+                        v: [1.3, 0.08, 0.0],
+                        omega: [0.0, 0.0, 1.5],
+                    }],
+                },
+                VideoDesc {
+                    name: "drop".into(),
+                    fps: 30.0,
+                    frames: n,
+                    substeps: 20,
+                    camera: camera(),
+                    contact: ContactParams {
+                        restitution: 0.5,
+                        friction: 0.25,
+                    },
+                    bodies: vec![VideoBodyDesc {
+                        name: "toy".into(),
+                        t: [-0.02, 0.03, 0.1],
+                        q: [0.92, 0.2, 0.3, 0.1],
+                        v: [0.25, -0.05, 0.0],
+                        omega: [4.0, 2.0, 1.0],
+                    }],
+                },
+            ],
+        },
+        "two-body" => SynthScene {
+            name: "two-body".into(),
+            board: board(),
+            obstacles: vec![ObstacleDesc {
+                name: "ramp".into(),
+                shape: ShapeDesc::Wedge {
+                    half: [0.06, 0.05, 0.02],
+                },
+                t: [0.0, 0.2, 0.02],
+                q: [1.0, 0.0, 0.0, 0.0],
+                texture: Texture::new(Pattern::Stripes, 0.01, vec![[0.3, 0.3, 0.75], [0.85, 0.85, 0.9]], 41),
+            }],
+            bodies: vec![
+                toy(),
+                BodyDesc {
+                    name: "block".into(),
+                    shape: ShapeDesc::Box {
+                        half: [0.025, 0.025, 0.02],
+                    },
+                    mass: 0.1,
+                    texture: Texture::new(Pattern::Checker, 0.01, vec![[0.95, 0.95, 0.95], [0.6, 0.1, 0.5]], 51),
+                    contact_points: 1000,
+                    static_orientations: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]],
+                },
+            ],
+            light: Light::default(),
+            cameras: rig(scale),
+            videos: vec![VideoDesc {
+                name: "collide".into(),
+                fps: 30.0,
+                frames: n,
+                substeps: 20,
+                camera: camera(),
+                contact: ContactParams {
+                    restitution: 0.4,
+                    friction: 0.25,
+                },
+                bodies: vec![
+                    VideoBodyDesc {
+                        name: "toy".into(),
+                        t: [-0.15, 0.0, 0.018],
+                        q: [1.0, 0.0, 0.0, 0.0],
+                        v: [1.3, 0.0, 0.0],
+                        omega: [0.0; 3],
+                    },
+                    VideoBodyDesc {
+                        name: "block".into(),
+                        t: [0.05, 0.01, 0.02],
+                        q: [1.0, 0.0, 0.0, 0.0],
+                        v: [0.0; 3],
+                        omega: [0.0; 3],
+                    },
+                ],
+            }],
+        },
+        _ => return None,
+    })
+}
