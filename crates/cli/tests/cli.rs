@@ -253,3 +253,48 @@ fn fit_physics_rejects_a_bad_pose_file() {
     assert!(msg.contains("poses.json") && msg.contains("poses[0].q"), "{msg}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn synth_refuses_a_bad_scene_and_keeps_the_old_dataset() {
+    let d = scratch("synth-bad");
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    assert!(printed.status.success());
+    let good = String::from_utf8(printed.stdout).unwrap();
+    let bad = good.replacen("frames = 30", "frames = 0", 1);
+    assert_ne!(good, bad);
+    std::fs::write(d.join("scene.toml"), bad).unwrap();
+    let out = d.join("data");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("keep.txt"), "old").unwrap();
+    let o = bin()
+        .args(["synth", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--force")
+        .output()
+        .unwrap();
+    let msg = text(&o);
+    assert!(!o.status.success(), "{msg}");
+    assert!(
+        msg.contains("scene.toml") && msg.contains("videos[0] (slide).frames"),
+        "{msg}"
+    );
+    assert_eq!(std::fs::read_to_string(out.join("keep.txt")).unwrap(), "old");
+    let leftovers: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 2, "no partial folder left: {leftovers:?}");
+    let o = bin()
+        .args(["synth", "--preset", "tabletop", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && text(&o).contains("--force"),
+        "an existing dataset is not replaced without --force"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

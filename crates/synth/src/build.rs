@@ -304,11 +304,9 @@ pub(crate) fn build_bodies(scene: &SynthScene, base: &Path) -> Result<Bodies, Sy
             count: b.contact_points,
             seed: i as u64,
         };
-        let sdf = match shape {
-            Shape::Grid(_) => None,
-            s => Some(s),
-        };
-        let body = RigidBody::from_mesh(&b.name, &mesh, MassSpec::Mass(b.mass), sampling, sdf)
+        // The exact shape, or the mesh's grid baked above (finer than the
+        // simulator's default body grid, so sharp corners render sharp).
+        let body = RigidBody::from_mesh(&b.name, &mesh, MassSpec::Mass(b.mass), sampling, Some(shape))
             .map_err(|e| field(&f, e.to_string()))?;
         bodies.push(body);
         textures.push(b.texture.clone());

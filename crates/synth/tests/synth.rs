@@ -151,6 +151,13 @@ fn videos_follow_truth_and_cameras_round_trip() {
         let cap = dir.join(&video.capture);
         let n = video.bodies[0].poses.len();
         assert_eq!(n, 12);
+        let index = pganeus_io::open_capture(&cap).unwrap();
+        assert_eq!(index.images.len(), n);
+        assert_eq!(index.masks.as_ref().map(|m| m.len()), Some(n));
+        assert!(
+            index.extra_masks.iter().any(|(name, m)| name == "toy" && m.len() == n),
+            "mask_toy/ is listed"
+        );
         let info = pganeus_io::read_capture_info(&cap.join("capture.json")).unwrap();
         assert_eq!(info.fps, Some(vdesc.fps));
         let cams = cameras(&cap, n);
@@ -301,4 +308,71 @@ fn printed_presets_read_back_identically() {
             assert_eq!(back, p, "{name}");
         }
     }
+}
+
+#[test]
+fn a_body_from_a_mesh_file_renders_through_its_baked_sdf() {
+    let dir = scratch("mesh-body");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mesh = sim::tessellate::wedge_mesh(&sim::sdf::Wedge {
+        half: [0.03, 0.02, 0.015],
+    });
+    pganeus_io::write_ply(
+        &dir.join("wedge.ply"),
+        &pganeus_io::PlyMesh::from_mesh(mesh),
+        pganeus_io::PlyEncoding::Ascii,
+    )
+    .unwrap();
+    let mut scene = small_tabletop(96, 72, 2, 3);
+    scene.videos.truncate(1);
+    scene.bodies[0].shape = synth::desc::ShapeDesc::Mesh {
+        file: "wedge.ply".into(),
+    };
+    scene.videos[0].bodies[0].t = [-0.12, -0.02, 0.03];
+    let out = dir.join("data");
+    synth::generate(&scene, &dir, &out, &mut |_, _, _| {}).unwrap();
+    let truth = pganeus_io::read_truth(&out.join("truth.json")).unwrap();
+    let body_mesh = pganeus_io::read_ply(&out.join("toy.ply")).unwrap().mesh;
+    // toy.ply is in the body frame: its centre of mass is the origin (the
+    // wedge's is a third of the way in from its box centre).
+    let com = sim::mass_properties(&body_mesh, 1.0).center_of_mass;
+    assert!(com.norm() < 1e-9, "centre of mass {com:?}");
+    assert!(
+        (body_mesh.vertices.iter().map(|v| v[0]).fold(f64::MIN, f64::max) - 0.02).abs() < 1e-9,
+        "x max = hx − hx/3"
+    );
+    let sc = &truth.bodies[0].static_captures[0];
+    let cap = out.join(&sc.capture);
+    let cams = cameras(&cap, 2);
+    let pts = posed(&body_mesh, &sc.pose);
+    for (i, cam) in cams.iter().enumerate() {
+        let mask = pganeus_io::read_png(&cap.join("mask").join(synth::frame_name(i, 2)))
+            .unwrap()
+            .to_gray();
+        // Corners on the board lie on the line where board and body meet,
+        // which either may own. The raised corners are tips of an acute
+        // silhouette, whose nearest covered pixel centre may be over half a
+        // pixel away: they must be within 1.5 px of the mask.
+        let raised: Vec<_> = pts.iter().filter(|p| p.z > 2e-3).collect();
+        assert_eq!(raised.len(), 2, "a wedge has two corners off the board (its top edge)");
+        for p in raised {
+            let (u, v, _) = cam.project(*p);
+            let near = (0..mask.height).any(|y| {
+                (0..mask.width)
+                    .any(|x| mask.pixel(x, y)[0] > 127 && (x as f64 + 0.5 - u).hypot(y as f64 + 0.5 - v) <= 1.5)
+            });
+            assert!(
+                near,
+                "view {i}: raised corner {p:?} at ({u:.1}, {v:.1}) is not within 1.5 px of the mask"
+            );
+        }
+        let cover = rasterise(cam, &body_mesh, &pts);
+        let raster = cover.iter().filter(|c| **c).count() as f64;
+        let masked = mask.data.iter().filter(|m| **m > 127).count() as f64;
+        assert!(
+            (masked - raster).abs() / raster < 0.03,
+            "view {i}: mask {masked} vs rasterised {raster}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
