@@ -181,7 +181,12 @@ pub(crate) struct Bodies {
     pub textures: Vec<Texture>,
 }
 
-pub(crate) fn build_static(scene: &SynthScene, base: &Path, with_obstacles: bool) -> Result<StaticScene, SynthError> {
+impl StaticScene {
+    /// `objects` starts with the board and the table, then the obstacles.
+    pub const BOARD_AND_TABLE: usize = 2;
+}
+
+pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScene, SynthError> {
     let b = &scene.board;
     if !(b.half.iter().all(|v| v.is_finite() && *v > 0.0)) {
         return Err(field("board.half", format!("must be positive, got {:?}", b.half)));
@@ -233,9 +238,6 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path, with_obstacles: bool
         let q = unit_quat(&format!("{f}.q"), o.q)?;
         texture(&format!("{f}.texture"), &o.texture)?;
         let (shape, mesh) = build_shape(&format!("{f}.shape"), &o.shape, base)?;
-        if !with_obstacles {
-            continue;
-        }
         let pose = Pose::new(q, Vec3::cst(o.t));
         let radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
         let world_mesh = TriMesh::new(

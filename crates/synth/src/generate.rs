@@ -1,7 +1,9 @@
 //! Making a dataset: simulate each video, render every capture, and write
 //! the NeuS-layout folders, meshes and `truth.json`.
 
-use crate::build::{body_object, build_bodies, build_static, field, resting_pose, unit_quat, SynthError};
+use crate::build::{
+    body_object, build_bodies, build_static, field, resting_pose, unit_quat, Bodies, StaticScene, SynthError,
+};
 use crate::cameras::{framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
 use crate::desc::SynthScene;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
@@ -39,8 +41,16 @@ pub type OnImage<'a> = &'a mut dyn FnMut(&str, usize, usize);
 
 /// Simulate the videos of `scene`. Returns the world and trajectory of each.
 pub fn simulate_videos(scene: &SynthScene, base: &Path) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
-    let stat = build_static(scene, base, true)?;
+    let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
+    simulate_built(scene, &stat, &bodies)
+}
+
+fn simulate_built(
+    scene: &SynthScene,
+    stat: &StaticScene,
+    bodies: &Bodies,
+) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
     let mut out = Vec::new();
     if scene.videos.is_empty() {
         return Err(field("videos", "the scene has no videos"));
@@ -177,10 +187,11 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             ));
         }
     }
-    let videos = simulate_videos(scene, base)?;
-    let stat = build_static(scene, base, true)?;
-    let bare = build_static(scene, base, false)?;
+    let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
+    let videos = simulate_built(scene, &stat, &bodies)?;
+    // The board and the table alone, for the static captures of bodies.
+    let bare: Vec<_> = stat.objects[..StaticScene::BOARD_AND_TABLE].to_vec();
     let k = intrinsics(rig.width, rig.height, rig.fov_deg);
     let (w, h) = (rig.width, rig.height);
     let light = scene.light.clone();
@@ -219,7 +230,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         for (s, suffix) in ["a", "b"].iter().enumerate() {
             let q = unit_quat("static", desc.static_orientations[s]).expect("checked in build_bodies");
             let pose = resting_pose(body, q, [0.0, 0.0]);
-            let mut objects = bare.objects.clone();
+            let mut objects = bare.clone();
             objects.push(body_object(body, &bodies.textures[bi], pose, bi));
             let rs = RenderScene {
                 objects,
