@@ -22,6 +22,10 @@ struct Cli {
 enum Command {
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(commands::synth::SynthArgs),
+    /// Train a NeuS field (SDF + colour) on a capture.
+    Train(commands::train::TrainArgs),
+    /// Render a trained field from a capture's cameras (RGB, depth, normals) and print PSNR.
+    Render(commands::render::RenderArgs),
     /// Simulate the bodies of a scene file and write trajectory.json.
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
@@ -30,6 +34,8 @@ enum Command {
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
     BenchSim(commands::bench_sim::BenchSimArgs),
+    /// Train on a synthetic object capture and print speed, held-out PSNR and Chamfer distance as JSON lines.
+    BenchTrain(commands::bench_train::BenchTrainArgs),
 }
 
 fn main() {
@@ -41,10 +47,13 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Synth(a) => commands::synth::run(a),
+        Command::Train(a) => commands::train::run(a),
+        Command::Render(a) => commands::render::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),
         Command::BenchSim(a) => commands::bench_sim::run(a),
+        Command::BenchTrain(a) => commands::bench_train::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

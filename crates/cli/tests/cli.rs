@@ -298,3 +298,167 @@ fn synth_refuses_a_bad_scene_and_keeps_the_old_dataset() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A tiny capture of the tabletop toy, rendered by `pganeus synth`.
+fn tiny_capture(d: &Path) -> PathBuf {
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 48", 1)
+        .replacen("height = 120", "height = 36", 1)
+        .replacen("views = 24", "views = 6", 1)
+        .replace("frames = 30", "frames = 1");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let o = bin()
+        .args(["synth", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(d.join("data"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    d.join("data").join("toy_a")
+}
+
+const TINY_TRAIN: &str = r#"
+batch_rays = 128
+steps_per_ray = 64
+max_samples_per_ray = 16
+occupancy_res = 16
+occupancy_warmup = 10
+checkpoint_every = 10
+level_every = 5
+[field]
+sdf_hidden = [16]
+color_hidden = [16]
+[field.grid]
+levels = 4
+log2_table_size = 12
+base_resolution = 8
+max_resolution = 64
+"#;
+
+#[test]
+fn train_render_and_resume_end_to_end() {
+    let d = scratch("train");
+    let capture = tiny_capture(&d);
+    std::fs::write(d.join("tiny.toml"), TINY_TRAIN).unwrap();
+    let run = d.join("run");
+    let train = |extra: &[&str]| {
+        bin()
+            .arg("train")
+            .arg(&capture)
+            .arg("--out")
+            .arg(&run)
+            .arg("--config")
+            .arg(d.join("tiny.toml"))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = train(&["--iterations", "20", "--preview-res", "32"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        run.join("checkpoint.safetensors").exists()
+            && run.join("config.toml").exists()
+            && run.join("log.jsonl").exists()
+    );
+    // A second run into the same folder must ask for --resume.
+    let o = train(&["--iterations", "20"]);
+    assert!(!o.status.success() && text(&o).contains("--resume"), "{}", text(&o));
+    let o = train(&["--iterations", "30", "--resume", "--no-preview"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("resuming") && text(&o).contains("at step 20"),
+        "{}",
+        text(&o)
+    );
+    let out = d.join("renders");
+    let o = bin()
+        .arg("render")
+        .arg(&run)
+        .arg("--views")
+        .arg(&capture)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("mean PSNR"));
+    for sub in ["rgb", "normal", "depth"] {
+        assert_eq!(
+            std::fs::read_dir(out.join(sub)).unwrap().count(),
+            if sub == "depth" { 12 } else { 6 },
+            "{sub}"
+        );
+    }
+    // A truncated checkpoint is a clear error.
+    let ck = run.join("checkpoint.safetensors");
+    let bytes = std::fs::read(&ck).unwrap();
+    std::fs::write(&ck, &bytes[..bytes.len() - 100]).unwrap();
+    let o = bin()
+        .arg("render")
+        .arg(&run)
+        .arg("--views")
+        .arg(&capture)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && text(&o).contains("checkpoint.safetensors"),
+        "{}",
+        text(&o)
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn train_refuses_bad_captures_before_training() {
+    let d = scratch("bad-capture");
+    let capture = tiny_capture(&d);
+    let cams = pganeus_io::read_cameras_npz(&capture.join("cameras_sphere.npz"), 6).unwrap();
+    let try_train = |cap: &Path| {
+        bin()
+            .arg("train")
+            .arg(cap)
+            .arg("--out")
+            .arg(d.join("run-bad"))
+            .args(["--iterations", "5"])
+            .output()
+            .unwrap()
+    };
+    // A non-invertible camera (a zero row in world_mat) → named.
+    let mut bad = cams.clone();
+    bad[3].world_mat[1] = [0.0; 4];
+    let mut arrays = Vec::new();
+    for (i, c) in bad.iter().enumerate() {
+        arrays.push((
+            format!("world_mat_{i}"),
+            pganeus_io::NpyArray::f64(vec![4, 4], c.world_mat.iter().flatten().copied().collect()),
+        ));
+        arrays.push((
+            format!("scale_mat_{i}"),
+            pganeus_io::NpyArray::f64(vec![4, 4], c.scale_mat.iter().flatten().copied().collect()),
+        ));
+    }
+    let refs: Vec<(&str, &pganeus_io::NpyArray)> = arrays.iter().map(|(n, a)| (n.as_str(), a)).collect();
+    pganeus_io::write_npz(&capture.join("cameras_sphere.npz"), &refs).unwrap();
+    let o = try_train(&capture);
+    assert!(!o.status.success() && text(&o).contains("world_mat_3"), "{}", text(&o));
+    // A missing entry → named.
+    pganeus_io::write_npz(&capture.join("cameras_sphere.npz"), &refs[..refs.len() - 2]).unwrap();
+    let o = try_train(&capture);
+    assert!(!o.status.success() && text(&o).contains("world_mat_5"), "{}", text(&o));
+    pganeus_io::write_cameras_npz(&capture.join("cameras_sphere.npz"), &cams).unwrap();
+    // A mask of another size → named.
+    let mask = capture.join("mask").join("002.png");
+    pganeus_io::write_png(&mask, &pganeus_io::Image::new(10, 10, 1)).unwrap();
+    let o = try_train(&capture);
+    assert!(!o.status.success() && text(&o).contains("002.png"), "{}", text(&o));
+    assert!(
+        !d.join("run-bad").join("checkpoint.safetensors").exists(),
+        "nothing trained"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

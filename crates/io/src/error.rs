@@ -76,6 +76,16 @@ pub enum IoError {
         /// What is wrong, in plain words.
         msg: String,
     },
+    /// The safetensors file is malformed (header length, JSON, dtype, shape,
+    /// offsets, truncated buffer, ...), or a tensor asked for is missing or of
+    /// another dtype or shape; `msg` names the tensor.
+    #[error("{}: bad safetensors file: {msg}", path.display())]
+    Safetensors {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, in plain words.
+        msg: String,
+    },
     /// A capture folder breaks the layout of FORMATS.md ("A capture"): a
     /// missing mask or camera, images of different sizes, ... `path` is the
     /// offending file (or folder).
@@ -100,6 +110,7 @@ impl IoError {
             | IoError::Invalid { path, .. }
             | IoError::Png { path, .. }
             | IoError::Npz { path, .. }
+            | IoError::Safetensors { path, .. }
             | IoError::Capture { path, .. } => path,
         }
     }
@@ -115,6 +126,7 @@ impl IoError {
             IoError::Invalid { field, msg, .. } => format!("invalid value at `{field}`: {msg}"),
             IoError::Png { msg, .. } => format!("bad PNG file: {msg}"),
             IoError::Npz { msg, .. } => format!("bad NPY/NPZ file: {msg}"),
+            IoError::Safetensors { msg, .. } => format!("bad safetensors file: {msg}"),
             IoError::Capture { msg, .. } => msg.clone(),
         }
     }

@@ -11,6 +11,8 @@
 //! - NumPy arrays: `.npy` ([`read_npy`], [`write_npy`]) and `.npz` archives
 //!   ([`read_npz`], [`write_npz`]), with a small ZIP reader (stored and
 //!   DEFLATE entries, CRC-checked) and writer (stored, deterministic);
+//! - safetensors checkpoints ([`read_safetensors`], [`write_safetensors`],
+//!   [`SafeTensors`]): every offset and length checked on reading;
 //! - the NeuS capture folder of FORMATS.md, "A capture": [`open_capture`]
 //!   lists and checks `image/`, `mask/`, `mask_<name>/`, `cameras_sphere.npz`
 //!   ([`read_cameras_npz`], [`write_cameras_npz`]) and `capture.json`
@@ -40,6 +42,10 @@ pub use formats::ply::{
     PlyWriteOptions,
 };
 pub use formats::png::{encode_png, read_png, read_png_bytes, read_png_size, write_png, Image};
+pub use formats::safetensors::{
+    read_safetensors, read_safetensors_bytes, safetensors_bytes, write_safetensors, SafeTensors, Tensor, TensorData,
+    TensorError,
+};
 pub use formats::trajectory::{
     read_trajectory, read_trajectory_bytes, read_truth, read_truth_bytes, write_trajectory, write_trajectory_bytes,
     write_truth, write_truth_bytes, Background, BodyState, Contact, Pose, StaticCapture, Trajectory, Truth, TruthBody,

@@ -1,8 +1,11 @@
 pub mod bench_sim;
+pub mod bench_train;
 pub mod fit_physics;
+pub mod render;
 pub mod simulate;
 pub mod synth;
 pub mod target;
+pub mod train;
 
 use indicatif::{ProgressBar, ProgressStyle};
 

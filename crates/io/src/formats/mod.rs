@@ -5,4 +5,5 @@ pub mod npz;
 pub mod obj;
 pub mod ply;
 pub mod png;
+pub mod safetensors;
 pub mod trajectory;

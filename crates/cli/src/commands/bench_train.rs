@@ -1,0 +1,140 @@
+//! Training benchmark on a synthetic object capture: every N steps a JSON line
+//! with wall time, rays/s, samples/s, held-out PSNR and the Chamfer distance
+//! of the zero level to the true mesh; peak memory at the end.
+
+use super::render::{holdout_psnr, zero_level_mesh};
+use super::train::load_config;
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use geom::{Pose, Quat, TriMesh, Vec3};
+use neus::{Dataset, NeusTrainer};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct BenchTrainArgs {
+    /// A dataset from `pganeus synth` (e.g. --preset tabletop --scale large).
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// The object capture in it.
+    #[arg(long, default_value = "toy_a")]
+    pub capture: String,
+    #[arg(long, default_value = "fast")]
+    pub preset: String,
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    #[arg(long, default_value_t = 3000)]
+    pub iterations: usize,
+    /// Report every this many steps.
+    #[arg(long, default_value_t = 250)]
+    pub every: usize,
+    /// Stop after this many seconds of training.
+    #[arg(long)]
+    pub max_seconds: Option<f64>,
+    /// Grid resolution of the zero level for the Chamfer distance.
+    #[arg(long, default_value_t = 192)]
+    pub mesh_res: usize,
+}
+
+/// The true mesh of the body seen in `capture`, posed as it stood (world frame).
+fn true_mesh(args: &BenchTrainArgs) -> Result<TriMesh> {
+    let truth = pganeus_io::read_truth(&args.dataset.join("truth.json"))?;
+    for b in &truth.bodies {
+        if let Some(sc) = b.static_captures.iter().find(|s| s.capture == args.capture) {
+            let mut m = pganeus_io::read_ply(&args.dataset.join(&b.mesh))?.mesh;
+            let pose = Pose::new(Quat::cst(sc.pose.q), Vec3::cst(sc.pose.t));
+            for v in &mut m.vertices {
+                *v = pose.transform_point(Vec3::cst(*v)).to_array();
+            }
+            return Ok(m);
+        }
+    }
+    Err(anyhow!(
+        "{}: no body has a static capture named {}",
+        args.dataset.display(),
+        args.capture
+    ))
+}
+
+/// Keep the faces whose vertices are all at least `z` above the board.
+fn above(m: &TriMesh, z: f64) -> TriMesh {
+    let faces = m
+        .faces
+        .iter()
+        .filter(|f| f.iter().all(|&i| m.vertices[i as usize][2] >= z))
+        .copied()
+        .collect();
+    TriMesh::new(m.vertices.clone(), faces)
+}
+
+fn peak_memory_mib() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+pub fn run(a: BenchTrainArgs) -> Result<()> {
+    let truth_mesh = true_mesh(&a)?;
+    let diameter = {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for v in &truth_mesh.vertices {
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+        (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
+    };
+    let capture = a.dataset.join(&a.capture);
+    let data = Dataset::load(&capture).with_context(|| format!("loading {}", capture.display()))?;
+    let mut cfg = load_config(&a.preset, a.config.as_deref())?;
+    cfg.iterations = a.iterations;
+    let mut t = NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?;
+    let (mut total_secs, mut window_secs, mut rays, mut samples) = (0.0f64, 0.0f64, 0usize, 0usize);
+    let wall = std::time::Instant::now();
+    while t.step < a.iterations {
+        let s = t.step();
+        total_secs += s.seconds;
+        window_secs += s.seconds;
+        rays += s.rays;
+        samples += s.samples;
+        let done = t.step == a.iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
+        if t.step % a.every == 0 || done {
+            let psnr = holdout_psnr(&t);
+            let levels = t.config.active_levels(t.step);
+            let m = zero_level_mesh(&t.field, levels, t.data.centre, t.data.radius, a.mesh_res);
+            let (full, visible) = if m.faces.is_empty() {
+                (f64::INFINITY, f64::INFINITY)
+            } else {
+                (
+                    mesh::chamfer(&m, &truth_mesh, 20000, 1).mean,
+                    mesh::chamfer(&above(&m, 0.003), &above(&truth_mesh, 0.003), 20000, 1).mean,
+                )
+            };
+            let round = |v: f64, k: f64| (v * k).round() / k;
+            println!(
+                "{}",
+                serde_json::json!({
+                    "bench": "train", "step": t.step, "train_seconds": round(total_secs, 10.0),
+                    "wall_seconds": round(wall.elapsed().as_secs_f64(), 10.0),
+                    "rays_per_s": (rays as f64 / window_secs).round(),
+                    "samples_per_s": (samples as f64 / window_secs).round(),
+                    "heldout_psnr": round(psnr as f64, 100.0),
+                    "chamfer_mm": round(full * 1e3, 100.0), "chamfer_visible_mm": round(visible * 1e3, 100.0),
+                    "chamfer_pct_diameter": round(full / diameter * 100.0, 100.0),
+                    "chamfer_visible_pct_diameter": round(visible / diameter * 100.0, 100.0),
+                    "loss": s.loss, "inv_s": s.inv_s, "occupied": s.occupied,
+                })
+            );
+            (window_secs, rays, samples) = (0.0, 0, 0);
+        }
+        if done {
+            break;
+        }
+    }
+    println!(
+        "{}",
+        serde_json::json!({"bench": "train", "peak_memory_mib": peak_memory_mib()})
+    );
+    Ok(())
+}

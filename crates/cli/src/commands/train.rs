@@ -1,0 +1,137 @@
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use neus::{checkpoint, Dataset, NeusTrainer, TrainConfig};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct TrainArgs {
+    /// The capture (NeuS layout: image/, mask/, cameras_sphere.npz).
+    pub capture: PathBuf,
+    /// The run folder: checkpoint.safetensors, config.toml, log.jsonl, preview.ply.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// fast (default) or quality.
+    #[arg(long, default_value = "fast")]
+    pub preset: String,
+    /// A TOML file with TrainConfig fields, over the preset.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Override the number of steps.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Continue from the run's checkpoint.
+    #[arg(long)]
+    pub resume: bool,
+    /// Skip the marching-tetrahedra preview of the zero level.
+    #[arg(long)]
+    pub no_preview: bool,
+    /// Grid resolution of the preview mesh.
+    #[arg(long, default_value_t = 128)]
+    pub preview_res: usize,
+}
+
+/// A preset with a config file's fields laid over it.
+pub fn load_config(preset: &str, file: Option<&Path>) -> Result<TrainConfig> {
+    let base =
+        TrainConfig::preset(preset).ok_or_else(|| anyhow!("--preset: unknown preset \"{preset}\" (fast, quality)"))?;
+    let Some(file) = file else { return Ok(base) };
+    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let over: toml::Table = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", file.display()))?;
+    let mut merged = toml::Table::try_from(&base)?;
+    merged.extend(over);
+    toml::Value::Table(merged)
+        .try_into()
+        .map_err(|e| anyhow!("{}: {e}", file.display()))
+}
+
+pub fn run(a: TrainArgs) -> Result<()> {
+    let ckpt = a.out.join("checkpoint.safetensors");
+    let data = Dataset::load(&a.capture)?;
+    tracing::info!(
+        "{}: {} views of {}×{}{}",
+        a.capture.display(),
+        data.views.len(),
+        data.width,
+        data.height,
+        if data.has_masks() { " with masks" } else { "" }
+    );
+    let mut trainer = if a.resume {
+        if !ckpt.exists() {
+            bail!("--resume: {} does not exist", ckpt.display());
+        }
+        let mut t = checkpoint::resume(&ckpt, data)?;
+        if let Some(n) = a.iterations {
+            t.config.iterations = n;
+        }
+        tracing::info!("resuming {} at step {}", ckpt.display(), t.step);
+        t
+    } else {
+        if ckpt.exists() {
+            bail!(
+                "{} exists: pass --resume to continue it, or choose another --out",
+                ckpt.display()
+            );
+        }
+        let mut cfg = load_config(&a.preset, a.config.as_deref())?;
+        if let Some(n) = a.iterations {
+            cfg.iterations = n;
+        }
+        cfg.validate().map_err(|e| anyhow!("config: {e}"))?;
+        NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?
+    };
+    std::fs::create_dir_all(&a.out)?;
+    pganeus_io::write_atomic(&a.out.join("config.toml"), toml::to_string(&trainer.config)?.as_bytes())?;
+    let mut log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(a.out.join("log.jsonl"))?;
+    let total = trainer.config.iterations;
+    let pb = super::progress(total as u64, "train");
+    pb.set_position(trainer.step as u64);
+    let (mut rays, mut secs) = (0usize, 0.0f64);
+    while trainer.step < total {
+        let s = trainer.step();
+        rays += s.rays;
+        secs += s.seconds;
+        pb.set_position(s.step as u64);
+        pb.set_message(format!(
+            "loss {:.4} psnr {:.1} {:.0} rays/s",
+            s.loss.total(&trainer.config),
+            s.psnr,
+            rays as f64 / secs
+        ));
+        if s.step % 50 == 0 || s.step == total {
+            writeln!(log, "{}", serde_json::to_string(&s)?)?;
+        }
+        if s.step % trainer.config.checkpoint_every == 0 || s.step == total {
+            checkpoint::save(&trainer, &ckpt)?;
+        }
+    }
+    pb.finish_and_clear();
+    println!(
+        "trained {total} steps: {:.0} rays/s on average",
+        rays as f64 / secs.max(1e-9)
+    );
+    if !trainer.holdout_views.is_empty() {
+        let p = super::render::holdout_psnr(&trainer);
+        println!("held-out PSNR {:.2} dB over {} views", p, trainer.holdout_views.len());
+    }
+    if !a.no_preview {
+        let loaded = checkpoint::load_field(&ckpt)?;
+        let levels = loaded.config.field.grid.levels;
+        let mesh = super::render::zero_level_mesh(&loaded.field, levels, loaded.centre, loaded.radius, a.preview_res);
+        if mesh.faces.is_empty() {
+            tracing::warn!("the field has no zero level inside the unit sphere: no preview.ply");
+        } else {
+            let path = a.out.join("preview.ply");
+            pganeus_io::write_ply(
+                &path,
+                &pganeus_io::PlyMesh::from_mesh(mesh),
+                pganeus_io::PlyEncoding::BinaryLittleEndian,
+            )?;
+            println!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}

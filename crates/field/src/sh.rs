@@ -1,0 +1,20 @@
+//! Real spherical harmonics up to degree 3 as a view-direction encoding (as Instant-NGP's `SphericalHarmonics`).
+
+use crate::kernels;
+use rayon::prelude::*;
+
+/// Coefficients per direction (degrees 0–3).
+pub const SH_DIM: usize = 16;
+
+/// Directions per rayon task.
+const SH_CHUNK: usize = 1024;
+
+/// Encode unit directions `dirs` (N×3) into `out` (N×16): real spherical harmonics with the Condon–Shortley phase,
+/// coefficient `l² + l + m` for degree `l`, order `m`. Directions are used as given (not normalised here).
+pub fn sh_encode(dirs: &[f32], out: &mut [f32]) {
+    assert_eq!(dirs.len() % 3, 0, "sh_encode: dirs length not a multiple of 3");
+    assert_eq!(out.len(), dirs.len() / 3 * SH_DIM, "sh_encode: out length");
+    dirs.par_chunks(SH_CHUNK * 3)
+        .zip(out.par_chunks_mut(SH_CHUNK * SH_DIM))
+        .for_each(|(d, o)| kernels::sh_encode_rows(d, o));
+}

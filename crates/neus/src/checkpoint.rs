@@ -1,0 +1,179 @@
+//! Checkpoints in safetensors: the field's parameters, Adam's moments, the
+//! occupancy grid, and (in the header) the full training config with the
+//! architecture, the step, the random state and the unit-sphere frame, so a
+//! checkpoint loads without its config file and training resumes exactly.
+
+use crate::config::TrainConfig;
+use crate::dataset::Dataset;
+use crate::neus_field::NeusField;
+use crate::occupancy::OccupancyGrid;
+use crate::trainer::NeusTrainer;
+use geom::{SplitMix64, Vec3};
+use pganeus_io::{read_safetensors, write_safetensors, IoError, SafeTensors, Tensor, TensorData};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+const FORMAT: &str = "pganeus-neus-1";
+
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error(transparent)]
+    Io(#[from] IoError),
+    #[error("{path}: {msg}")]
+    Invalid { path: PathBuf, msg: String },
+}
+
+/// A trained field as loaded for rendering or meshing.
+pub struct LoadedField {
+    pub config: TrainConfig,
+    pub field: NeusField,
+    pub occupancy: OccupancyGrid,
+    pub step: usize,
+    /// Unit sphere → world: `p_world = centre + radius · p_unit`.
+    pub centre: Vec3<f64>,
+    pub radius: f64,
+    /// The capture it was trained on.
+    pub capture: PathBuf,
+}
+
+fn f32_tensor(v: &[f32]) -> Tensor {
+    Tensor {
+        shape: vec![v.len()],
+        data: TensorData::F32(v.to_vec()),
+    }
+}
+
+/// Write the trainer's state to `path` (atomically).
+pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
+    let f = &trainer.field;
+    let mut tensors = BTreeMap::new();
+    for (name, p) in [
+        ("grid", &f.grid_params),
+        ("sdf", &f.sdf_params),
+        ("color", &f.color_params),
+        ("extra", &f.extra),
+    ] {
+        tensors.insert(name.to_string(), f32_tensor(p));
+    }
+    for (name, a) in ["grid", "sdf", "color", "extra"].iter().zip(&trainer.adam) {
+        tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
+        tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
+    }
+    let occ = &trainer.occupancy;
+    tensors.insert(
+        "occupancy".into(),
+        Tensor {
+            shape: vec![occ.res, occ.res, occ.res],
+            data: TensorData::U8(occ.cells.clone()),
+        },
+    );
+    let mut metadata = BTreeMap::new();
+    metadata.insert("format".into(), FORMAT.into());
+    metadata.insert(
+        "config".into(),
+        serde_json::to_string(&trainer.config).expect("config serialises"),
+    );
+    metadata.insert("step".into(), trainer.step.to_string());
+    metadata.insert("rng".into(), trainer.rng.0.to_string());
+    metadata.insert(
+        "adam_steps".into(),
+        serde_json::to_string(&trainer.adam.iter().map(|a| a.step).collect::<Vec<_>>()).expect("numbers"),
+    );
+    metadata.insert(
+        "centre".into(),
+        serde_json::to_string(&trainer.data.centre.to_array()).expect("numbers"),
+    );
+    metadata.insert("radius".into(), trainer.data.radius.to_string());
+    metadata.insert("capture".into(), trainer.data.dir.display().to_string());
+    write_safetensors(path, &SafeTensors { metadata, tensors })?;
+    Ok(())
+}
+
+fn invalid(path: &Path, msg: impl Into<String>) -> CheckpointError {
+    CheckpointError::Invalid {
+        path: path.to_path_buf(),
+        msg: msg.into(),
+    }
+}
+
+fn meta<'a>(st: &'a SafeTensors, path: &Path, key: &str) -> Result<&'a str, CheckpointError> {
+    st.metadata
+        .get(key)
+        .map(|s| s.as_str())
+        .ok_or_else(|| invalid(path, format!("header has no \"{key}\" entry")))
+}
+
+fn floats(st: &SafeTensors, path: &Path, name: &str, len: usize) -> Result<Vec<f32>, CheckpointError> {
+    match st.tensors.get(name).map(|t| &t.data) {
+        Some(TensorData::F32(v)) if v.len() == len => Ok(v.clone()),
+        Some(TensorData::F32(v)) => Err(invalid(
+            path,
+            format!("tensor \"{name}\" has {} values, the architecture needs {len}", v.len()),
+        )),
+        Some(_) => Err(invalid(path, format!("tensor \"{name}\" is not F32"))),
+        None => Err(invalid(path, format!("no tensor \"{name}\""))),
+    }
+}
+
+fn parse<T: std::str::FromStr>(path: &Path, key: &str, s: &str) -> Result<T, CheckpointError> {
+    s.parse()
+        .map_err(|_| invalid(path, format!("header entry \"{key}\" is not a number: {s}")))
+}
+
+/// Read a checkpoint's field (for rendering and meshing).
+pub fn load_field(path: &Path) -> Result<LoadedField, CheckpointError> {
+    let st = read_safetensors(path)?;
+    load_from(&st, path)
+}
+
+fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointError> {
+    if meta(st, path, "format")? != FORMAT {
+        return Err(invalid(path, format!("not a {FORMAT} checkpoint")));
+    }
+    let config: TrainConfig = serde_json::from_str(meta(st, path, "config")?)
+        .map_err(|e| invalid(path, format!("config in the header: {e}")))?;
+    let mut field = NeusField::new(&config.field, config.seed);
+    field.grid_params = floats(st, path, "grid", field.grid_params.len())?;
+    field.sdf_params = floats(st, path, "sdf", field.sdf_params.len())?;
+    field.color_params = floats(st, path, "color", field.color_params.len())?;
+    field.extra = floats(st, path, "extra", field.extra.len())?;
+    let res = config.occupancy_res;
+    let occupancy = match st.tensors.get("occupancy").map(|t| &t.data) {
+        Some(TensorData::U8(c)) if c.len() == res * res * res => OccupancyGrid { res, cells: c.clone() },
+        _ => return Err(invalid(path, format!("tensor \"occupancy\" must be {res}³ U8 values"))),
+    };
+    let centre: [f64; 3] = serde_json::from_str(meta(st, path, "centre")?)
+        .map_err(|e| invalid(path, format!("centre in the header: {e}")))?;
+    Ok(LoadedField {
+        step: parse(path, "step", meta(st, path, "step")?)?,
+        radius: parse(path, "radius", meta(st, path, "radius")?)?,
+        centre: Vec3::cst(centre),
+        capture: PathBuf::from(meta(st, path, "capture")?),
+        config,
+        field,
+        occupancy,
+    })
+}
+
+/// Rebuild a trainer from a checkpoint to continue where it stopped.
+pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError> {
+    let st = read_safetensors(path)?;
+    let loaded = load_from(&st, path)?;
+    let mut t = NeusTrainer::new(loaded.config.clone(), data).map_err(|e| invalid(path, e))?;
+    t.field = loaded.field;
+    t.occupancy = loaded.occupancy;
+    t.step = loaded.step;
+    t.rng = SplitMix64(parse(path, "rng", meta(&st, path, "rng")?)?);
+    let steps: Vec<u64> = serde_json::from_str(meta(&st, path, "adam_steps")?)
+        .map_err(|e| invalid(path, format!("adam_steps in the header: {e}")))?;
+    if steps.len() != 4 {
+        return Err(invalid(path, "adam_steps must list 4 counters"));
+    }
+    for (k, name) in ["grid", "sdf", "color", "extra"].iter().enumerate() {
+        let n = t.adam[k].m.len();
+        t.adam[k].m = floats(&st, path, &format!("adam.{name}.m"), n)?;
+        t.adam[k].v = floats(&st, path, &format!("adam.{name}.v"), n)?;
+        t.adam[k].step = steps[k];
+    }
+    Ok(t)
+}

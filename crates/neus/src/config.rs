@@ -1,0 +1,145 @@
+//! Training settings: one struct, saved in every checkpoint.
+
+use crate::neus_field::FieldConfig;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Optimiser steps. Default 3000.
+    pub iterations: usize,
+    /// Rays per step. Default 2048.
+    pub batch_rays: usize,
+    /// Peak learning rate (after warm-up). Default 0.01.
+    pub lr: f32,
+    /// Linear warm-up steps. Default 100.
+    pub warmup: usize,
+    /// The learning rate decays exponentially to `lr · lr_final_ratio` at the end. Default 0.1.
+    pub lr_final_ratio: f32,
+    /// Marching steps across the unit sphere's diameter. Default 512.
+    pub steps_per_ray: usize,
+    /// At most this many samples per ray (the occupied part is subsampled). Default 48.
+    pub max_samples_per_ray: usize,
+    /// Occupancy grid resolution (cells per axis over [-1, 1]). Default 64.
+    pub occupancy_res: usize,
+    /// Refresh the occupancy grid every this many steps. Default 16.
+    pub occupancy_every: usize,
+    /// Sample everywhere in the sphere for this many steps first. Default 200.
+    pub occupancy_warmup: usize,
+    /// Steps over which NeuS's cosine annealing goes from 0 to 1. Default 500.
+    pub anneal_end: usize,
+    /// Weight of the eikonal term. Default 0.1.
+    pub eikonal_weight: f32,
+    /// Weight of the mask BCE term (when the capture has masks). Default 0.1.
+    pub mask_weight: f32,
+    /// Hash levels active at the start (progressive activation). Default 4.
+    pub level_start: usize,
+    /// One more level every this many steps (0 = all levels from the start). Default 100.
+    pub level_every: usize,
+    /// Hold out every k-th view for evaluation (0 = none). Default 8.
+    pub holdout_every: usize,
+    /// Write a checkpoint every this many steps. Default 500.
+    pub checkpoint_every: usize,
+    pub seed: u64,
+    pub field: FieldConfig,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 3000,
+            batch_rays: 2048,
+            lr: 0.01,
+            warmup: 100,
+            lr_final_ratio: 0.1,
+            steps_per_ray: 512,
+            max_samples_per_ray: 48,
+            occupancy_res: 64,
+            occupancy_every: 16,
+            occupancy_warmup: 200,
+            anneal_end: 500,
+            eikonal_weight: 0.1,
+            mask_weight: 0.1,
+            level_start: 4,
+            level_every: 100,
+            holdout_every: 8,
+            checkpoint_every: 500,
+            seed: 0,
+            field: FieldConfig::default(),
+        }
+    }
+}
+
+impl TrainConfig {
+    /// `fast` (the default) or `quality` (longer, bigger batches, more samples).
+    pub fn preset(name: &str) -> Option<Self> {
+        match name {
+            "fast" => Some(Self::default()),
+            "quality" => Some(Self {
+                iterations: 20000,
+                batch_rays: 4096,
+                max_samples_per_ray: 64,
+                steps_per_ray: 1024,
+                occupancy_res: 128,
+                anneal_end: 2000,
+                level_every: 500,
+                checkpoint_every: 1000,
+                ..Self::default()
+            }),
+            _ => None,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("iterations", self.iterations),
+            ("batch_rays", self.batch_rays),
+            ("steps_per_ray", self.steps_per_ray),
+            ("max_samples_per_ray", self.max_samples_per_ray),
+            ("occupancy_res", self.occupancy_res),
+            ("occupancy_every", self.occupancy_every),
+            ("level_start", self.level_start),
+            ("checkpoint_every", self.checkpoint_every),
+        ];
+        for (name, v) in positive {
+            if v == 0 {
+                return Err(format!("{name} must be at least 1"));
+            }
+        }
+        for (name, v) in [("lr", self.lr), ("lr_final_ratio", self.lr_final_ratio)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} must be positive, got {v}"));
+            }
+        }
+        for (name, v) in [
+            ("eikonal_weight", self.eikonal_weight),
+            ("mask_weight", self.mask_weight),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} must be ≥ 0, got {v}"));
+            }
+        }
+        if self.field.grid.levels == 0 || self.field.feature_dim == 0 {
+            return Err("field: at least one hash level and one feature".into());
+        }
+        Ok(())
+    }
+
+    /// Learning rate at `step`: linear warm-up, then exponential decay.
+    pub fn lr_at(&self, step: usize) -> f32 {
+        if step < self.warmup {
+            return self.lr * (step + 1) as f32 / self.warmup as f32;
+        }
+        let p = (step - self.warmup) as f32 / (self.iterations.saturating_sub(self.warmup)).max(1) as f32;
+        self.lr * self.lr_final_ratio.powf(p.min(1.0))
+    }
+
+    /// Hash levels active at `step`.
+    pub fn active_levels(&self, step: usize) -> usize {
+        let all = self.field.grid.levels;
+        if self.level_every == 0 {
+            return all;
+        }
+        (self.level_start + step / self.level_every).min(all)
+    }
+}

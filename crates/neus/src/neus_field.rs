@@ -1,0 +1,150 @@
+//! The NeuS field (Eq. 1): a multiresolution hash encoding and a small SDF
+//! MLP give the signed distance and a feature vector; a colour MLP takes the
+//! view direction (spherical harmonics), the normal and the feature.
+
+use field::{Activation, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, SH_DIM};
+use geom::SplitMix64;
+use serde::{Deserialize, Serialize};
+
+/// Architecture of the field (recorded in every checkpoint).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FieldConfig {
+    pub grid: HashGridConfig,
+    /// Hidden widths of the SDF MLP. Default [64].
+    pub sdf_hidden: Vec<usize>,
+    /// Length of the feature vector passed to the colour MLP. Default 15.
+    pub feature_dim: usize,
+    /// Hidden widths of the colour MLP. Default [64, 64].
+    pub color_hidden: Vec<usize>,
+    /// β of the SDF MLP's softplus (NeuS uses 100). Default 100.
+    pub softplus_beta: f32,
+    /// Radius of the initial sphere, unit coordinates. Default 0.5.
+    pub init_radius: f32,
+    /// Initial value of the variance parameter (inv_s = exp(10 · variance)). Default 0.3.
+    pub init_variance: f32,
+}
+
+impl Default for FieldConfig {
+    fn default() -> Self {
+        Self {
+            grid: HashGridConfig::default(),
+            sdf_hidden: vec![64],
+            feature_dim: 15,
+            color_hidden: vec![64, 64],
+            softplus_beta: 100.0,
+            init_radius: 0.5,
+            init_variance: 0.3,
+        }
+    }
+}
+
+/// The field and its parameters.
+pub struct NeusField {
+    pub config: FieldConfig,
+    pub grid: HashGrid,
+    pub sdf: Mlp,
+    pub color: Mlp,
+    pub grid_params: Vec<f32>,
+    pub sdf_params: Vec<f32>,
+    pub color_params: Vec<f32>,
+    /// `[variance, background r, g, b]`.
+    pub extra: Vec<f32>,
+}
+
+/// Input width of the SDF MLP: xyz then the encoding.
+pub const XYZ: usize = 3;
+
+impl NeusField {
+    pub fn new(config: &FieldConfig, seed: u64) -> Self {
+        let grid = HashGrid::new(&config.grid);
+        let sdf_in = XYZ + grid.output_dim();
+        let mut dims = vec![sdf_in];
+        dims.extend(&config.sdf_hidden);
+        dims.push(1 + config.feature_dim);
+        let sdf = Mlp::new(&MlpConfig {
+            dims,
+            hidden: Activation::Softplus {
+                beta: config.softplus_beta,
+            },
+            output: Activation::None,
+        });
+        let mut cdims = vec![SH_DIM + 3 + config.feature_dim];
+        cdims.extend(&config.color_hidden);
+        cdims.push(3);
+        let color = Mlp::new(&MlpConfig {
+            dims: cdims,
+            hidden: Activation::Relu,
+            output: Activation::Sigmoid,
+        });
+        let mut rng = SplitMix64::new(seed);
+        let mut grid_params = vec![0.0; grid.param_count()];
+        grid.init_params(&mut grid_params, &mut rng);
+        let mut sdf_params = vec![0.0; sdf.param_count()];
+        sdf.init_geometric(&mut sdf_params, &mut rng, config.init_radius, XYZ);
+        let mut color_params = vec![0.0; color.param_count()];
+        color.init_params(&mut color_params, &mut rng);
+        let extra = vec![config.init_variance, 0.5, 0.5, 0.5];
+        Self {
+            config: config.clone(),
+            grid,
+            sdf,
+            color,
+            grid_params,
+            sdf_params,
+            color_params,
+            extra,
+        }
+    }
+
+    /// The sharpness `s` of Φ_s.
+    pub fn inv_s(&self) -> f32 {
+        (self.extra[0] * 10.0).exp().clamp(1e-3, 1e6)
+    }
+
+    pub fn background(&self) -> [f32; 3] {
+        [self.extra[1], self.extra[2], self.extra[3]].map(|v| v.clamp(0.0, 1.0))
+    }
+
+    pub fn all_levels(&self) -> usize {
+        self.config.grid.levels
+    }
+
+    /// SDF MLP outputs (N × (1 + feature_dim)) at unit-coordinate points
+    /// (N × 3). `enc` and `input` are scratch.
+    pub fn sdf_forward<'s>(
+        &self,
+        points: &[f32],
+        active_levels: usize,
+        enc: &mut Vec<f32>,
+        input: &mut Vec<f32>,
+        scratch: &'s mut MlpScratch,
+    ) -> &'s [f32] {
+        let n = points.len() / 3;
+        let e = self.grid.output_dim();
+        enc.resize(n * e, 0.0);
+        input.resize(n * (XYZ + e), 0.0);
+        let unit01: Vec<f32> = points.iter().map(|v| (v + 1.0) * 0.5).collect();
+        self.grid.encode(&self.grid_params, &unit01, enc, active_levels);
+        for i in 0..n {
+            let row = &mut input[i * (XYZ + e)..(i + 1) * (XYZ + e)];
+            row[..XYZ].copy_from_slice(&points[i * 3..i * 3 + 3]);
+            row[XYZ..].copy_from_slice(&enc[i * e..(i + 1) * e]);
+        }
+        self.sdf.forward(&self.sdf_params, input, n, scratch)
+    }
+
+    /// SDF values only, in batches (for meshing and occupancy updates).
+    pub fn sdf_values(&self, points: &[f32], active_levels: usize) -> Vec<f32> {
+        let mut enc = Vec::new();
+        let mut input = Vec::new();
+        let mut scratch = MlpScratch::default();
+        let width = 1 + self.config.feature_dim;
+        let mut out = Vec::with_capacity(points.len() / 3);
+        for chunk in points.chunks(3 * 65536) {
+            let o = self.sdf_forward(chunk, active_levels, &mut enc, &mut input, &mut scratch);
+            out.extend(o.chunks_exact(width).map(|r| r[0]));
+        }
+        out
+    }
+}

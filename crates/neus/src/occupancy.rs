@@ -1,0 +1,123 @@
+//! Empty-space skipping (as NeuS2 and instant-nsr-pl do): a grid over the
+//! unit cube marks cells whose SDF is within reach of the surface; samples
+//! are taken only there. Refreshed from the field during training.
+
+/// Occupancy of `res³` cells covering [-1, 1]³.
+#[derive(Clone, Debug)]
+pub struct OccupancyGrid {
+    pub res: usize,
+    /// 1 = may hold surface.
+    pub cells: Vec<u8>,
+}
+
+impl OccupancyGrid {
+    /// Everything occupied (the field is unknown).
+    pub fn full(res: usize) -> Self {
+        Self {
+            res,
+            cells: vec![1; res * res * res],
+        }
+    }
+
+    pub fn cell_size(&self) -> f32 {
+        2.0 / self.res as f32
+    }
+
+    /// Centre of cell `idx` in unit coordinates.
+    pub fn centre(&self, idx: usize) -> [f32; 3] {
+        let r = self.res;
+        let (i, j, k) = (idx % r, (idx / r) % r, idx / (r * r));
+        let h = self.cell_size();
+        [i, j, k].map(|c| -1.0 + (c as f32 + 0.5) * h)
+    }
+
+    #[inline]
+    pub fn occupied(&self, p: [f32; 3]) -> bool {
+        let r = self.res as f32;
+        let mut idx = 0usize;
+        let mut mul = 1usize;
+        for &c in &p {
+            let g = ((c + 1.0) * 0.5 * r).floor();
+            if !(0.0..r).contains(&g) {
+                return false;
+            }
+            idx += g as usize * mul;
+            mul *= self.res;
+        }
+        self.cells[idx] != 0
+    }
+
+    /// Set cells from SDF values at their centres: occupied when `|sdf| ≤ band`.
+    pub fn update(&mut self, indices: &[usize], sdf: &[f32], band: f32) {
+        for (&i, &s) in indices.iter().zip(sdf) {
+            self.cells[i] = u8::from(s.abs() <= band);
+        }
+    }
+
+    /// Fraction of occupied cells.
+    pub fn occupied_fraction(&self) -> f32 {
+        self.cells.iter().filter(|&&c| c != 0).count() as f32 / self.cells.len() as f32
+    }
+}
+
+/// Where a ray enters and leaves the unit sphere (`None` if it misses).
+#[inline]
+pub fn sphere_span(o: [f32; 3], d: [f32; 3]) -> Option<(f32, f32)> {
+    let b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+    let c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - 1.0;
+    let disc = b * b - c;
+    if disc <= 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    let (near, far) = (-b - s, -b + s);
+    (far > 0.0).then_some((near.max(0.0), far))
+}
+
+/// How rays are marched.
+#[derive(Clone, Copy, Debug)]
+pub struct Marching {
+    /// Equal steps across the unit sphere's diameter.
+    pub steps: usize,
+    /// At most this many samples per ray.
+    pub cap: usize,
+}
+
+/// Samples along one ray, appended to `out_t` (section midpoints) and
+/// `out_dt` (section lengths). March equal steps across the sphere; keep
+/// those in occupied cells; if more than `cap` remain, keep every k-th (from
+/// a random start) and widen the sections to match.
+pub fn sample_ray(
+    grid: &OccupancyGrid,
+    o: [f32; 3],
+    d: [f32; 3],
+    march: Marching,
+    jitter: f32,
+    out_t: &mut Vec<f32>,
+    out_dt: &mut Vec<f32>,
+) {
+    let (steps, cap) = (march.steps, march.cap);
+    let Some((near, far)) = sphere_span(o, d) else { return };
+    let dt = 2.0 / steps as f32;
+    let n = ((far - near) / dt).ceil() as usize;
+    let at = |k: usize| near + (k as f32 + jitter) * dt;
+    let occupied = |t: f32| grid.occupied([o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]]);
+    let count = (0..n).filter(|&k| at(k) < far && occupied(at(k))).count();
+    if count == 0 {
+        return;
+    }
+    let stride = count.div_ceil(cap);
+    let start = ((jitter * stride as f32) as usize).min(stride - 1);
+    let mut seen = 0usize;
+    for k in 0..n {
+        let t = at(k);
+        if t >= far || !occupied(t) {
+            continue;
+        }
+        if seen % stride == start {
+            out_t.push(t);
+            out_dt.push(dt * stride as f32);
+        }
+        seen += 1;
+    }
+}

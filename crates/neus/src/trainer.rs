@@ -1,0 +1,521 @@
+//! Training a NeuS field on a capture: `NeusTrainer::new`, then `step()`.
+//!
+//! Per step: rays from random pixels of the training views; samples in the
+//! occupied part of the unit sphere; the SDF at each sample and at three
+//! points a small step away (finite-difference gradient, Neuralangelo-style:
+//! normals and the eikonal term without second derivatives); colours; NeuS
+//! rendering; losses (colour L1, eikonal, mask BCE); one backward pass
+//! through rendering, the colour MLP, the SDF MLP and the hash grid; Adam
+//! (sparse on the hash tables).
+
+use crate::config::TrainConfig;
+use crate::dataset::Dataset;
+use crate::neus_field::{NeusField, XYZ};
+use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
+use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
+use field::{sh_encode, Adam, AdamConfig, GradMode, MlpScratch, Touched, SH_DIM};
+use geom::SplitMix64;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// The loss terms of a step (before weighting).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LossTerms {
+    /// Mean absolute colour error (inside the mask when there are masks).
+    pub rgb: f32,
+    /// Mean (|∇s| − 1)² over the samples.
+    pub eikonal: f32,
+    /// Mean BCE between the rendered opacity and the mask (0 without masks).
+    pub mask: f32,
+}
+
+impl LossTerms {
+    pub fn total(&self, cfg: &TrainConfig) -> f32 {
+        self.rgb + cfg.eikonal_weight * self.eikonal + cfg.mask_weight * self.mask
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct StepStats {
+    pub step: usize,
+    pub loss: LossTerms,
+    /// PSNR of the batch's rays (inside the mask when there are masks), dB.
+    pub psnr: f32,
+    pub rays: usize,
+    pub samples: usize,
+    pub seconds: f64,
+    pub lr: f32,
+    pub inv_s: f32,
+    pub active_levels: usize,
+    pub occupied: f32,
+}
+
+/// Buffers reused across steps.
+#[derive(Default)]
+struct Scratch {
+    rays_o: Vec<[f32; 3]>,
+    rays_d: Vec<[f32; 3]>,
+    gt: Vec<[f32; 3]>,
+    mask: Vec<f32>,
+    offsets: Vec<usize>,
+    t: Vec<f32>,
+    dt: Vec<f32>,
+    points: Vec<f32>,
+    enc: Vec<f32>,
+    sdf_in: Vec<f32>,
+    sdf_mlp: MlpScratch,
+    color_in: Vec<f32>,
+    color_mlp: MlpScratch,
+    grad_fd: Vec<[f32; 3]>,
+    sdf0: Vec<f32>,
+    cos: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
+    d_sdf0: Vec<f32>,
+    d_cos: Vec<f32>,
+    d_rgb: Vec<[f32; 3]>,
+    d_color_out: Vec<f32>,
+    d_color_in: Vec<f32>,
+    d_sdf_out: Vec<f32>,
+    d_sdf_in: Vec<f32>,
+    d_enc: Vec<f32>,
+    unit01: Vec<f32>,
+}
+
+pub struct NeusTrainer {
+    pub config: TrainConfig,
+    pub field: NeusField,
+    pub data: Dataset,
+    pub train_views: Vec<usize>,
+    pub holdout_views: Vec<usize>,
+    pub occupancy: OccupancyGrid,
+    pub step: usize,
+    pub(crate) adam: [Adam; 4],
+    pub(crate) rng: SplitMix64,
+    touched: Touched,
+    grads: [Vec<f32>; 4],
+    scratch: Scratch,
+}
+
+/// Split `s` into consecutive pieces of the given lengths.
+fn split_by<'a, T>(mut s: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(offsets.len().saturating_sub(1));
+    for w in offsets.windows(2) {
+        let (a, b) = s.split_at_mut(w[1] - w[0]);
+        out.push(a);
+        s = b;
+    }
+    out
+}
+
+impl NeusTrainer {
+    pub fn new(config: TrainConfig, data: Dataset) -> Result<Self, String> {
+        config.validate()?;
+        if data.views.is_empty() {
+            return Err("the capture has no views".into());
+        }
+        let (mut train_views, mut holdout_views) = (Vec::new(), Vec::new());
+        for i in 0..data.views.len() {
+            if config.holdout_every > 0 && data.views.len() > 2 && i % config.holdout_every == config.holdout_every / 2
+            {
+                holdout_views.push(i);
+            } else {
+                train_views.push(i);
+            }
+        }
+        let field = NeusField::new(&config.field, config.seed);
+        let adam = [
+            Adam::new(field.grid_params.len()),
+            Adam::new(field.sdf_params.len()),
+            Adam::new(field.color_params.len()),
+            Adam::new(field.extra.len()),
+        ];
+        let grads = [
+            vec![0.0; field.grid_params.len()],
+            vec![0.0; field.sdf_params.len()],
+            vec![0.0; field.color_params.len()],
+            vec![0.0; field.extra.len()],
+        ];
+        let touched = Touched::new(&field.grid);
+        Ok(Self {
+            occupancy: OccupancyGrid::full(config.occupancy_res),
+            rng: SplitMix64::new(config.seed ^ 0xA5A5),
+            config,
+            field,
+            data,
+            train_views,
+            holdout_views,
+            step: 0,
+            adam,
+            touched,
+            grads,
+            scratch: Scratch::default(),
+        })
+    }
+
+    /// The finite-difference step at a level count: the finest active cell, in unit coordinates.
+    pub fn fd_eps(&self, levels: usize) -> f32 {
+        let g = &self.config.field.grid;
+        let b = ((g.max_resolution as f32).ln() - (g.base_resolution as f32).ln()) / (g.levels.max(2) - 1) as f32;
+        let res = g.base_resolution as f32 * (b * (levels.max(1) - 1) as f32).exp();
+        (2.0 / res).max(2.0 / g.max_resolution as f32)
+    }
+
+    /// One optimisation step.
+    pub fn step(&mut self) -> StepStats {
+        let t0 = std::time::Instant::now();
+        let cfg = self.config.clone();
+        let step = self.step;
+        let lr = cfg.lr_at(step);
+        let levels = cfg.active_levels(step);
+        let anneal = (step as f32 / cfg.anneal_end.max(1) as f32).min(1.0);
+        let eps = self.fd_eps(levels);
+        let masked = self.data.has_masks();
+        let sc = &mut self.scratch;
+
+        // Rays from random pixels of the training views.
+        let r = cfg.batch_rays;
+        sc.rays_o.clear();
+        sc.rays_d.clear();
+        sc.gt.clear();
+        sc.mask.clear();
+        let (w, h) = (self.data.width as f64, self.data.height as f64);
+        for _ in 0..r {
+            let v = self.train_views[(self.rng.next_u64() % self.train_views.len() as u64) as usize];
+            let (x, y) = (self.rng.next_f64() * w, self.rng.next_f64() * h);
+            let px = (y as usize).min(h as usize - 1) * w as usize + (x as usize).min(w as usize - 1);
+            let ray = self.data.ray(v, x, y);
+            let view = &self.data.views[v];
+            sc.rays_o.push(ray.origin);
+            sc.rays_d.push(ray.dir);
+            sc.gt.push(view.rgb[px]);
+            sc.mask.push(view.mask.as_ref().map_or(1.0, |m| m[px]));
+        }
+
+        // Samples where the occupancy grid allows.
+        let everywhere;
+        let grid = if step < cfg.occupancy_warmup {
+            everywhere = OccupancyGrid::full(1);
+            &everywhere
+        } else {
+            &self.occupancy
+        };
+        sc.t.clear();
+        sc.dt.clear();
+        sc.offsets.clear();
+        sc.offsets.push(0);
+        let march = Marching {
+            steps: cfg.steps_per_ray,
+            cap: cfg.max_samples_per_ray,
+        };
+        for i in 0..r {
+            let jitter = self.rng.next_f64() as f32;
+            sample_ray(grid, sc.rays_o[i], sc.rays_d[i], march, jitter, &mut sc.t, &mut sc.dt);
+            sc.offsets.push(sc.t.len());
+        }
+        let m = sc.t.len();
+        if m == 0 {
+            // Every ray missed the occupied region: nothing to learn from this batch.
+            self.step += 1;
+            return StepStats {
+                step: self.step,
+                loss: LossTerms::default(),
+                psnr: 0.0,
+                rays: r,
+                samples: 0,
+                seconds: t0.elapsed().as_secs_f64(),
+                lr,
+                inv_s: self.field.inv_s(),
+                active_levels: levels,
+                occupied: self.occupancy.occupied_fraction(),
+            };
+        }
+
+        // The SDF at each sample and a step away along x, y, z (4 blocks of m points).
+        sc.points.resize(4 * m * 3, 0.0);
+        for i in 0..r {
+            let (o, d) = (sc.rays_o[i], sc.rays_d[i]);
+            for s in sc.offsets[i]..sc.offsets[i + 1] {
+                let p = [o[0] + sc.t[s] * d[0], o[1] + sc.t[s] * d[1], o[2] + sc.t[s] * d[2]];
+                for b in 0..4 {
+                    let mut q = p;
+                    if b > 0 {
+                        q[b - 1] += eps;
+                    }
+                    sc.points[(b * m + s) * 3..(b * m + s) * 3 + 3].copy_from_slice(&q);
+                }
+            }
+        }
+        let width = 1 + cfg.field.feature_dim;
+        let e = self.field.grid.output_dim();
+        let n4 = 4 * m;
+        sc.enc.resize(n4 * e, 0.0);
+        sc.sdf_in.resize(n4 * (XYZ + e), 0.0);
+        sc.unit01.clear();
+        sc.unit01.extend(sc.points.iter().map(|v| (v + 1.0) * 0.5));
+        self.field
+            .grid
+            .encode(&self.field.grid_params, &sc.unit01, &mut sc.enc, levels);
+        for i in 0..n4 {
+            let row = &mut sc.sdf_in[i * (XYZ + e)..(i + 1) * (XYZ + e)];
+            row[..XYZ].copy_from_slice(&sc.points[i * 3..i * 3 + 3]);
+            row[XYZ..].copy_from_slice(&sc.enc[i * e..(i + 1) * e]);
+        }
+        let out = self
+            .field
+            .sdf
+            .forward(&self.field.sdf_params, &sc.sdf_in, n4, &mut sc.sdf_mlp)
+            .to_vec();
+
+        // Gradients, cosines, normals; the colour MLP's input.
+        let cin = SH_DIM + 3 + cfg.field.feature_dim;
+        sc.grad_fd.resize(m, [0.0; 3]);
+        sc.sdf0.resize(m, 0.0);
+        sc.cos.resize(m, 0.0);
+        sc.color_in.resize(m * cin, 0.0);
+        let mut dirs = vec![0.0f32; m * 3];
+        for i in 0..r {
+            for s in sc.offsets[i]..sc.offsets[i + 1] {
+                dirs[s * 3..s * 3 + 3].copy_from_slice(&sc.rays_d[i]);
+            }
+        }
+        let mut sh = vec![0.0f32; m * SH_DIM];
+        sh_encode(&dirs, &mut sh);
+        let mut eik = 0.0f64;
+        for s in 0..m {
+            let s0 = out[s * width];
+            let g: [f32; 3] = std::array::from_fn(|k| (out[((k + 1) * m + s) * width] - s0) / eps);
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
+            eik += ((len - 1.0) * (len - 1.0)) as f64;
+            sc.grad_fd[s] = g;
+            sc.sdf0[s] = s0;
+            sc.cos[s] = g[0] * dirs[s * 3] + g[1] * dirs[s * 3 + 1] + g[2] * dirs[s * 3 + 2];
+            let row = &mut sc.color_in[s * cin..(s + 1) * cin];
+            row[..SH_DIM].copy_from_slice(&sh[s * SH_DIM..(s + 1) * SH_DIM]);
+            for k in 0..3 {
+                row[SH_DIM + k] = g[k] / len;
+            }
+            row[SH_DIM + 3..].copy_from_slice(&out[s * width + 1..(s + 1) * width]);
+        }
+        let rgb_out = self
+            .field
+            .color
+            .forward(&self.field.color_params, &sc.color_in, m, &mut sc.color_mlp)
+            .to_vec();
+        sc.rgb.clear();
+        sc.rgb.extend(rgb_out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+
+        // Render, losses and their gradients, ray by ray.
+        let inv_s = self.field.inv_s();
+        let bg = self.field.background();
+        let count = if masked {
+            sc.mask.iter().sum::<f32>().max(1.0)
+        } else {
+            r as f32
+        };
+        sc.d_sdf0.resize(m, 0.0);
+        sc.d_cos.resize(m, 0.0);
+        sc.d_rgb.resize(m, [0.0; 3]);
+        let ds = split_by(&mut sc.d_sdf0, &sc.offsets);
+        let dc = split_by(&mut sc.d_cos, &sc.offsets);
+        let dr = split_by(&mut sc.d_rgb, &sc.offsets);
+        let (offsets, sdf0, cos, dt, tt, rgb, gt, mask) =
+            (&sc.offsets, &sc.sdf0, &sc.cos, &sc.dt, &sc.t, &sc.rgb, &sc.gt, &sc.mask);
+        let mask_w = cfg.mask_weight;
+        let per_ray: Vec<(f32, f32, f32, f32, [f32; 3])> = ds
+            .into_par_iter()
+            .zip(dc)
+            .zip(dr)
+            .enumerate()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(alpha, trans), (i, ((ds, dc), dr))| {
+                    let (a, b) = (offsets[i], offsets[i + 1]);
+                    let x = RayInputs {
+                        sdf: &sdf0[a..b],
+                        cos: &cos[a..b],
+                        dt: &dt[a..b],
+                        t: &tt[a..b],
+                        rgb: &rgb[a..b],
+                        inv_s,
+                        anneal,
+                        background: bg,
+                    };
+                    alpha.resize(b - a, 0.0);
+                    trans.resize(b - a, 0.0);
+                    let o = render_ray(&x, alpha, trans);
+                    let wm = mask[i];
+                    let mut l1 = 0.0;
+                    let mut se = 0.0;
+                    let mut d_rgb = [0.0; 3];
+                    for k in 0..3 {
+                        let diff = o.rgb[k] - gt[i][k];
+                        l1 += wm * diff.abs() / 3.0;
+                        se += wm * diff * diff / 3.0;
+                        d_rgb[k] = wm * diff.signum() / (3.0 * count);
+                    }
+                    let (mut bce, mut d_op) = (0.0, 0.0);
+                    if masked {
+                        let op = o.opacity.clamp(1e-3, 1.0 - 1e-3);
+                        bce = -(wm * op.ln() + (1.0 - wm) * (1.0 - op).ln());
+                        if o.opacity > 1e-3 && o.opacity < 1.0 - 1e-3 {
+                            d_op = mask_w * (op - wm) / (op * (1.0 - op)) / r as f32;
+                        }
+                    }
+                    let mut d_inv_s = 0.0;
+                    let mut d_bg = [0.0; 3];
+                    render_ray_backward(
+                        &x,
+                        d_rgb,
+                        d_op,
+                        0.0,
+                        alpha,
+                        trans,
+                        RayGrads {
+                            sdf: ds,
+                            cos: dc,
+                            rgb: dr,
+                            inv_s: &mut d_inv_s,
+                            background: &mut d_bg,
+                        },
+                    );
+                    (l1, se, bce, d_inv_s, d_bg)
+                },
+            )
+            .collect();
+        let mut loss = LossTerms::default();
+        let mut sq = 0.0f32;
+        let (mut d_inv_s, mut d_bg) = (0.0f32, [0.0f32; 3]);
+        for (l1, se, bce, dis, dbg) in &per_ray {
+            loss.rgb += l1;
+            sq += se;
+            loss.mask += bce;
+            d_inv_s += dis;
+            for k in 0..3 {
+                d_bg[k] += dbg[k];
+            }
+        }
+        loss.rgb /= count;
+        loss.mask /= r as f32;
+        loss.eikonal = (eik / m.max(1) as f64) as f32;
+        let psnr = -10.0 * (sq / count).max(1e-10).log10();
+
+        // Colour MLP backward: to its parameters, the normal and the feature.
+        sc.d_color_out.clear();
+        sc.d_color_out.extend(sc.d_rgb.iter().flatten());
+        sc.d_color_in.resize(m * cin, 0.0);
+        self.field.color.backward(
+            &self.field.color_params,
+            &mut sc.color_mlp,
+            &sc.d_color_out,
+            &mut self.grads[2],
+            GradMode::Overwrite,
+            Some(&mut sc.d_color_in),
+        );
+
+        // Back to the SDF outputs of the 4 blocks.
+        sc.d_sdf_out.clear();
+        sc.d_sdf_out.resize(n4 * width, 0.0);
+        let eik_w = cfg.eikonal_weight / m.max(1) as f32;
+        for s in 0..m {
+            let g = sc.grad_fd[s];
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
+            let n = g.map(|v| v / len);
+            let dn: [f32; 3] = std::array::from_fn(|k| sc.d_color_in[s * cin + SH_DIM + k]);
+            let ndn = n[0] * dn[0] + n[1] * dn[1] + n[2] * dn[2];
+            let d = &dirs[s * 3..s * 3 + 3];
+            let mut dg = [0.0f32; 3];
+            for k in 0..3 {
+                dg[k] = (dn[k] - n[k] * ndn) / len + sc.d_cos[s] * d[k] + eik_w * 2.0 * (len - 1.0) * n[k];
+            }
+            let mut d0 = sc.d_sdf0[s];
+            for k in 0..3 {
+                sc.d_sdf_out[((k + 1) * m + s) * width] = dg[k] / eps;
+                d0 -= dg[k] / eps;
+            }
+            sc.d_sdf_out[s * width] = d0;
+            for f in 0..cfg.field.feature_dim {
+                sc.d_sdf_out[s * width + 1 + f] = sc.d_color_in[s * cin + SH_DIM + 3 + f];
+            }
+        }
+        sc.d_sdf_in.resize(n4 * (XYZ + e), 0.0);
+        self.field.sdf.backward(
+            &self.field.sdf_params,
+            &mut sc.sdf_mlp,
+            &sc.d_sdf_out,
+            &mut self.grads[1],
+            GradMode::Overwrite,
+            Some(&mut sc.d_sdf_in),
+        );
+        sc.d_enc.resize(n4 * e, 0.0);
+        for i in 0..n4 {
+            sc.d_enc[i * e..(i + 1) * e].copy_from_slice(&sc.d_sdf_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
+        }
+        self.field.grid.encode_backward(
+            &sc.unit01,
+            &sc.d_enc,
+            &mut self.grads[0],
+            &mut self.touched,
+            GradMode::Accumulate,
+            levels,
+        );
+        // inv_s = exp(10 v): dv = 10 inv_s d(inv_s); the background is clamped to [0, 1].
+        self.grads[3][0] = d_inv_s * 10.0 * inv_s;
+        for k in 0..3 {
+            let raw = self.field.extra[1 + k];
+            self.grads[3][1 + k] = if (0.0..=1.0).contains(&raw) { d_bg[k] } else { 0.0 };
+        }
+
+        // Adam.
+        let adam_cfg = AdamConfig {
+            lr,
+            beta1: 0.9,
+            beta2: 0.99,
+            eps: 1e-15,
+            weight_decay: 0.0,
+        };
+        let [ga, gs, gc, ge] = &mut self.grads;
+        let [aa, as_, ac, ae] = &mut self.adam;
+        aa.step_sparse(
+            &adam_cfg,
+            lr,
+            &mut self.field.grid_params,
+            ga,
+            &mut self.touched,
+            &self.field.grid,
+        );
+        as_.step_dense(&adam_cfg, lr, &mut self.field.sdf_params, gs);
+        ac.step_dense(&adam_cfg, lr, &mut self.field.color_params, gc);
+        ae.step_dense(&adam_cfg, lr * 0.1, &mut self.field.extra, ge);
+
+        self.step += 1;
+        if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
+            self.refresh_occupancy();
+        }
+        StepStats {
+            step: self.step,
+            loss,
+            psnr,
+            rays: r,
+            samples: m,
+            seconds: t0.elapsed().as_secs_f64(),
+            lr,
+            inv_s,
+            active_levels: levels,
+            occupied: self.occupancy.occupied_fraction(),
+        }
+    }
+
+    /// Re-evaluate the SDF at the centres of a quarter of the cells (a
+    /// different quarter each time); mark those within reach of the surface.
+    pub fn refresh_occupancy(&mut self) {
+        let cells = self.occupancy.cells.len();
+        let part = (self.step / self.config.occupancy_every.max(1)) % 4;
+        let idx: Vec<usize> = (part..cells).step_by(4).collect();
+        let pts: Vec<f32> = idx.iter().flat_map(|&i| self.occupancy.centre(i)).collect();
+        let sdf = self.field.sdf_values(&pts, self.config.active_levels(self.step));
+        // Within a cell's half-diagonal plus the width of the NeuS density (a few 1/s).
+        let band = 0.5 * 3f32.sqrt() * self.occupancy.cell_size() * 1.5 + 4.0 / self.field.inv_s();
+        self.occupancy.update(&idx, &sdf, band);
+    }
+}

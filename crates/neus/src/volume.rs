@@ -1,0 +1,162 @@
+//! NeuS volume rendering of one ray (Eq. 2) and its backward pass.
+//!
+//! Each sample is the midpoint of a section of length `dt`; the SDF at the
+//! section ends is estimated from the midpoint value and the gradient
+//! (`s ∓ cos·dt/2`, with NeuS's cosine annealing), and the section's opacity
+//! is the unbiased `α = (Φ_s(s_prev) − Φ_s(s_next)) / Φ_s(s_prev)`, clamped to
+//! [0, 1]. Weights `w_i = T_i α_i`; colour `Σ w_i c_i + T_n c_bg`.
+
+/// Inputs of one ray, `n` samples.
+pub struct RayInputs<'a> {
+    /// SDF at each midpoint.
+    pub sdf: &'a [f32],
+    /// `dir · ∇s` at each midpoint.
+    pub cos: &'a [f32],
+    /// Section lengths.
+    pub dt: &'a [f32],
+    /// Distance of each midpoint along the ray (for depth).
+    pub t: &'a [f32],
+    /// Colour at each midpoint.
+    pub rgb: &'a [[f32; 3]],
+    /// Sharpness `s` of Φ_s (inverse standard deviation).
+    pub inv_s: f32,
+    /// Cosine annealing ratio in [0, 1] (1 = the true cosine).
+    pub anneal: f32,
+    pub background: [f32; 3],
+}
+
+/// What a ray renders to.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RayOutput {
+    pub rgb: [f32; 3],
+    /// Σ w_i: 1 where the ray hit the object.
+    pub opacity: f32,
+    /// Σ w_i t_i.
+    pub depth: f32,
+}
+
+/// Gradients of one ray's inputs.
+pub struct RayGrads<'a> {
+    pub sdf: &'a mut [f32],
+    pub cos: &'a mut [f32],
+    pub rgb: &'a mut [[f32; 3]],
+    pub inv_s: &'a mut f32,
+    pub background: &'a mut [f32; 3],
+}
+
+const EPS: f32 = 1e-5;
+
+#[inline]
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+/// `iter_cos` of NeuS: the (annealed, never positive) slope used to estimate
+/// the SDF at the section ends, and its derivative in `cos`.
+#[inline]
+fn iter_cos(c: f32, anneal: f32) -> (f32, f32) {
+    let a = (0.5 - 0.5 * c).max(0.0);
+    let b = (-c).max(0.0);
+    let v = -((1.0 - anneal) * a + anneal * b);
+    let dv = (1.0 - anneal) * 0.5 * f32::from(c < 1.0) + anneal * f32::from(c < 0.0);
+    (v, dv)
+}
+
+/// Opacity of each section; `alpha` has the samples' length.
+pub fn alphas(x: &RayInputs, alpha: &mut [f32]) {
+    for i in 0..x.sdf.len() {
+        let (ic, _) = iter_cos(x.cos[i], x.anneal);
+        let half = ic * x.dt[i] * 0.5;
+        let p = sigmoid((x.sdf[i] - half) * x.inv_s);
+        let n = sigmoid((x.sdf[i] + half) * x.inv_s);
+        alpha[i] = ((p - n + EPS) / (p + EPS)).clamp(0.0, 1.0);
+    }
+}
+
+/// Weights `w_i = T_i α_i` from the opacities.
+pub fn weights(alpha: &[f32], w: &mut [f32]) -> f32 {
+    let mut trans = 1.0f32;
+    for (wi, &a) in w.iter_mut().zip(alpha) {
+        *wi = trans * a;
+        trans *= 1.0 - a;
+    }
+    trans
+}
+
+/// Render one ray. `alpha` and `w` are scratch of the samples' length.
+pub fn render_ray(x: &RayInputs, alpha: &mut [f32], w: &mut [f32]) -> RayOutput {
+    alphas(x, alpha);
+    let trans = weights(alpha, w);
+    let mut out = RayOutput::default();
+    for i in 0..w.len() {
+        for k in 0..3 {
+            out.rgb[k] += w[i] * x.rgb[i][k];
+        }
+        out.opacity += w[i];
+        out.depth += w[i] * x.t[i];
+    }
+    for k in 0..3 {
+        out.rgb[k] += trans * x.background[k];
+    }
+    out
+}
+
+/// Backward of [`render_ray`] for `d_rgb`, `d_opacity`, `d_depth`: writes the
+/// per-sample gradients and adds to the scalar ones. `alpha` and `trans` are
+/// scratch of the samples' length.
+pub fn render_ray_backward(
+    x: &RayInputs,
+    d_rgb: [f32; 3],
+    d_opacity: f32,
+    d_depth: f32,
+    alpha: &mut [f32],
+    trans: &mut [f32],
+    g: RayGrads,
+) {
+    alphas(x, alpha);
+    let n = x.sdf.len();
+    let mut t = 1.0f32;
+    for i in 0..n {
+        trans[i] = t;
+        t *= 1.0 - alpha[i];
+    }
+    // L = Σ w_i v_i + T_n v_bg, linearised at this point.
+    let v = |i: usize| {
+        x.rgb[i][0] * d_rgb[0] + x.rgb[i][1] * d_rgb[1] + x.rgb[i][2] * d_rgb[2] + d_opacity + x.t[i] * d_depth
+    };
+    let v_bg = x.background[0] * d_rgb[0] + x.background[1] * d_rgb[1] + x.background[2] * d_rgb[2];
+    for k in 0..3 {
+        g.background[k] += t * d_rgb[k];
+    }
+    let mut after = t * v_bg; // Σ_{j>i} w_j v_j + T_n v_bg
+    for i in (0..n).rev() {
+        let w = trans[i] * alpha[i];
+        for k in 0..3 {
+            g.rgb[i][k] = w * d_rgb[k];
+        }
+        let vi = v(i);
+        let d_alpha = trans[i] * vi - after / (1.0 - alpha[i]).max(1e-6);
+        after += w * vi;
+        // Through the clamp, the sigmoids and the end-point estimates.
+        let (ic, dic) = iter_cos(x.cos[i], x.anneal);
+        let half = ic * x.dt[i] * 0.5;
+        let (ep, en) = (x.sdf[i] - half, x.sdf[i] + half);
+        let p = sigmoid(ep * x.inv_s);
+        let q = sigmoid(en * x.inv_s);
+        let raw = (p - q + EPS) / (p + EPS);
+        if !(0.0..=1.0).contains(&raw) {
+            g.sdf[i] = 0.0;
+            g.cos[i] = 0.0;
+            continue;
+        }
+        // α = 1 − Φ(next) / (Φ(prev) + ε)
+        let d_p = d_alpha * q / ((p + EPS) * (p + EPS));
+        let d_q = -d_alpha / (p + EPS);
+        let d_ep = d_p * p * (1.0 - p);
+        let d_en = d_q * q * (1.0 - q);
+        *g.inv_s += d_ep * ep + d_en * en;
+        let (d_ep, d_en) = (d_ep * x.inv_s, d_en * x.inv_s);
+        g.sdf[i] = d_ep + d_en;
+        g.cos[i] = (d_en - d_ep) * x.dt[i] * 0.5 * dic;
+    }
+}
