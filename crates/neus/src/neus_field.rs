@@ -11,11 +11,11 @@ use serde::{Deserialize, Serialize};
 #[serde(default, deny_unknown_fields)]
 pub struct FieldConfig {
     pub grid: HashGridConfig,
-    /// Hidden widths of the SDF MLP. Default [64].
+    /// Hidden widths of the SDF MLP. Default `[64]`.
     pub sdf_hidden: Vec<usize>,
     /// Length of the feature vector passed to the colour MLP. Default 15.
     pub feature_dim: usize,
-    /// Hidden widths of the colour MLP. Default [64, 64].
+    /// Hidden widths of the colour MLP. Default `[64, 64]`.
     pub color_hidden: Vec<usize>,
     /// β of the SDF MLP's softplus (NeuS uses 100). Default 100.
     pub softplus_beta: f32,
