@@ -392,6 +392,26 @@ fn train_render_and_resume_end_to_end() {
             "{sub}"
         );
     }
+    // Cameras from a JSON file, in world coordinates.
+    let cams = pganeus_io::read_cameras_npz(&capture.join("cameras_sphere.npz"), 6).unwrap();
+    let json = serde_json::json!([{"width": 48, "height": 36, "world_mat": cams[1].world_mat}]);
+    std::fs::write(d.join("cams.json"), json.to_string()).unwrap();
+    let out2 = d.join("renders2");
+    let o = bin()
+        .arg("render")
+        .arg(&run)
+        .arg("--camera")
+        .arg(d.join("cams.json"))
+        .arg("--out")
+        .arg(&out2)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    // The same camera renders the same image as through the capture.
+    assert_eq!(
+        std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(),
+        std::fs::read(out.join("rgb").join("001.png")).unwrap()
+    );
     // A truncated checkpoint is a clear error.
     let ck = run.join("checkpoint.safetensors");
     let bytes = std::fs::read(&ck).unwrap();

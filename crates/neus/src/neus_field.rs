@@ -17,8 +17,9 @@ pub struct FieldConfig {
     pub feature_dim: usize,
     /// Hidden widths of the colour MLP. Default `[64, 64]`.
     pub color_hidden: Vec<usize>,
-    /// β of the SDF MLP's softplus (NeuS uses 100). Default 100.
-    pub softplus_beta: f32,
+    /// Hidden activation of the SDF MLP. Default softplus with β = 100 (as
+    /// NeuS): smooth, so finite-difference normals are well behaved.
+    pub sdf_activation: Activation,
     /// Radius of the initial sphere, unit coordinates. Default 0.5.
     pub init_radius: f32,
     /// Initial value of the variance parameter (inv_s = exp(10 · variance)). Default 0.3.
@@ -32,7 +33,7 @@ impl Default for FieldConfig {
             sdf_hidden: vec![64],
             feature_dim: 15,
             color_hidden: vec![64, 64],
-            softplus_beta: 100.0,
+            sdf_activation: Activation::Softplus { beta: 100.0 },
             init_radius: 0.5,
             init_variance: 0.3,
         }
@@ -64,9 +65,7 @@ impl NeusField {
         dims.push(1 + config.feature_dim);
         let sdf = Mlp::new(&MlpConfig {
             dims,
-            hidden: Activation::Softplus {
-                beta: config.softplus_beta,
-            },
+            hidden: config.sdf_activation,
             output: Activation::None,
         });
         let mut cdims = vec![SH_DIM + 3 + config.feature_dim];

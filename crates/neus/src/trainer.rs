@@ -80,6 +80,9 @@ struct Scratch {
     d_sdf_in: Vec<f32>,
     d_enc: Vec<f32>,
     unit01: Vec<f32>,
+    dirs: Vec<f32>,
+    sh: Vec<f32>,
+    sdf_out: Vec<f32>,
 }
 
 pub struct NeusTrainer {
@@ -261,11 +264,15 @@ impl NeusTrainer {
             row[..XYZ].copy_from_slice(&sc.points[i * 3..i * 3 + 3]);
             row[XYZ..].copy_from_slice(&sc.enc[i * e..(i + 1) * e]);
         }
-        let out = self
-            .field
-            .sdf
-            .forward(&self.field.sdf_params, &sc.sdf_in, n4, &mut sc.sdf_mlp)
-            .to_vec();
+        let out = {
+            let o = self
+                .field
+                .sdf
+                .forward(&self.field.sdf_params, &sc.sdf_in, n4, &mut sc.sdf_mlp);
+            sc.sdf_out.clear();
+            sc.sdf_out.extend_from_slice(o);
+            &sc.sdf_out
+        };
 
         // Gradients, cosines, normals; the colour MLP's input.
         let cin = SH_DIM + 3 + cfg.field.feature_dim;
@@ -273,14 +280,15 @@ impl NeusTrainer {
         sc.sdf0.resize(m, 0.0);
         sc.cos.resize(m, 0.0);
         sc.color_in.resize(m * cin, 0.0);
-        let mut dirs = vec![0.0f32; m * 3];
+        sc.dirs.resize(m * 3, 0.0);
         for i in 0..r {
             for s in sc.offsets[i]..sc.offsets[i + 1] {
-                dirs[s * 3..s * 3 + 3].copy_from_slice(&sc.rays_d[i]);
+                sc.dirs[s * 3..s * 3 + 3].copy_from_slice(&sc.rays_d[i]);
             }
         }
-        let mut sh = vec![0.0f32; m * SH_DIM];
-        sh_encode(&dirs, &mut sh);
+        sc.sh.resize(m * SH_DIM, 0.0);
+        sh_encode(&sc.dirs, &mut sc.sh);
+        let (dirs, sh) = (&sc.dirs, &sc.sh);
         let mut eik = 0.0f64;
         for s in 0..m {
             let s0 = out[s * width];
@@ -300,8 +308,7 @@ impl NeusTrainer {
         let rgb_out = self
             .field
             .color
-            .forward(&self.field.color_params, &sc.color_in, m, &mut sc.color_mlp)
-            .to_vec();
+            .forward(&self.field.color_params, &sc.color_in, m, &mut sc.color_mlp);
         sc.rgb.clear();
         sc.rgb.extend(rgb_out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
 

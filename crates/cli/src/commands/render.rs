@@ -1,10 +1,12 @@
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
+use geom::Camera;
 use geom::{TriMesh, Vec3};
 use neus::checkpoint::{load_field, LoadedField};
 use neus::render_view::{psnr, render_view, RenderSettings};
 use neus::{Dataset, NeusField, NeusTrainer};
 use pganeus_io::Image;
+use serde::Deserialize;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -12,8 +14,12 @@ pub struct RenderArgs {
     /// A run folder (from `pganeus train`) or its checkpoint file.
     pub run: PathBuf,
     /// Render every view of this capture and print PSNR against its images.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "camera")]
     pub views: Option<PathBuf>,
+    /// Render the cameras of a JSON file (one object or a list): `{"width", "height",
+    /// "world_mat": 4×4}` (NeuS: K·W2C) or `{"width", "height", "K": 3×3, "world_to_cam": 4×4}`, world coordinates.
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
     /// Where to write rgb/, depth/ (PNG and .npy) and normal/.
     #[arg(long)]
     pub out: PathBuf,
@@ -76,6 +82,72 @@ fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// A camera given by the user.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraJson {
+    width: u32,
+    height: u32,
+    world_mat: Option<[[f64; 4]; 4]>,
+    #[serde(rename = "K")]
+    k: Option<[[f64; 3]; 3]>,
+    world_to_cam: Option<[[f64; 4]; 4]>,
+}
+
+fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let list = if value.is_array() {
+        value
+    } else {
+        serde_json::Value::Array(vec![value])
+    };
+    let cams: Vec<CameraJson> = serde_json::from_value(list).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    cams.iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let wm = match (c.world_mat, c.k, c.world_to_cam) {
+                (Some(w), None, None) => w,
+                (None, Some(k), Some(e)) => {
+                    let mut w = [[0.0; 4]; 4];
+                    for r in 0..3 {
+                        for col in 0..4 {
+                            w[r][col] = (0..3).map(|l| k[r][l] * e[l][col]).sum();
+                        }
+                    }
+                    w[3] = [0.0, 0.0, 0.0, 1.0];
+                    w
+                }
+                _ => bail!("{}: camera {i}: give world_mat, or K and world_to_cam", path.display()),
+            };
+            if c.width == 0 || c.height == 0 {
+                bail!("{}: camera {i}: width and height must be positive", path.display());
+            }
+            Camera::from_world_mat(&wm, c.width, c.height).map_err(|e| anyhow!("{}: camera {i}: {e}", path.display()))
+        })
+        .collect()
+}
+
+/// A world camera seen from the field's unit frame (`p_world = centre + radius · p_unit`).
+fn to_unit(cam: &Camera<f64>, centre: Vec3<f64>, radius: f64) -> Camera<f64> {
+    let mut c = *cam;
+    c.world_to_cam.t = (cam.world_to_cam.t + cam.world_to_cam.q.rotate(centre)) * (1.0 / radius);
+    c
+}
+
+/// An image to compare a render with, and its mask.
+struct Reference<'a> {
+    rgb: &'a [[f32; 3]],
+    mask: Option<&'a [f32]>,
+}
+
+/// A view to render: its name, its camera in the field's unit frame, and the image to compare with.
+struct Job<'a> {
+    name: String,
+    camera: Camera<f64>,
+    reference: Option<Reference<'a>>,
+}
+
 pub fn run(a: RenderArgs) -> Result<()> {
     let ckpt = if a.run.is_dir() {
         a.run.join("checkpoint.safetensors")
@@ -83,24 +155,41 @@ pub fn run(a: RenderArgs) -> Result<()> {
         a.run.clone()
     };
     let l = load_field(&ckpt)?;
-    let Some(capture) = a.views.clone() else {
-        bail!("give --views <capture> (the cameras to render)")
+    let data = match &a.views {
+        Some(capture) => Some(Dataset::load(capture)?),
+        None => None,
     };
-    let data = Dataset::load(&capture)?;
-    if (data.centre - l.centre).norm() > 1e-9 * l.radius || (data.radius - l.radius).abs() > 1e-9 * l.radius {
-        tracing::warn!(
-            "{}: its scale_mat differs from the training capture's; rendering in the training frame",
-            capture.display()
-        );
+    let mut jobs = Vec::new();
+    if let Some(data) = &data {
+        for v in &data.views {
+            // Back to the world through the capture's own scale_mat, then into the field's frame.
+            let mut world = v.camera;
+            world.world_to_cam.t =
+                (v.camera.world_to_cam.t * data.radius) - v.camera.world_to_cam.q.rotate(data.centre);
+            jobs.push(Job {
+                name: v.name.clone(),
+                camera: to_unit(&world, l.centre, l.radius),
+                reference: Some(Reference {
+                    rgb: &v.rgb,
+                    mask: v.mask.as_deref(),
+                }),
+            });
+        }
+    } else if let Some(path) = &a.camera {
+        for (i, c) in read_cameras(path)?.iter().enumerate() {
+            jobs.push(Job {
+                name: format!("cam_{i:03}"),
+                camera: to_unit(c, l.centre, l.radius),
+                reference: None,
+            });
+        }
+    } else {
+        bail!("give --views <capture> or --camera <json>");
     }
     let set = settings(&l);
     let mut psnrs = Vec::new();
-    for (i, v) in data.views.iter().enumerate() {
-        // The view's camera in the field's unit frame (the capture's own scale_mat may differ).
-        let mut cam = v.camera;
-        let world_t = (cam.world_to_cam.t * data.radius) - cam.world_to_cam.q.rotate(data.centre);
-        cam.world_to_cam.t = (world_t + cam.world_to_cam.q.rotate(l.centre)) * (1.0 / l.radius);
-        let img = render_view(&l.field, &l.occupancy, &set, &cam);
+    for job in &jobs {
+        let img = render_view(&l.field, &l.occupancy, &set, &job.camera);
         let (w, h) = (img.width, img.height);
         let mut rgb = Image::new(w, h, 3);
         let mut nrm = Image::new(w, h, 3);
@@ -111,24 +200,35 @@ pub fn run(a: RenderArgs) -> Result<()> {
             nrm.data[p * 3..p * 3 + 3].copy_from_slice(&img.normal[p].map(|c| to8(0.5 + 0.5 * c)));
             dep.data[p] = to8(img.depth[p] / dmax);
         }
-        let name = format!("{}.png", v.name);
+        let name = format!("{}.png", job.name);
         pganeus_io::write_png(&a.out.join("rgb").join(&name), &rgb)?;
         pganeus_io::write_png(&a.out.join("normal").join(&name), &nrm)?;
         pganeus_io::write_png(&a.out.join("depth").join(&name), &dep)?;
         let metres: Vec<f32> = img.depth.iter().map(|d| d * l.radius as f32).collect();
         pganeus_io::write_npy(
-            &a.out.join("depth").join(format!("{}.npy", v.name)),
+            &a.out.join("depth").join(format!("{}.npy", job.name)),
             &pganeus_io::NpyArray::new(vec![h as usize, w as usize], pganeus_io::NpyData::F32(metres)),
         )?;
-        let p = psnr(&img.rgb, &v.rgb, v.mask.as_deref());
-        println!("view {i} ({}): PSNR {p:.2} dB", v.name);
-        psnrs.push(p);
+        match job.reference {
+            Some(Reference { rgb: gt, mask }) => {
+                let p = psnr(&img.rgb, gt, mask);
+                println!("{}: PSNR {p:.2} dB", job.name);
+                psnrs.push(p);
+            }
+            None => println!("{}: rendered", job.name),
+        }
     }
-    println!(
-        "mean PSNR {:.2} dB over {} views{}",
-        psnrs.iter().sum::<f32>() / psnrs.len().max(1) as f32,
-        psnrs.len(),
-        if data.has_masks() { " (inside the masks)" } else { "" }
-    );
+    if !psnrs.is_empty() {
+        println!(
+            "mean PSNR {:.2} dB over {} views{}",
+            psnrs.iter().sum::<f32>() / psnrs.len() as f32,
+            psnrs.len(),
+            if data.as_ref().is_some_and(|d| d.has_masks()) {
+                " (inside the masks)"
+            } else {
+                ""
+            }
+        );
+    }
     Ok(())
 }

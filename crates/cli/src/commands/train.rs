@@ -21,8 +21,11 @@ pub struct TrainArgs {
     #[arg(long)]
     pub iterations: Option<usize>,
     /// Continue from the run's checkpoint.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "force")]
     pub resume: bool,
+    /// Start over even if the run folder has a checkpoint (its checkpoint and log are replaced).
+    #[arg(long)]
+    pub force: bool,
     /// Skip the marching-tetrahedra preview of the zero level.
     #[arg(long)]
     pub no_preview: bool,
