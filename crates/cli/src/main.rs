@@ -26,6 +26,12 @@ enum Command {
     Train(commands::train::TrainArgs),
     /// Render a trained field from a capture's cameras (RGB, depth, normals) and print PSNR.
     Render(commands::render::RenderArgs),
+    /// The zero level of a trained field as a mesh (world coordinates).
+    Mesh(commands::mesh_cmds::MeshArgs),
+    /// Sample a trained field's or a closed mesh's SDF into a grid file for the simulator.
+    Bake(commands::mesh_cmds::BakeArgs),
+    /// Chamfer distance, normal consistency and volume IoU of two meshes, as JSON.
+    CompareMesh(commands::mesh_cmds::CompareMeshArgs),
     /// Simulate the bodies of a scene file and write trajectory.json.
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
@@ -49,6 +55,9 @@ fn main() {
         Command::Synth(a) => commands::synth::run(a),
         Command::Train(a) => commands::train::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Mesh(a) => commands::mesh_cmds::mesh(a),
+        Command::Bake(a) => commands::mesh_cmds::bake(a),
+        Command::CompareMesh(a) => commands::mesh_cmds::compare_mesh(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),

@@ -11,10 +11,13 @@
 //! the paper is carried out here beyond that definition of the surface.
 
 mod collapse_coincident;
+pub mod icp;
+pub mod kdtree;
 mod marching_tetrahedra;
 mod mesh_metrics;
 mod sample_sdf_grid;
 
+pub use icp::{icp, icp_auto, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
-pub use mesh_metrics::{chamfer, ChamferStats};
+pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
 pub use sample_sdf_grid::sample_sdf_grid;

@@ -65,3 +65,63 @@ fn surface_distances(points: &[Vec3<f64>], mesh: &TriMesh) -> Vec<f64> {
     let md = MeshDistance::new(mesh).unwrap_or_else(|e| panic!("chamfer: {e}"));
     points.par_iter().map(|&p| md.closest_point(p).0).collect()
 }
+
+/// Normal consistency of two surfaces: for points spread by area over each,
+/// `|n · n'|` between the normal there and the normal of the nearest face of
+/// the other mesh, averaged over both directions. 1 when the surfaces agree
+/// everywhere; orientation does not matter.
+pub fn normal_consistency(a: &TriMesh, b: &TriMesh, samples: usize, seed: u64) -> f64 {
+    if a.faces.is_empty() || b.faces.is_empty() {
+        return 0.0;
+    }
+    let (da, db) = (
+        MeshDistance::new(a).unwrap_or_else(|e| panic!("normal_consistency: {e}")),
+        MeshDistance::new(b).unwrap_or_else(|e| panic!("normal_consistency: {e}")),
+    );
+    let one_way = |m: &TriMesh, own: &MeshDistance, other: &MeshDistance, s: u64| {
+        let pts = sample_surface(m, samples.max(1), s);
+        let sum: f64 = pts
+            .par_iter()
+            .map(|&p| {
+                let n = own.face_normal(own.closest_point_triangle(p).2);
+                let n2 = other.face_normal(other.closest_point_triangle(p).2);
+                n.dot(n2).abs()
+            })
+            .sum();
+        sum / pts.len() as f64
+    };
+    0.5 * (one_way(a, &da, &db, seed) + one_way(b, &db, &da, seed.wrapping_add(1)))
+}
+
+/// Volume IoU of two closed meshes: `samples` random points in the union of
+/// their bounding boxes, inside where the generalized winding number > 0.5.
+pub fn volume_iou(a: &TriMesh, b: &TriMesh, samples: usize, seed: u64) -> f64 {
+    if a.faces.is_empty() || b.faces.is_empty() {
+        return 0.0;
+    }
+    let (da, db) = (
+        MeshDistance::new(a).unwrap_or_else(|e| panic!("volume_iou: {e}")),
+        MeshDistance::new(b).unwrap_or_else(|e| panic!("volume_iou: {e}")),
+    );
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for v in a.vertices.iter().chain(&b.vertices) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    let mut rng = geom::SplitMix64::new(seed);
+    let pts: Vec<Vec3<f64>> = (0..samples.max(1)).map(|_| rng.in_box(lo, hi)).collect();
+    let (inter, union) = pts
+        .par_iter()
+        .map(|&p| {
+            let (ia, ib) = (da.winding_number(p) > 0.5, db.winding_number(p) > 0.5);
+            (usize::from(ia && ib), usize::from(ia || ib))
+        })
+        .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+    if union == 0 {
+        0.0
+    } else {
+        inter as f64 / union as f64
+    }
+}

@@ -1,6 +1,7 @@
 pub mod bench_sim;
 pub mod bench_train;
 pub mod fit_physics;
+pub mod mesh_cmds;
 pub mod render;
 pub mod simulate;
 pub mod synth;

@@ -81,8 +81,8 @@ impl MeshDistance {
         (d, c)
     }
 
-    /// Unsigned distance, closest point and the triangle it lies on.
-    fn closest_point_triangle(&self, p: V) -> (f64, V, usize) {
+    /// Unsigned distance, closest point, and the index of the triangle it lies on.
+    pub fn closest_point_triangle(&self, p: V) -> (f64, V, usize) {
         let mut best = (f64::INFINITY, p, 0usize);
         let mut stack = vec![0usize];
         while let Some(ni) = stack.pop() {
@@ -115,6 +115,12 @@ impl MeshDistance {
             }
         }
         (best.0.sqrt(), best.1, best.2)
+    }
+
+    /// Unit normal of triangle `t` (as stored: inside-out meshes were turned outward).
+    pub fn face_normal(&self, t: usize) -> V {
+        let [a, b, c] = self.tris[t];
+        (b - a).cross(c - a).normalize_or(V::new(0.0, 0.0, 1.0))
     }
 
     /// Generalized winding number: ~1 inside a closed outward-oriented mesh, ~0 outside.

@@ -1,0 +1,177 @@
+//! `mesh`, `bake` and `compare-mesh`: the zero level of a trained field, SDF
+//! grids for the simulator, and mesh metrics.
+
+use super::render::zero_level_mesh;
+use crate::scene_file::read_mesh;
+use anyhow::{anyhow, bail, Result};
+use clap::Args;
+use neus::checkpoint::load_field;
+use sim::sdf::{MeshDistance, SdfGrid};
+use std::path::{Path, PathBuf};
+
+fn checkpoint_of(run: &Path) -> PathBuf {
+    if run.is_dir() {
+        run.join("checkpoint.safetensors")
+    } else {
+        run.to_path_buf()
+    }
+}
+
+#[derive(Args)]
+pub struct MeshArgs {
+    /// A run folder (from `pganeus train`) or its checkpoint.
+    pub run: PathBuf,
+    /// The PLY to write (world coordinates).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Grid points along each side of the unit cube.
+    #[arg(long, default_value_t = 256)]
+    pub res: usize,
+}
+
+pub fn mesh(a: MeshArgs) -> Result<()> {
+    let l = load_field(&checkpoint_of(&a.run))?;
+    let t0 = std::time::Instant::now();
+    let m = zero_level_mesh(&l.field, l.config.field.grid.levels, l.centre, l.radius, a.res);
+    if m.faces.is_empty() {
+        bail!(
+            "{}: the field has no zero level inside its unit sphere's cube (nothing to mesh)",
+            a.run.display()
+        );
+    }
+    if let Err(e) = sim::check_closed_mesh(&m) {
+        tracing::warn!(
+            "{}: the zero level reaches the edge of the unit cube, so the mesh is open ({e})",
+            a.run.display()
+        );
+    }
+    pganeus_io::write_ply(
+        &a.out,
+        &pganeus_io::PlyMesh::from_mesh(m.clone()),
+        pganeus_io::PlyEncoding::BinaryLittleEndian,
+    )?;
+    println!(
+        "{} vertices, {} faces at {}³ in {:.2} s; wrote {}",
+        m.vertices.len(),
+        m.faces.len(),
+        a.res,
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct BakeArgs {
+    /// A run folder / checkpoint (its field) or a closed mesh (.ply, .obj).
+    pub source: PathBuf,
+    /// The grid file to write (read by scene files' `shape = "grid"`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Nodes along the longest side.
+    #[arg(long, default_value_t = 128)]
+    pub res: usize,
+    /// Bounds "xmin,ymin,zmin,xmax,ymax,zmax" in metres (default: the field's
+    /// unit-sphere cube, or the mesh's box padded by 5 %).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub bounds: Option<Vec<f64>>,
+}
+
+pub fn bake(a: BakeArgs) -> Result<()> {
+    if a.res < 2 {
+        bail!("--res must be at least 2");
+    }
+    let is_mesh = a
+        .source
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply") || e.eq_ignore_ascii_case("obj"));
+    let t0 = std::time::Instant::now();
+    let bounds = |lo: [f64; 3], hi: [f64; 3]| -> Result<([f64; 3], [f64; 3])> {
+        match &a.bounds {
+            None => Ok((lo, hi)),
+            Some(b) if b.len() == 6 && b.iter().all(|v| v.is_finite()) && (0..3).all(|k| b[k] < b[k + 3]) => {
+                Ok(([b[0], b[1], b[2]], [b[3], b[4], b[5]]))
+            }
+            Some(b) => bail!("--bounds: give six numbers with min < max, got {b:?}"),
+        }
+    };
+    let grid = if is_mesh {
+        let m = read_mesh(&a.source)?;
+        sim::check_closed_mesh(&m).map_err(|e| anyhow!("{}: {e}", a.source.display()))?;
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for v in &m.vertices {
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+        let pad = 0.05 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        let (lo, hi) = bounds(lo.map(|v| v - pad), hi.map(|v| v + pad))?;
+        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
+        let dist = MeshDistance::new(&m)?;
+        SdfGrid::bake(&dist, lo, hi, h)?
+    } else {
+        let l = load_field(&checkpoint_of(&a.source))?;
+        let (c, r) = (l.centre.to_array(), l.radius);
+        let (lo, hi) = bounds([0, 1, 2].map(|k| c[k] - r), [0, 1, 2].map(|k| c[k] + r))?;
+        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
+        let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / h).ceil() as usize + 1);
+        let mut pts = Vec::with_capacity(dims.iter().product::<usize>() * 3);
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let w = [lo[0] + x as f64 * h, lo[1] + y as f64 * h, lo[2] + z as f64 * h];
+                    pts.extend((0..3).map(|k| ((w[k] - c[k]) / r) as f32));
+                }
+            }
+        }
+        let sdf = l.field.sdf_values(&pts, l.config.field.grid.levels);
+        if !sdf.iter().any(|v| *v < 0.0) || !sdf.iter().any(|v| *v > 0.0) {
+            bail!("{}: the field has no zero level inside the bounds", a.source.display());
+        }
+        // Unit-sphere distances to metres.
+        SdfGrid::from_values(lo, h, dims, sdf.iter().map(|v| v * r as f32).collect())?
+    };
+    grid.save(&a.out)?;
+    println!(
+        "baked {:?} nodes, spacing {:.3} mm, in {:.2} s; wrote {}",
+        grid.dims,
+        grid.spacing * 1e3,
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct CompareMeshArgs {
+    pub a: PathBuf,
+    pub b: PathBuf,
+    /// Surface samples per mesh (Chamfer, normals) and points for the volume IoU (×10).
+    #[arg(long, default_value_t = 20000)]
+    pub samples: usize,
+}
+
+pub fn compare_mesh(a: CompareMeshArgs) -> Result<()> {
+    let (ma, mb) = (read_mesh(&a.a)?, read_mesh(&a.b)?);
+    for (m, p) in [(&ma, &a.a), (&mb, &a.b)] {
+        if m.faces.is_empty() {
+            bail!("{}: the mesh has no faces", p.display());
+        }
+    }
+    let c = mesh::chamfer(&ma, &mb, a.samples, 1);
+    let nc = mesh::normal_consistency(&ma, &mb, a.samples, 2);
+    let closed = sim::check_closed_mesh(&ma).is_ok() && sim::check_closed_mesh(&mb).is_ok();
+    let iou = closed.then(|| mesh::volume_iou(&ma, &mb, a.samples * 10, 3));
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&serde_json::json!({
+            "a": a.a, "b": a.b,
+            "chamfer_mean": c.mean, "chamfer_p95": c.p95, "chamfer_max": c.max,
+            "normal_consistency": nc,
+            "volume_iou": iou,
+            "note": if closed { "" } else { "volume_iou needs two closed meshes" },
+        }))?
+    );
+    Ok(())
+}

@@ -1,0 +1,268 @@
+//! Rigid alignment of two point clouds (the two-pose merge of Sec. 3.2):
+//! point-to-plane ICP (Chen & Medioni; the linearised form of Low 2004) with
+//! a k-d tree for correspondences, trimming of the worst pairs and Huber
+//! weights on the rest, and an automatic global start: centroids and
+//! principal axes matched under the 24 proper axis-aligned orientations, the
+//! best residual winning.
+
+use crate::kdtree::KdTree;
+use geom::{Mat3, Pose, Quat, Vec3};
+
+type V = Vec3<f64>;
+
+/// Settings of the alignment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IcpConfig {
+    /// Iterations at most. Default 60.
+    pub iterations: usize,
+    /// Keep this fraction of the closest pairs each iteration (trimmed ICP,
+    /// for clouds that overlap only in part). Default 1.
+    pub keep_fraction: f64,
+    /// Floor of the Huber threshold on the point-to-plane residual, m. The
+    /// threshold follows the residuals (1.345 σ, σ from their median absolute
+    /// value), so far-off starts are not frozen by a tight kernel. Default 0.1 mm.
+    pub huber: f64,
+    /// Stop when an iteration moves the source by less than this (m, and rad). Default 1e-9.
+    pub tolerance: f64,
+    /// Iterations per hypothesis of the automatic start. Default 15.
+    pub start_iterations: usize,
+}
+
+impl Default for IcpConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 60,
+            keep_fraction: 0.9,
+            huber: 1e-3,
+            tolerance: 1e-9,
+            start_iterations: 15,
+        }
+    }
+}
+
+/// The alignment found: `target ≈ transform · source`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IcpResult {
+    pub transform: Pose<f64>,
+    /// RMS point-to-plane distance of the kept pairs, m.
+    pub residual: f64,
+    /// RMS point-to-point distance of the kept pairs, m.
+    pub rms_distance: f64,
+    pub iterations: usize,
+}
+
+/// A target cloud with normals, indexed for nearest-neighbour queries.
+pub struct IcpTarget {
+    points: Vec<V>,
+    normals: Vec<V>,
+    tree: KdTree,
+}
+
+impl IcpTarget {
+    pub fn new(points: Vec<V>, normals: Vec<V>) -> Self {
+        assert_eq!(points.len(), normals.len(), "one normal per target point");
+        let tree = KdTree::new(&points);
+        Self { points, normals, tree }
+    }
+}
+
+/// Point-to-plane ICP from `init`.
+pub fn icp(source: &[V], target: &IcpTarget, init: Pose<f64>, cfg: &IcpConfig, iterations: usize) -> IcpResult {
+    let mut pose = init;
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::with_capacity(source.len());
+    let mut last = (f64::INFINITY, f64::INFINITY);
+    let mut done = 0;
+    for it in 0..iterations {
+        done = it + 1;
+        pairs.clear();
+        for (i, p) in source.iter().enumerate() {
+            if let Some((j, d2)) = target.tree.nearest(pose.transform_point(*p)) {
+                pairs.push((d2, i, j));
+            }
+        }
+        let keep = ((pairs.len() as f64 * cfg.keep_fraction).ceil() as usize).clamp(1.min(pairs.len()), pairs.len());
+        if keep < pairs.len() {
+            pairs.select_nth_unstable_by(keep - 1, |a, b| a.0.total_cmp(&b.0));
+            pairs.truncate(keep);
+        }
+        // Robust scale: σ ≈ 1.4826 · median |r|.
+        let mut abs_r: Vec<f64> = pairs
+            .iter()
+            .map(|&(_, i, j)| {
+                (pose.transform_point(source[i]) - target.points[j])
+                    .dot(target.normals[j])
+                    .abs()
+            })
+            .collect();
+        let mid = abs_r.len() / 2;
+        let median = if abs_r.is_empty() {
+            0.0
+        } else {
+            *abs_r.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        let huber = (1.345 * 1.4826 * median).max(cfg.huber);
+        // Normal equations of Σ w ((R p + t − q)·n + ω·(p' × n) + δt·n)².
+        let mut a = [[0.0f64; 6]; 6];
+        let mut b = [0.0f64; 6];
+        let (mut res2, mut dist2, mut wsum) = (0.0f64, 0.0f64, 0.0f64);
+        for &(d2, i, j) in &pairs {
+            let p = pose.transform_point(source[i]);
+            let (q, n) = (target.points[j], target.normals[j]);
+            let r = (p - q).dot(n);
+            let w = if r.abs() <= huber { 1.0 } else { huber / r.abs() };
+            let c = p.cross(n);
+            let row = [c.x, c.y, c.z, n.x, n.y, n.z];
+            for u in 0..6 {
+                b[u] -= w * row[u] * r;
+                for v in 0..6 {
+                    a[u][v] += w * row[u] * row[v];
+                }
+            }
+            res2 += r * r;
+            dist2 += d2;
+            wsum += 1.0;
+        }
+        last = ((res2 / wsum.max(1.0)).sqrt(), (dist2 / wsum.max(1.0)).sqrt());
+        // Small damping keeps the step defined when the shape leaves a direction free.
+        let scale = (0..6).map(|k| a[k][k]).fold(0.0, f64::max).max(1e-30);
+        for (k, row) in a.iter_mut().enumerate() {
+            row[k] += 1e-9 * scale;
+        }
+        let Some(x) = solve6(a, b) else { break };
+        let (w, t) = (V::new(x[0], x[1], x[2]), V::new(x[3], x[4], x[5]));
+        let step = Pose::new(Quat::exp(w), t);
+        pose = step.compose(&pose);
+        pose.q = pose.q.normalize_or_identity();
+        if w.norm() < cfg.tolerance && t.norm() < cfg.tolerance {
+            break;
+        }
+    }
+    IcpResult {
+        transform: pose,
+        residual: last.0,
+        rms_distance: last.1,
+        iterations: done,
+    }
+}
+
+/// Solve a 6×6 system by Gaussian elimination with partial pivoting.
+fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
+    for c in 0..6 {
+        let p = (c..6).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[p][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, p);
+        b.swap(c, p);
+        for r in c + 1..6 {
+            let f = a[r][c] / a[c][c];
+            for k in c..6 {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = [0.0; 6];
+    for r in (0..6).rev() {
+        let s: f64 = (r + 1..6).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+/// Centroid and principal axes (columns, by decreasing variance, right-handed).
+fn principal_frame(points: &[V]) -> (V, Mat3<f64>) {
+    let n = points.len().max(1) as f64;
+    let c = points.iter().fold(V::zero(), |a, p| a + *p) * (1.0 / n);
+    let mut cov = Mat3::<f64>::zero();
+    for p in points {
+        cov = cov.add(&Mat3::outer(*p - c, *p - c));
+    }
+    let (vals, vecs) = symmetric_eigen(&cov.scale(1.0 / n));
+    let mut idx = [0, 1, 2];
+    idx.sort_by(|&i, &j| vals[j].total_cmp(&vals[i]));
+    let cols: Vec<V> = idx.iter().map(|&k| vecs.col(k)).collect();
+    let third = cols[0].cross(cols[1]);
+    (
+        c,
+        Mat3::from_rows([cols[0].to_array(), cols[1].to_array(), third.to_array()]).transpose(),
+    )
+}
+
+/// Eigen-decomposition of a symmetric 3×3 matrix (Jacobi rotations): values and vectors (columns).
+fn symmetric_eigen(m: &Mat3<f64>) -> ([f64; 3], Mat3<f64>) {
+    let mut a = m.m;
+    let mut v = Mat3::<f64>::identity().m;
+    for _ in 0..50 {
+        let (mut p, mut q, mut off) = (0, 1, 0.0f64);
+        for i in 0..3 {
+            for j in i + 1..3 {
+                if a[i][j].abs() > off {
+                    (p, q, off) = (i, j, a[i][j].abs());
+                }
+            }
+        }
+        if off < 1e-300 {
+            break;
+        }
+        let theta = 0.5 * (a[q][q] - a[p][p]) / a[p][q];
+        let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+        let t = if theta == 0.0 { 1.0 } else { t };
+        let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
+        for k in 0..3 {
+            let (akp, akq) = (a[k][p], a[k][q]);
+            a[k][p] = c * akp - s * akq;
+            a[k][q] = s * akp + c * akq;
+        }
+        for k in 0..3 {
+            let (apk, aqk) = (a[p][k], a[q][k]);
+            a[p][k] = c * apk - s * aqk;
+            a[q][k] = s * apk + c * aqk;
+        }
+        for row in v.iter_mut() {
+            let (vp, vq) = (row[p], row[q]);
+            row[p] = c * vp - s * vq;
+            row[q] = s * vp + c * vq;
+        }
+    }
+    ([a[0][0], a[1][1], a[2][2]], Mat3::from_rows(v))
+}
+
+/// The 24 rotations that map coordinate axes onto coordinate axes.
+pub fn axis_rotations() -> Vec<Mat3<f64>> {
+    let mut out = Vec::with_capacity(24);
+    let perms = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    for perm in perms {
+        for signs in 0..8 {
+            let mut m = Mat3::<f64>::zero();
+            for (row, &col) in perm.iter().enumerate() {
+                m.m[row][col] = if signs >> row & 1 == 1 { -1.0 } else { 1.0 };
+            }
+            if m.det() > 0.0 {
+                out.push(m);
+            }
+        }
+    }
+    out
+}
+
+/// Align `source` to `target` from no prior: every pairing of principal
+/// frames under the 24 axis rotations is refined briefly, the best residual
+/// is refined fully.
+pub fn icp_auto(source: &[V], target: &IcpTarget, cfg: &IcpConfig) -> IcpResult {
+    let (cs, fs) = principal_frame(source);
+    let (ct, ft) = principal_frame(&target.points);
+    let mut best: Option<IcpResult> = None;
+    for g in axis_rotations() {
+        // R maps the source frame's axes onto the target frame's, permuted by g.
+        let r = ft.mul_mat(&g).mul_mat(&fs.transpose());
+        let q = Quat::from_mat(&r);
+        let init = Pose::new(q, ct - q.rotate(cs));
+        let res = icp(source, target, init, cfg, cfg.start_iterations);
+        if best.as_ref().is_none_or(|b| res.rms_distance < b.rms_distance) {
+            best = Some(res);
+        }
+    }
+    let start = best.expect("24 hypotheses").transform;
+    icp(source, target, start, cfg, cfg.iterations)
+}
