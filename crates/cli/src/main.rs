@@ -30,6 +30,8 @@ enum Command {
     Mesh(commands::mesh_cmds::MeshArgs),
     /// Sample a trained field's or a closed mesh's SDF into a grid file for the simulator.
     Bake(commands::mesh_cmds::BakeArgs),
+    /// One closed object from reconstructions in two poses (ICP, trim under the board, fuse).
+    Merge(commands::mesh_cmds::MergeArgs),
     /// Chamfer distance, normal consistency and volume IoU of two meshes, as JSON.
     CompareMesh(commands::mesh_cmds::CompareMeshArgs),
     /// Simulate the bodies of a scene file and write trajectory.json.
@@ -58,6 +60,7 @@ fn main() {
         Command::Mesh(a) => commands::mesh_cmds::mesh(a),
         Command::Bake(a) => commands::mesh_cmds::bake(a),
         Command::CompareMesh(a) => commands::mesh_cmds::compare_mesh(a),
+        Command::Merge(a) => commands::mesh_cmds::merge(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),

@@ -7,6 +7,7 @@
 
 use crate::kdtree::KdTree;
 use geom::{Mat3, Pose, Quat, Vec3};
+use rayon::prelude::*;
 
 type V = Vec3<f64>;
 
@@ -75,11 +76,12 @@ pub fn icp(source: &[V], target: &IcpTarget, init: Pose<f64>, cfg: &IcpConfig, i
     for it in 0..iterations {
         done = it + 1;
         pairs.clear();
-        for (i, p) in source.iter().enumerate() {
-            if let Some((j, d2)) = target.tree.nearest(pose.transform_point(*p)) {
-                pairs.push((d2, i, j));
-            }
-        }
+        pairs.par_extend(
+            source
+                .par_iter()
+                .enumerate()
+                .filter_map(|(i, p)| target.tree.nearest(pose.transform_point(*p)).map(|(j, d2)| (d2, i, j))),
+        );
         let keep = ((pairs.len() as f64 * cfg.keep_fraction).ceil() as usize).clamp(1.min(pairs.len()), pairs.len());
         if keep < pairs.len() {
             pairs.select_nth_unstable_by(keep - 1, |a, b| a.0.total_cmp(&b.0));
@@ -246,10 +248,15 @@ pub fn axis_rotations() -> Vec<Mat3<f64>> {
     out
 }
 
+/// Points used to score each hypothesis of the automatic start.
+const HYPOTHESIS_POINTS: usize = 2000;
+
 /// Align `source` to `target` from no prior: every pairing of principal
-/// frames under the 24 axis rotations is refined briefly, the best residual
-/// is refined fully.
+/// frames under the 24 axis rotations is refined briefly on a subsample, the
+/// best is refined fully on every point.
 pub fn icp_auto(source: &[V], target: &IcpTarget, cfg: &IcpConfig) -> IcpResult {
+    let stride = source.len().div_ceil(HYPOTHESIS_POINTS).max(1);
+    let sub: Vec<V> = source.iter().step_by(stride).copied().collect();
     let (cs, fs) = principal_frame(source);
     let (ct, ft) = principal_frame(&target.points);
     let mut best: Option<IcpResult> = None;
@@ -258,7 +265,7 @@ pub fn icp_auto(source: &[V], target: &IcpTarget, cfg: &IcpConfig) -> IcpResult 
         let r = ft.mul_mat(&g).mul_mat(&fs.transpose());
         let q = Quat::from_mat(&r);
         let init = Pose::new(q, ct - q.rotate(cs));
-        let res = icp(source, target, init, cfg, cfg.start_iterations);
+        let res = icp(&sub, target, init, cfg, cfg.start_iterations);
         if best.as_ref().is_none_or(|b| res.rms_distance < b.rms_distance) {
             best = Some(res);
         }

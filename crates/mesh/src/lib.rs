@@ -14,10 +14,12 @@ mod collapse_coincident;
 pub mod icp;
 pub mod kdtree;
 mod marching_tetrahedra;
+pub mod merge;
 mod mesh_metrics;
 mod sample_sdf_grid;
 
 pub use icp::{icp, icp_auto, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
+pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged};
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
 pub use sample_sdf_grid::sample_sdf_grid;
