@@ -152,20 +152,6 @@ impl Ctx<'_> {
     }
 }
 
-/// Read a PLY or OBJ mesh.
-pub fn read_mesh(path: &Path) -> Result<TriMesh> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    match ext.as_str() {
-        "ply" => Ok(pganeus_io::read_ply(path)?.mesh),
-        "obj" => Ok(pganeus_io::read_obj(path)?),
-        _ => bail!("{}: unknown mesh format (expected .ply or .obj)", path.display()),
-    }
-}
-
 impl ShapeSpec {
     fn build(&self, ctx: &Ctx, field: &str, as_body: bool) -> Result<Shape> {
         let f = |name: &str| format!("{field}.{name}");
@@ -219,7 +205,7 @@ impl ShapeSpec {
             "mesh" if !as_body => {
                 let file = self.file.as_ref().ok_or_else(|| ctx.err(&f("file"), "is missing"))?;
                 let path = ctx.resolve(file);
-                let mesh = read_mesh(&path)?;
+                let mesh = pganeus_io::read_mesh(&path)?;
                 sim::check_closed_mesh(&mesh)
                     .with_context(|| format!("{}: {} is not usable", ctx.file.display(), path.display()))?;
                 Shape::Grid(Arc::new(
@@ -359,7 +345,8 @@ impl SceneFile {
             }
             (None, Some(m)) => {
                 let path = ctx.resolve(m);
-                let mesh = read_mesh(&path).with_context(|| format!("{}: {}", ctx.file.display(), f("mesh")))?;
+                let mesh =
+                    pganeus_io::read_mesh(&path).with_context(|| format!("{}: {}", ctx.file.display(), f("mesh")))?;
                 let body = RigidBody::from_mesh(&b.name, &mesh, mass, sampling, None)
                     .map_err(|e| anyhow!("{}: {}: {}: {e}", ctx.file.display(), f("mesh"), path.display()))?;
                 if body.mesh_offset.norm() > 1e-3 {

@@ -29,6 +29,7 @@ pub mod formats;
 
 pub use atomic::write_atomic;
 pub use error::{IoError, Result};
+pub use formats::mesh_file::read_mesh;
 pub use formats::neus::{
     open_capture, read_cameras_npz, read_capture_info, write_cameras_npz, write_capture_info, CameraMats, CaptureIndex,
     CaptureInfo, CaptureKind, CAMERAS_FILE, CAPTURE_INFO_FILE, EXTRA_MASK_PREFIX, IMAGE_DIR, MASK_DIR,

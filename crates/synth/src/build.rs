@@ -115,7 +115,7 @@ pub(crate) fn build_shape(f: &str, s: &ShapeDesc, base: &Path) -> Result<(Shape,
             } else {
                 base.join(file)
             };
-            let mesh = read_mesh(&path)?;
+            let mesh = pganeus_io::read_mesh(&path)?;
             sim::check_closed_mesh(&mesh).map_err(|e| SynthError::File {
                 path: path.display().to_string(),
                 msg: e.to_string(),
@@ -129,24 +129,6 @@ pub(crate) fn build_shape(f: &str, s: &ShapeDesc, base: &Path) -> Result<(Shape,
     };
     let mesh = shape_mesh(&shape, 24).expect("analytic solids have meshes");
     Ok((shape, mesh))
-}
-
-fn read_mesh(path: &Path) -> Result<TriMesh, SynthError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    Ok(match ext.as_str() {
-        "ply" => pganeus_io::read_ply(path)?.mesh,
-        "obj" => pganeus_io::read_obj(path)?,
-        _ => {
-            return Err(SynthError::File {
-                path: path.display().to_string(),
-                msg: "expected a .ply or .obj mesh".into(),
-            })
-        }
-    })
 }
 
 /// Bake a closed mesh into a grid 1/128 of its size, padded.

@@ -2,10 +2,10 @@
 //! grids for the simulator, and mesh metrics.
 
 use super::render::zero_level_mesh;
-use crate::scene_file::read_mesh;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use neus::checkpoint::load_field;
+use pganeus_io::read_mesh;
 use sim::sdf::{MeshDistance, SdfGrid};
 use std::path::{Path, PathBuf};
 

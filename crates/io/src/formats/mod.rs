@@ -1,5 +1,6 @@
 //! One module per file format.
 
+pub mod mesh_file;
 pub mod neus;
 pub mod npz;
 pub mod obj;
