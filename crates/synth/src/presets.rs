@@ -92,6 +92,35 @@ fn camera() -> VideoCamera {
     }
 }
 
+/// A video of the preset camera at 30 fps with 20 substeps.
+fn video(name: &str, frames: usize, restitution: f64, bodies: Vec<VideoBodyDesc>) -> VideoDesc {
+    VideoDesc {
+        name: name.into(),
+        fps: 30.0,
+        frames,
+        substeps: 20,
+        camera: camera(),
+        contact: ContactParams {
+            restitution,
+            friction: 0.25,
+        },
+        bodies,
+    }
+}
+
+/// A body's initial state in a video.
+fn start(name: &str, t: [f64; 3], q: [f64; 4], v: [f64; 3], omega: [f64; 3]) -> VideoBodyDesc {
+    VideoBodyDesc {
+        name: name.into(),
+        t,
+        q,
+        v,
+        omega,
+    }
+}
+
+const UPRIGHT: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
+
 /// A preset scene by name (`tabletop`, `two-body`).
 pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
     let n = frames(scale);
@@ -115,42 +144,30 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
             light: Light::default(),
             cameras: rig(scale),
             videos: vec![
-                VideoDesc {
-                    name: "slide".into(),
-                    fps: 30.0,
-                    frames: n,
-                    substeps: 20,
-                    camera: camera(),
-                    contact: ContactParams {
-                        restitution: 0.5,
-                        friction: 0.25,
-                    },
-                    bodies: vec![VideoBodyDesc {
-                        name: "toy".into(),
-                        t: [-0.12, -0.02, 0.018],
-                        q: [1.0, 0.0, 0.0, 0.0],
-                        v: [1.3, 0.08, 0.0],
-                        omega: [0.0, 0.0, 1.5],
-                    }],
-                },
-                VideoDesc {
-                    name: "drop".into(),
-                    fps: 30.0,
-                    frames: n,
-                    substeps: 20,
-                    camera: camera(),
-                    contact: ContactParams {
-                        restitution: 0.5,
-                        friction: 0.25,
-                    },
-                    bodies: vec![VideoBodyDesc {
-                        name: "toy".into(),
-                        t: [-0.02, 0.03, 0.1],
-                        q: [0.92, 0.2, 0.3, 0.1],
-                        v: [0.25, -0.05, 0.0],
-                        omega: [4.0, 2.0, 1.0],
-                    }],
-                },
+                video(
+                    "slide",
+                    n,
+                    0.5,
+                    vec![start(
+                        "toy",
+                        [-0.12, -0.02, 0.018],
+                        UPRIGHT,
+                        [1.3, 0.08, 0.0],
+                        [0.0, 0.0, 1.5],
+                    )],
+                ),
+                video(
+                    "drop",
+                    n,
+                    0.5,
+                    vec![start(
+                        "toy",
+                        [-0.02, 0.03, 0.1],
+                        [0.92, 0.2, 0.3, 0.1],
+                        [0.25, -0.05, 0.0],
+                        [4.0, 2.0, 1.0],
+                    )],
+                ),
             ],
         },
         "two-body" => SynthScene {
@@ -180,33 +197,15 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
             ],
             light: Light::default(),
             cameras: rig(scale),
-            videos: vec![VideoDesc {
-                name: "collide".into(),
-                fps: 30.0,
-                frames: n,
-                substeps: 20,
-                camera: camera(),
-                contact: ContactParams {
-                    restitution: 0.4,
-                    friction: 0.25,
-                },
-                bodies: vec![
-                    VideoBodyDesc {
-                        name: "toy".into(),
-                        t: [-0.15, 0.0, 0.018],
-                        q: [1.0, 0.0, 0.0, 0.0],
-                        v: [1.3, 0.0, 0.0],
-                        omega: [0.0; 3],
-                    },
-                    VideoBodyDesc {
-                        name: "block".into(),
-                        t: [0.05, 0.01, 0.02],
-                        q: [1.0, 0.0, 0.0, 0.0],
-                        v: [0.0; 3],
-                        omega: [0.0; 3],
-                    },
+            videos: vec![video(
+                "collide",
+                n,
+                0.4,
+                vec![
+                    start("toy", [-0.15, 0.0, 0.018], UPRIGHT, [1.3, 0.0, 0.0], [0.0; 3]),
+                    start("block", [0.05, 0.01, 0.02], UPRIGHT, [0.0; 3], [0.0; 3]),
                 ],
-            }],
+            )],
         },
         _ => return None,
     })
