@@ -5,7 +5,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use geom::{Pose, Quat, TriMesh, Vec3};
 use serde::Deserialize;
-use sim::sdf::{Capsule, Cuboid, MeshDistance, Plane, RoundedBox, SdfGrid, Shape, Sphere, Wedge};
+use sim::sdf::{Capsule, Cuboid, Plane, RoundedBox, SdfGrid, Shape, Sphere, Wedge};
 use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -208,8 +208,12 @@ impl ShapeSpec {
                 let mesh = pganeus_io::read_mesh(&path)?;
                 sim::check_closed_mesh(&mesh)
                     .with_context(|| format!("{}: {} is not usable", ctx.file.display(), path.display()))?;
+                // 96 cells across by default, or the requested spacing.
+                let cells = self
+                    .spacing
+                    .map_or(96, |h| (mesh_extent(&mesh) / h).ceil().max(1.0) as usize);
                 Shape::Grid(Arc::new(
-                    bake_mesh(&mesh, self.spacing).with_context(|| format!("baking {}", path.display()))?,
+                    SdfGrid::from_mesh(&mesh, cells, 4.0).with_context(|| format!("baking {}", path.display()))?,
                 ))
             }
             "grid" | "mesh" => bail!(ctx.err(
@@ -230,21 +234,16 @@ impl ShapeSpec {
     }
 }
 
-/// Bake a closed mesh into a grid padded by a few cells.
-pub fn bake_mesh(mesh: &TriMesh, spacing: Option<f64>) -> Result<SdfGrid> {
-    let dist = MeshDistance::new(mesh)?;
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for v in &mesh.vertices {
-        for a in 0..3 {
-            lo[a] = lo[a].min(v[a]);
-            hi[a] = hi[a].max(v[a]);
-        }
-    }
-    let longest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    let h = spacing.unwrap_or(longest / 96.0);
-    let pad = 4.0 * h;
-    Ok(SdfGrid::bake(&dist, lo.map(|v| v - pad), hi.map(|v| v + pad), h)?)
+/// Longest side of a mesh's bounding box.
+fn mesh_extent(m: &TriMesh) -> f64 {
+    (0..3)
+        .map(|a| {
+            let (lo, hi) = m.vertices.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v[a]), h.max(v[a]))
+            });
+            hi - lo
+        })
+        .fold(0.0, f64::max)
 }
 
 impl SceneFile {

@@ -4,7 +4,7 @@
 use crate::mass_properties_mesh::{mass_properties, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
 use crate::sample_surface::sample_surface;
-use crate::sdf::{MeshDistance, SdfGrid, Shape};
+use crate::sdf::{SdfGrid, Shape};
 use geom::{Mat3, Pose, TriMesh, Vec3};
 use std::sync::Arc;
 
@@ -119,7 +119,10 @@ impl RigidBody {
         let bounding_radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
         let sdf = match sdf {
             Some(s) => s.transformed(Pose::from_translation(-com)),
-            None => Shape::Grid(Arc::new(bake_mesh_sdf(&mesh, bounding_radius))),
+            // 48 cells across is enough for contacts between bodies.
+            None => Shape::Grid(Arc::new(
+                SdfGrid::from_mesh(&mesh, 48, 6.0).expect("mesh was checked closed"),
+            )),
         };
         let inertia_inv = props.inertia.try_inverse().ok_or(BodyError::Mass(m))?;
         Ok(Self {
@@ -134,20 +137,4 @@ impl RigidBody {
             mesh_offset: com,
         })
     }
-}
-
-/// Bake a closed mesh's SDF on a grid of about 48 cells across, padded.
-fn bake_mesh_sdf(mesh: &TriMesh, radius: f64) -> SdfGrid {
-    let dist = MeshDistance::new(mesh).expect("mesh was checked closed");
-    let pad = 0.15 * radius + 0.005;
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for v in &mesh.vertices {
-        for a in 0..3 {
-            lo[a] = lo[a].min(v[a] - pad);
-            hi[a] = hi[a].max(v[a] + pad);
-        }
-    }
-    let longest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    SdfGrid::bake(&dist, lo, hi, longest / 48.0).expect("bounds are finite and ordered")
 }

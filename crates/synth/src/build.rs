@@ -6,7 +6,7 @@ use crate::desc::{ShapeDesc, SynthScene};
 use crate::render::RenderObject;
 use crate::texture::Texture;
 use geom::{Pose, Quat, TriMesh, Vec3};
-use sim::sdf::{Capsule, Cuboid, MeshDistance, Plane, RoundedBox, SdfGrid, Shape, Sphere, Wedge};
+use sim::sdf::{Capsule, Cuboid, Plane, RoundedBox, SdfGrid, Shape, Sphere, Wedge};
 use sim::{ContactSampling, MassSpec, RigidBody};
 use std::path::Path;
 use std::sync::Arc;
@@ -120,30 +120,16 @@ pub(crate) fn build_shape(f: &str, s: &ShapeDesc, base: &Path) -> Result<(Shape,
                 path: path.display().to_string(),
                 msg: e.to_string(),
             })?;
-            let grid = bake(&mesh).map_err(|msg| SynthError::File {
+            // 1/128 of its size: fine enough that sharp corners render sharp.
+            let grid = SdfGrid::from_mesh(&mesh, 128, 4.0).map_err(|e| SynthError::File {
                 path: path.display().to_string(),
-                msg,
+                msg: e.to_string(),
             })?;
             return Ok((Shape::Grid(Arc::new(grid)), mesh));
         }
     };
     let mesh = shape_mesh(&shape, 24).expect("analytic solids have meshes");
     Ok((shape, mesh))
-}
-
-/// Bake a closed mesh into a grid 1/128 of its size, padded.
-fn bake(mesh: &TriMesh) -> Result<SdfGrid, String> {
-    let dist = MeshDistance::new(mesh).map_err(|e| e.to_string())?;
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for v in &mesh.vertices {
-        for a in 0..3 {
-            lo[a] = lo[a].min(v[a]);
-            hi[a] = hi[a].max(v[a]);
-        }
-    }
-    let h = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max) / 128.0;
-    SdfGrid::bake(&dist, lo.map(|v| v - 4.0 * h), hi.map(|v| v + 4.0 * h), h).map_err(|e| e.to_string())
 }
 
 /// The static part of a scene: the board, the table under it, obstacles.
