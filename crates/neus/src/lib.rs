@@ -6,6 +6,7 @@
 pub mod checkpoint;
 pub mod config;
 pub mod dataset;
+mod fd_samples;
 pub mod neus_field;
 pub mod occupancy;
 pub mod render_view;

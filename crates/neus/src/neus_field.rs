@@ -110,11 +110,13 @@ impl NeusField {
     }
 
     /// SDF MLP outputs (N × (1 + feature_dim)) at unit-coordinate points
-    /// (N × 3). `enc` and `input` are scratch.
+    /// (N × 3). `unit01` (the points in the hash grid's [0, 1] cube, kept
+    /// for the backward pass), `enc` and `input` are scratch.
     pub fn sdf_forward<'s>(
         &self,
         points: &[f32],
         active_levels: usize,
+        unit01: &mut Vec<f32>,
         enc: &mut Vec<f32>,
         input: &mut Vec<f32>,
         scratch: &'s mut MlpScratch,
@@ -123,8 +125,9 @@ impl NeusField {
         let e = self.grid.output_dim();
         enc.resize(n * e, 0.0);
         input.resize(n * (XYZ + e), 0.0);
-        let unit01: Vec<f32> = points.iter().map(|v| (v + 1.0) * 0.5).collect();
-        self.grid.encode(&self.grid_params, &unit01, enc, active_levels);
+        unit01.clear();
+        unit01.extend(points.iter().map(|v| (v + 1.0) * 0.5));
+        self.grid.encode(&self.grid_params, unit01, enc, active_levels);
         for i in 0..n {
             let row = &mut input[i * (XYZ + e)..(i + 1) * (XYZ + e)];
             row[..XYZ].copy_from_slice(&points[i * 3..i * 3 + 3]);
@@ -135,13 +138,12 @@ impl NeusField {
 
     /// SDF values only, in batches (for meshing and occupancy updates).
     pub fn sdf_values(&self, points: &[f32], active_levels: usize) -> Vec<f32> {
-        let mut enc = Vec::new();
-        let mut input = Vec::new();
+        let (mut unit01, mut enc, mut input) = (Vec::new(), Vec::new(), Vec::new());
         let mut scratch = MlpScratch::default();
         let width = 1 + self.config.feature_dim;
         let mut out = Vec::with_capacity(points.len() / 3);
         for chunk in points.chunks(3 * 65536) {
-            let o = self.sdf_forward(chunk, active_levels, &mut enc, &mut input, &mut scratch);
+            let o = self.sdf_forward(chunk, active_levels, &mut unit01, &mut enc, &mut input, &mut scratch);
             out.extend(o.chunks_exact(width).map(|r| r[0]));
         }
         out

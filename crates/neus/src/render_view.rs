@@ -1,6 +1,7 @@
 //! Rendering whole views from a trained field: colour, depth and normals,
 //! and PSNR against a capture's images.
 
+use crate::fd_samples::{fd_gradients, fd_points, FdOut};
 use crate::neus_field::NeusField;
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::volume::{render_ray, RayInputs};
@@ -48,45 +49,40 @@ pub fn render_rays(
     }
     let m = t.len();
     let eps = set.fd_eps;
-    let mut pts = vec![0.0f32; 4 * m * 3];
-    let mut sdirs = vec![0.0f32; m * 3];
-    for (i, (o, d)) in origins.iter().zip(dirs).enumerate() {
-        for s in offsets[i]..offsets[i + 1] {
-            let p = [o[0] + t[s] * d[0], o[1] + t[s] * d[1], o[2] + t[s] * d[2]];
-            sdirs[s * 3..s * 3 + 3].copy_from_slice(d);
-            for b in 0..4 {
-                let mut q = p;
-                if b > 0 {
-                    q[b - 1] += eps;
-                }
-                pts[(b * m + s) * 3..(b * m + s) * 3 + 3].copy_from_slice(&q);
-            }
-        }
-    }
+    let (mut pts, mut sdirs) = (Vec::new(), Vec::new());
+    fd_points(origins, dirs, &offsets, &t, eps, &mut pts, &mut sdirs);
     let width = 1 + field.config.feature_dim;
-    let (mut enc, mut input, mut scratch) = (Vec::new(), Vec::new(), MlpScratch::default());
-    let out = field
-        .sdf_forward(&pts, set.active_levels, &mut enc, &mut input, &mut scratch)
-        .to_vec();
+    let (mut unit01, mut enc, mut input, mut scratch) = (Vec::new(), Vec::new(), Vec::new(), MlpScratch::default());
+    let out = field.sdf_forward(&pts, set.active_levels, &mut unit01, &mut enc, &mut input, &mut scratch);
     let cin = SH_DIM + 3 + field.config.feature_dim;
     let mut sh = vec![0.0f32; m * SH_DIM];
     sh_encode(&sdirs, &mut sh);
-    let mut color_in = vec![0.0f32; m * cin];
-    let mut sdf0 = vec![0.0f32; m];
-    let mut cos = vec![0.0f32; m];
-    let mut normals = vec![[0.0f32; 3]; m];
-    for s in 0..m {
-        let s0 = out[s * width];
-        let g: [f32; 3] = std::array::from_fn(|k| (out[((k + 1) * m + s) * width] - s0) / eps);
-        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
-        sdf0[s] = s0;
-        cos[s] = g[0] * sdirs[s * 3] + g[1] * sdirs[s * 3 + 1] + g[2] * sdirs[s * 3 + 2];
-        normals[s] = g.map(|v| v / len);
-        let row = &mut color_in[s * cin..(s + 1) * cin];
-        row[..SH_DIM].copy_from_slice(&sh[s * SH_DIM..(s + 1) * SH_DIM]);
-        row[SH_DIM..SH_DIM + 3].copy_from_slice(&normals[s]);
-        row[SH_DIM + 3..].copy_from_slice(&out[s * width + 1..(s + 1) * width]);
-    }
+    let (mut grad, mut sdf0, mut cos, mut color_in) = (
+        vec![[0.0f32; 3]; m],
+        vec![0.0f32; m],
+        vec![0.0f32; m],
+        vec![0.0f32; m * cin],
+    );
+    fd_gradients(
+        out,
+        width,
+        eps,
+        &sdirs,
+        &sh,
+        FdOut {
+            grad: &mut grad,
+            sdf0: &mut sdf0,
+            cos: &mut cos,
+            color_in: &mut color_in,
+        },
+    );
+    let normals: Vec<[f32; 3]> = grad
+        .iter()
+        .map(|g| {
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
+            g.map(|v| v / len)
+        })
+        .collect();
     let mut cscratch = MlpScratch::default();
     let rgb: Vec<[f32; 3]> = field
         .color

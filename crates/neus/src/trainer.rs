@@ -10,6 +10,7 @@
 
 use crate::config::TrainConfig;
 use crate::dataset::Dataset;
+use crate::fd_samples::{fd_gradients, fd_points, FdOut};
 use crate::neus_field::{NeusField, XYZ};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
@@ -235,40 +236,27 @@ impl NeusTrainer {
         }
 
         // The SDF at each sample and a step away along x, y, z (4 blocks of m points).
-        sc.points.resize(4 * m * 3, 0.0);
-        for i in 0..r {
-            let (o, d) = (sc.rays_o[i], sc.rays_d[i]);
-            for s in sc.offsets[i]..sc.offsets[i + 1] {
-                let p = [o[0] + sc.t[s] * d[0], o[1] + sc.t[s] * d[1], o[2] + sc.t[s] * d[2]];
-                for b in 0..4 {
-                    let mut q = p;
-                    if b > 0 {
-                        q[b - 1] += eps;
-                    }
-                    sc.points[(b * m + s) * 3..(b * m + s) * 3 + 3].copy_from_slice(&q);
-                }
-            }
-        }
+        fd_points(
+            &sc.rays_o,
+            &sc.rays_d,
+            &sc.offsets,
+            &sc.t,
+            eps,
+            &mut sc.points,
+            &mut sc.dirs,
+        );
         let width = 1 + cfg.field.feature_dim;
         let e = self.field.grid.output_dim();
         let n4 = 4 * m;
-        sc.enc.resize(n4 * e, 0.0);
-        sc.sdf_in.resize(n4 * (XYZ + e), 0.0);
-        sc.unit01.clear();
-        sc.unit01.extend(sc.points.iter().map(|v| (v + 1.0) * 0.5));
-        self.field
-            .grid
-            .encode(&self.field.grid_params, &sc.unit01, &mut sc.enc, levels);
-        for i in 0..n4 {
-            let row = &mut sc.sdf_in[i * (XYZ + e)..(i + 1) * (XYZ + e)];
-            row[..XYZ].copy_from_slice(&sc.points[i * 3..i * 3 + 3]);
-            row[XYZ..].copy_from_slice(&sc.enc[i * e..(i + 1) * e]);
-        }
         let out = {
-            let o = self
-                .field
-                .sdf
-                .forward(&self.field.sdf_params, &sc.sdf_in, n4, &mut sc.sdf_mlp);
+            let o = self.field.sdf_forward(
+                &sc.points,
+                levels,
+                &mut sc.unit01,
+                &mut sc.enc,
+                &mut sc.sdf_in,
+                &mut sc.sdf_mlp,
+            );
             sc.sdf_out.clear();
             sc.sdf_out.extend_from_slice(o);
             &sc.sdf_out
@@ -280,31 +268,22 @@ impl NeusTrainer {
         sc.sdf0.resize(m, 0.0);
         sc.cos.resize(m, 0.0);
         sc.color_in.resize(m * cin, 0.0);
-        sc.dirs.resize(m * 3, 0.0);
-        for i in 0..r {
-            for s in sc.offsets[i]..sc.offsets[i + 1] {
-                sc.dirs[s * 3..s * 3 + 3].copy_from_slice(&sc.rays_d[i]);
-            }
-        }
         sc.sh.resize(m * SH_DIM, 0.0);
         sh_encode(&sc.dirs, &mut sc.sh);
-        let (dirs, sh) = (&sc.dirs, &sc.sh);
-        let mut eik = 0.0f64;
-        for s in 0..m {
-            let s0 = out[s * width];
-            let g: [f32; 3] = std::array::from_fn(|k| (out[((k + 1) * m + s) * width] - s0) / eps);
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
-            eik += ((len - 1.0) * (len - 1.0)) as f64;
-            sc.grad_fd[s] = g;
-            sc.sdf0[s] = s0;
-            sc.cos[s] = g[0] * dirs[s * 3] + g[1] * dirs[s * 3 + 1] + g[2] * dirs[s * 3 + 2];
-            let row = &mut sc.color_in[s * cin..(s + 1) * cin];
-            row[..SH_DIM].copy_from_slice(&sh[s * SH_DIM..(s + 1) * SH_DIM]);
-            for k in 0..3 {
-                row[SH_DIM + k] = g[k] / len;
-            }
-            row[SH_DIM + 3..].copy_from_slice(&out[s * width + 1..(s + 1) * width]);
-        }
+        let eik = fd_gradients(
+            out,
+            width,
+            eps,
+            &sc.dirs,
+            &sc.sh,
+            FdOut {
+                grad: &mut sc.grad_fd,
+                sdf0: &mut sc.sdf0,
+                cos: &mut sc.cos,
+                color_in: &mut sc.color_in,
+            },
+        );
+        let dirs = &sc.dirs;
         let rgb_out = self
             .field
             .color

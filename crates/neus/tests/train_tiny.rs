@@ -61,7 +61,8 @@ fn tiny_training_fits_a_ball() {
     let stats: Vec<_> = (0..300).map(|_| t.step()).collect();
     let first: f32 = stats[..30].iter().map(|s| s.loss.rgb).sum::<f32>() / 30.0;
     let last: f32 = stats[270..].iter().map(|s| s.loss.rgb).sum::<f32>() / 30.0;
-    assert!(last < 0.5 * first, "colour L1 {first:.4} → {last:.4}");
+    // Seeded and deterministic: measured 0.172 → 0.039 (0.23×).
+    assert!(last < 0.35 * first, "colour L1 {first:.4} → {last:.4}");
     // The zero level against the true sphere: SDF at points of the true
     // surface, in world metres.
     let mut rng = geom::SplitMix64::new(3);
@@ -81,7 +82,7 @@ fn tiny_training_fits_a_ball() {
         mean_err * 1e3
     );
     assert!(
-        mean_err < 0.003,
+        mean_err < 0.0015, // measured 0.69 mm; a pixel of these 64×48 views spans about 1–1.5 mm on the ball
         "mean |SDF| on the true surface: {:.2} mm",
         mean_err * 1e3
     );
