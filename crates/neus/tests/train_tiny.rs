@@ -6,9 +6,7 @@ use neus::{checkpoint, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pganeus-neus-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+    testkit::scratch_dir("neus", name)
 }
 
 /// A 3 cm ball alone on the board, 12 views of 64×48 with masks.

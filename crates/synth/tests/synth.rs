@@ -7,9 +7,7 @@ use std::path::{Path, PathBuf};
 use synth::{preset, Scale, SynthScene};
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pganeus-synth-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+    testkit::scratch_dir("synth", name)
 }
 
 /// The tabletop preset at test size.

@@ -87,3 +87,12 @@ pub fn check_jacobian(
     }
     Ok(worst)
 }
+
+/// A fresh, empty folder for one test under the system temp dir, unique to
+/// this process, `prefix` and `name` (removed first if a run left it behind).
+pub fn scratch_dir(prefix: &str, name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("pganeus-{prefix}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir is writable");
+    d
+}
