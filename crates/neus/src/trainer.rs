@@ -160,9 +160,8 @@ impl NeusTrainer {
     /// The finite-difference step at a level count: the finest active cell, in unit coordinates.
     pub fn fd_eps(&self, levels: usize) -> f32 {
         let g = &self.config.field.grid;
-        let b = ((g.max_resolution as f32).ln() - (g.base_resolution as f32).ln()) / (g.levels.max(2) - 1) as f32;
-        let res = g.base_resolution as f32 * (b * (levels.max(1) - 1) as f32).exp();
-        (2.0 / res).max(2.0 / g.max_resolution as f32)
+        let res = g.base_resolution as f64 * g.growth_factor().powi(levels.max(1) as i32 - 1);
+        (2.0 / res as f32).max(2.0 / g.max_resolution as f32)
     }
 
     /// One optimisation step.
