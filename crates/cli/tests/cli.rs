@@ -408,6 +408,50 @@ fn train_render_and_resume_end_to_end() {
         std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(),
         std::fs::read(out.join("rgb").join("001.png")).unwrap()
     );
+    // Switching render (Eq. 3–4): the run as both poses, A turned over about x
+    // into B. A camera below B's board is camera 1 moved by p_b = R p_a + T, so
+    // it renders camera 1's image through the other field.
+    let a_to_b = geom::Pose::new(
+        geom::Quat::exp(geom::Vec3::new(std::f64::consts::PI, 0.0, 0.0)),
+        geom::Vec3::new(0.01, -0.02, 0.0),
+    );
+    let doc = serde_json::json!({"q_1to2": a_to_b.q.to_array_re(), "T_1to2": a_to_b.t.to_array()});
+    std::fs::write(d.join("transform.json"), doc.to_string()).unwrap();
+    let mut below = geom::Camera::from_world_mat(&cams[1].world_mat, 48, 36).unwrap();
+    below.world_to_cam = below.world_to_cam.compose(&a_to_b.inverse());
+    assert!(below.center().z < 0.0);
+    let above = geom::Camera::from_world_mat(&cams[1].world_mat, 48, 36).unwrap();
+    let json = serde_json::json!([
+        {"width": 48, "height": 36, "world_mat": below.world_mat()},
+        {"width": 48, "height": 36, "world_mat": above.world_mat()},
+    ]);
+    std::fs::write(d.join("cams_switch.json"), json.to_string()).unwrap();
+    let out3 = d.join("renders3");
+    let o = bin()
+        .arg("render")
+        .arg(&run)
+        .args(["--other".as_ref(), run.as_os_str(), "--transform".as_ref()])
+        .arg(d.join("transform.json"))
+        .arg("--camera")
+        .arg(d.join("cams_switch.json"))
+        .arg("--out")
+        .arg(&out3)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("cam_000: rendered by the other field"),
+        "{}",
+        text(&o)
+    );
+    for cam in ["cam_000.png", "cam_001.png"] {
+        let (x, y) = (
+            pganeus_io::read_png(&out3.join("rgb").join(cam)).unwrap(),
+            pganeus_io::read_png(&out.join("rgb").join("001.png")).unwrap(),
+        );
+        let worst = x.data.iter().zip(&y.data).map(|(p, q)| p.abs_diff(*q)).max().unwrap();
+        assert!(worst <= 1, "{cam}: differs from camera 1 by {worst}/255");
+    }
     // A truncated checkpoint is a clear error.
     let ck = run.join("checkpoint.safetensors");
     let bytes = std::fs::read(&ck).unwrap();

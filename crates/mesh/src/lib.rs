@@ -11,15 +11,19 @@
 //! the paper is carried out here beyond that definition of the surface.
 
 mod collapse_coincident;
+mod components;
 pub mod icp;
 pub mod kdtree;
 mod marching_tetrahedra;
 pub mod merge;
 mod mesh_metrics;
 mod sample_sdf_grid;
+mod zero_level_points;
 
+pub use components::{components, largest_component, sub_mesh};
 pub use icp::{icp, icp_auto, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
-pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged};
+pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged, PartialSurface};
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
 pub use sample_sdf_grid::sample_sdf_grid;
+pub use zero_level_points::{values_and_gradients, zero_level_points, BatchSdf};

@@ -3,7 +3,10 @@
 //! within 1 % of the object's diameter of the whole object, and recovers the
 //! transform between the poses.
 use geom::{rotation_distance, Pose, Quat, TriMesh, Vec3};
-use mesh::{chamfer, extract_zero_level, merge_two_poses, sample_sdf_grid, MergeConfig};
+use mesh::{
+    chamfer, components, extract_zero_level, largest_component, merge_two_poses, sample_sdf_grid, MergeConfig,
+    PartialSurface,
+};
 use sim::sdf::{Cuboid, Sdf, Shape};
 
 /// An L-shaped block (no rotational symmetry), meshed from its SDF, body frame.
@@ -73,7 +76,12 @@ fn merging_two_poses_gives_the_whole_object() {
     );
     let (true_a, true_b) = (posed(&body, &pose_a), posed(&body, &pose_b));
     let (rec_a, rec_b) = (wrong_underside(&true_a), wrong_underside(&true_b));
-    let merged = merge_two_poses(&rec_a, &rec_b, &MergeConfig::default()).unwrap();
+    let merged = merge_two_poses(
+        &PartialSurface::from_mesh(rec_a).unwrap(),
+        &PartialSurface::from_mesh(rec_b.clone()).unwrap(),
+        &MergeConfig::default(),
+    )
+    .unwrap();
     // The transform between the poses.
     let truth = pose_b.compose(&pose_a.inverse());
     let angle = rotation_distance(merged.a_to_b.q, truth.q).to_degrees();
@@ -115,8 +123,118 @@ fn unrelated_meshes_do_not_merge_silently() {
         max_residual: 2e-4,
         ..MergeConfig::default()
     };
-    let err = merge_two_poses(&a, &other, &cfg)
-        .err()
-        .expect("a block and a ball must not merge");
+    let err = merge_two_poses(
+        &PartialSurface::from_mesh(a).unwrap(),
+        &PartialSurface::from_mesh(other).unwrap(),
+        &cfg,
+    )
+    .err()
+    .expect("a block and a ball must not merge");
     assert!(err.to_string().contains("ICP did not converge"), "{err}");
+}
+
+/// A "field" of the object posed by `pose`: its exact distance, a wrong
+/// underside (a slab filling the box's footprint up to 4 mm above the board,
+/// as a visual hull from above would) and a floater in the L's notch.
+fn guessed_field(
+    shape: &Shape,
+    pose: Pose<f64>,
+    footprint: ([f64; 2], [f64; 2]),
+) -> impl Fn(&[Vec3<f64>]) -> Vec<f64> + Sync {
+    let (lo, hi) = footprint;
+    let slab = Shape::Cuboid(Cuboid {
+        half: [0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), 0.0035],
+    })
+    .transformed(Pose::from_translation(Vec3::new(
+        0.5 * (lo[0] + hi[0]),
+        0.5 * (lo[1] + hi[1]),
+        0.0005,
+    )));
+    let floater = Shape::Sphere(sim::sdf::Sphere { radius: 0.004 })
+        .transformed(pose.compose(&Pose::from_translation(Vec3::new(-0.015, 0.0, 0.025))));
+    let object = shape.clone().transformed(pose);
+    move |pts: &[Vec3<f64>]| {
+        pts.iter()
+            .map(|p| {
+                object
+                    .distance_local(*p)
+                    .min(slab.distance_local(*p))
+                    .min(floater.distance_local(*p))
+            })
+            .collect()
+    }
+}
+
+fn footprint(m: &TriMesh) -> ([f64; 2], [f64; 2]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for v in &m.vertices {
+        for k in 0..2 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    (lo, hi)
+}
+
+#[test]
+fn merging_two_fields_uses_their_distances_and_drops_floaters() {
+    let body = l_block();
+    let base = Shape::Cuboid(Cuboid {
+        half: [0.03, 0.02, 0.01],
+    });
+    let post = Shape::Cuboid(Cuboid {
+        half: [0.01, 0.02, 0.015],
+    })
+    .transformed(Pose::from_translation(Vec3::new(0.02, 0.0, 0.02)));
+    let shape = Shape::Union(vec![base, post]);
+    let pose_a = rest(&body, Quat::identity(), [0.0, 0.01]);
+    let pose_b = rest(
+        &body,
+        Quat::exp(Vec3::new(std::f64::consts::PI, 0.0, 0.0)) * Quat::exp(Vec3::new(0.0, 0.0, -0.7)),
+        [-0.02, 0.0],
+    );
+    let (true_a, true_b) = (posed(&body, &pose_a), posed(&body, &pose_b));
+    let field_a = guessed_field(&shape, pose_a, footprint(&true_a));
+    let field_b = guessed_field(&shape, pose_b, footprint(&true_b));
+    let zero_level = |f: &(dyn Fn(&[Vec3<f64>]) -> Vec<f64> + Sync)| {
+        let grid = sample_sdf_grid(
+            &|pts: &[[f64; 3]]| {
+                let v: Vec<Vec3<f64>> = pts.iter().map(|p| Vec3::cst(*p)).collect();
+                f(&v).iter().map(|d| *d as f32).collect()
+            },
+            [-0.1, -0.1, -0.02],
+            [0.1, 0.1, 0.08],
+            96,
+        );
+        extract_zero_level(&grid)
+    };
+    let (zero_a, zero_b) = (zero_level(&field_a), zero_level(&field_b));
+    assert!(
+        components(&zero_b).len() >= 2,
+        "the field's zero level should have the floater"
+    );
+    let merged = merge_two_poses(
+        &PartialSurface::from_field(&zero_a, field_a).unwrap(),
+        &PartialSurface::from_field(&zero_b, field_b).unwrap(),
+        &MergeConfig::default(),
+    )
+    .unwrap();
+    let truth = pose_b.compose(&pose_a.inverse());
+    let angle = rotation_distance(merged.a_to_b.q, truth.q).to_degrees();
+    assert!(angle < 0.2, "rotation A→B off by {angle}°");
+    assert!((merged.a_to_b.t - truth.t).norm() < 3e-4);
+    sim::check_closed_mesh(&merged.mesh).unwrap();
+    assert_eq!(components(&merged.mesh).len(), 1, "the floater should be gone");
+    let diameter = 2.0 * body.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
+    let c = chamfer(&merged.mesh, &true_b, 20000, 1);
+    assert!(
+        c.mean < 0.01 * diameter && c.p95 < 0.02 * diameter,
+        "Chamfer mean {:.3} mm, p95 {:.3} mm (diameter {:.1} mm)",
+        c.mean * 1e3,
+        c.p95 * 1e3,
+        diameter * 1e3
+    );
+    // B's field alone (its object piece) keeps the slab underneath.
+    let alone = chamfer(&largest_component(&zero_b), &true_b, 20000, 1);
+    assert!(alone.p95 > 2.0 * c.p95, "merge p95 {} vs B alone {}", c.p95, alone.p95);
 }

@@ -1,21 +1,15 @@
 //! `mesh`, `bake` and `compare-mesh`: the zero level of a trained field, SDF
 //! grids for the simulator, and mesh metrics.
 
+use super::checkpoint_of;
 use super::render::zero_level_mesh;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
+use geom::Vec3;
 use neus::checkpoint::load_field;
 use pganeus_io::read_mesh;
 use sim::sdf::{MeshDistance, SdfGrid};
 use std::path::{Path, PathBuf};
-
-fn checkpoint_of(run: &Path) -> PathBuf {
-    if run.is_dir() {
-        run.join("checkpoint.safetensors")
-    } else {
-        run.to_path_buf()
-    }
-}
 
 #[derive(Args)]
 pub struct MeshArgs {
@@ -185,7 +179,7 @@ pub struct MergeArgs {
     /// Output folder: merged.ply (in B's frame) and transform.json.
     #[arg(long)]
     pub out: PathBuf,
-    /// Grid resolution of each field's zero level (runs only).
+    /// Grid resolution of each field's zero level, used for ICP samples and the box (runs only).
     #[arg(long, default_value_t = 192)]
     pub field_res: usize,
     /// Grid resolution of the merged surface.
@@ -199,32 +193,55 @@ pub struct MergeArgs {
     pub max_residual: f64,
 }
 
-/// A run's zero level, or a mesh file, in its capture's world frame.
-fn surface(p: &Path, res: usize) -> Result<geom::TriMesh> {
+/// A run's field (its SDF in metres and its zero level), or a closed mesh
+/// file, in its capture's world frame.
+fn partial_surface(p: &Path, res: usize) -> Result<mesh::PartialSurface<'static>> {
     if p.is_dir() || p.extension().is_some_and(|e| e == "safetensors") {
         let l = load_field(&checkpoint_of(p))?;
-        let m = zero_level_mesh(&l.field, l.config.field.grid.levels, l.centre, l.radius, res);
-        if m.faces.is_empty() {
-            bail!("{}: the field has no zero level", p.display());
-        }
-        Ok(m)
+        let levels = l.config.field.grid.levels;
+        let zero = zero_level_mesh(&l.field, levels, l.centre, l.radius, res);
+        let sdf = move |pts: &[Vec3<f64>]| field_distances(&l, levels, pts);
+        mesh::PartialSurface::from_field(&zero, sdf).map_err(|e| anyhow!("{}: {e}", p.display()))
     } else {
-        let m = read_mesh(p)?;
-        sim::check_closed_mesh(&m).map_err(|e| anyhow!("{}: {e}", p.display()))?;
-        Ok(m)
+        mesh::PartialSurface::from_mesh(read_mesh(p)?).map_err(|e| anyhow!("{}: {e}", p.display()))
     }
+}
+
+/// A field's signed distance at world points, in metres. The field is only
+/// defined inside its unit sphere; beyond 0.98 of it the value is the
+/// distance to that sphere (or the field's, if larger) at the nearest point inside.
+fn field_distances(l: &neus::checkpoint::LoadedField, levels: usize, pts: &[Vec3<f64>]) -> Vec<f64> {
+    const LIMIT: f64 = 0.98;
+    let mut flat = Vec::with_capacity(pts.len() * 3);
+    let mut beyond = Vec::with_capacity(pts.len());
+    for p in pts {
+        let u = (*p - l.centre) * (1.0 / l.radius);
+        let n = u.norm();
+        let (u, e) = if n > LIMIT {
+            (u * (LIMIT / n), n - LIMIT)
+        } else {
+            (u, 0.0)
+        };
+        flat.extend(u.to_array().map(|v| v as f32));
+        beyond.push(e);
+    }
+    let f = l.field.sdf_values(&flat, levels);
+    f.iter()
+        .zip(beyond)
+        .map(|(v, e)| (*v as f64).max(e) * l.radius)
+        .collect()
 }
 
 pub fn merge(a: MergeArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let (ma, mb) = (surface(&a.a, a.field_res)?, surface(&a.b, a.field_res)?);
+    let (pa, pb) = (partial_surface(&a.a, a.field_res)?, partial_surface(&a.b, a.field_res)?);
     let cfg = mesh::MergeConfig {
         board_margin: a.board_margin,
         resolution: a.res,
         max_residual: a.max_residual,
         ..mesh::MergeConfig::default()
     };
-    let merged = mesh::merge_two_poses(&ma, &mb, &cfg)
+    let merged = mesh::merge_two_poses(&pa, &pb, &cfg)
         .map_err(|e| anyhow!("merging {} into {}: {e}", a.a.display(), a.b.display()))?;
     std::fs::create_dir_all(&a.out)?;
     pganeus_io::write_ply(

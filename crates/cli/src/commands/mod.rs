@@ -21,3 +21,12 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     pb.set_message(what.to_string());
     pb
 }
+
+/// A run folder's checkpoint, or the checkpoint file itself.
+pub(crate) fn checkpoint_of(run: &std::path::Path) -> std::path::PathBuf {
+    if run.is_dir() {
+        run.join("checkpoint.safetensors")
+    } else {
+        run.to_path_buf()
+    }
+}

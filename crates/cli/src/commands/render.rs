@@ -1,9 +1,11 @@
+use super::checkpoint_of;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::Camera;
-use geom::{TriMesh, Vec3};
+use geom::{Pose, Quat, TriMesh, Vec3};
 use neus::checkpoint::{load_field, LoadedField};
 use neus::render_view::{psnr, render_view, RenderSettings};
+use neus::switching::{route, Route};
 use neus::{Dataset, NeusField, NeusTrainer};
 use pganeus_io::Image;
 use serde::Deserialize;
@@ -23,6 +25,13 @@ pub struct RenderArgs {
     /// Where to write rgb/, depth/ (PNG and .npy) and normal/.
     #[arg(long)]
     pub out: PathBuf,
+    /// Switching render (Eq. 3–4): the run of the same object in its other pose. Cameras below
+    /// the board (z < 0 in RUN's frame) render this field instead, through `--transform`.
+    #[arg(long, requires = "transform")]
+    pub other: Option<PathBuf>,
+    /// The `transform.json` written by `pganeus merge OTHER RUN`: `p_run = R_1to2 · p_other + T_1to2`.
+    #[arg(long, requires = "other")]
+    pub transform: Option<PathBuf>,
 }
 
 pub fn settings(l: &LoadedField) -> RenderSettings {
@@ -128,6 +137,24 @@ fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
         .collect()
 }
 
+/// `p_b = a_to_b · p_a` from a `transform.json` written by `pganeus merge`.
+fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
+    #[derive(Deserialize)]
+    struct TransformJson {
+        q_1to2: [f64; 4],
+        #[serde(rename = "T_1to2")]
+        t_1to2: [f64; 3],
+    }
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let t: TransformJson = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let q = Quat::<f64>::cst(t.q_1to2);
+    let n = q.norm();
+    if !(n.is_finite() && (n - 1.0).abs() < 1e-6 && t.t_1to2.iter().all(|v| v.is_finite())) {
+        bail!("{}: q_1to2 must be a unit quaternion and T_1to2 finite", path.display());
+    }
+    Ok(Pose::new(q.normalize_or_identity(), Vec3::cst(t.t_1to2)))
+}
+
 /// A world camera seen from the field's unit frame (`p_world = centre + radius · p_unit`).
 fn to_unit(cam: &Camera<f64>, centre: Vec3<f64>, radius: f64) -> Camera<f64> {
     let mut c = *cam;
@@ -141,7 +168,7 @@ struct Reference<'a> {
     mask: Option<&'a [f32]>,
 }
 
-/// A view to render: its name, its camera in the field's unit frame, and the image to compare with.
+/// A view to render: its name, its camera in world coordinates, and the image to compare with.
 struct Job<'a> {
     name: String,
     camera: Camera<f64>,
@@ -149,12 +176,7 @@ struct Job<'a> {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let ckpt = if a.run.is_dir() {
-        a.run.join("checkpoint.safetensors")
-    } else {
-        a.run.clone()
-    };
-    let l = load_field(&ckpt)?;
+    let l = load_field(&checkpoint_of(&a.run))?;
     let data = match &a.views {
         Some(capture) => Some(Dataset::load(capture)?),
         None => None,
@@ -168,7 +190,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 (v.camera.world_to_cam.t * data.radius) - v.camera.world_to_cam.q.rotate(data.centre);
             jobs.push(Job {
                 name: v.name.clone(),
-                camera: to_unit(&world, l.centre, l.radius),
+                camera: world,
                 reference: Some(Reference {
                     rgb: &v.rgb,
                     mask: v.mask.as_deref(),
@@ -179,17 +201,38 @@ pub fn run(a: RenderArgs) -> Result<()> {
         for (i, c) in read_cameras(path)?.iter().enumerate() {
             jobs.push(Job {
                 name: format!("cam_{i:03}"),
-                camera: to_unit(c, l.centre, l.radius),
+                camera: *c,
                 reference: None,
             });
         }
     } else {
         bail!("give --views <capture> or --camera <json>");
     }
-    let set = settings(&l);
+    let other = match (&a.other, &a.transform) {
+        (Some(run), Some(t)) => Some((load_field(&checkpoint_of(run))?, read_transform(t)?.inverse())),
+        _ => None,
+    };
     let mut psnrs = Vec::new();
     for job in &jobs {
-        let img = render_view(&l.field, &l.occupancy, &set, &job.camera);
+        // Eq. 4: the other field renders cameras below the primary's board.
+        let (field, camera, to_primary) = match &other {
+            Some((lo, primary_to_other)) => match route(&job.camera, primary_to_other) {
+                Route::Primary => (&l, job.camera, None),
+                Route::Other(moved) => (lo, moved, Some(primary_to_other.q.conj())),
+            },
+            None => (&l, job.camera, None),
+        };
+        let mut img = render_view(
+            &field.field,
+            &field.occupancy,
+            &settings(field),
+            &to_unit(&camera, field.centre, field.radius),
+        );
+        if let Some(q) = to_primary {
+            for n in &mut img.normal {
+                *n = q.rotate(Vec3::cst(n.map(f64::from))).to_array().map(|v| v as f32);
+            }
+        }
         let (w, h) = (img.width, img.height);
         let mut rgb = Image::new(w, h, 3);
         let mut nrm = Image::new(w, h, 3);
@@ -204,7 +247,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         pganeus_io::write_png(&a.out.join("rgb").join(&name), &rgb)?;
         pganeus_io::write_png(&a.out.join("normal").join(&name), &nrm)?;
         pganeus_io::write_png(&a.out.join("depth").join(&name), &dep)?;
-        let metres: Vec<f32> = img.depth.iter().map(|d| d * l.radius as f32).collect();
+        let metres: Vec<f32> = img.depth.iter().map(|d| d * field.radius as f32).collect();
         pganeus_io::write_npy(
             &a.out.join("depth").join(format!("{}.npy", job.name)),
             &pganeus_io::NpyArray::new(vec![h as usize, w as usize], pganeus_io::NpyData::F32(metres)),
@@ -214,6 +257,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 let p = psnr(&img.rgb, gt, mask);
                 println!("{}: PSNR {p:.2} dB", job.name);
                 psnrs.push(p);
+            }
+            None if to_primary.is_some() => {
+                println!("{}: rendered by the other field (camera below the board)", job.name)
             }
             None => println!("{}: rendered", job.name),
         }
