@@ -522,3 +522,93 @@ fn train_refuses_bad_captures_before_training() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// `scenes/cup_house.obj` moved by `f` (an OBJ with the same faces).
+fn moved_cup(f: impl Fn([f64; 3]) -> [f64; 3]) -> String {
+    let src = std::fs::read_to_string(repo().join("scenes/cup_house.obj")).unwrap();
+    src.lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(rest) => {
+                let v: Vec<f64> = rest.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                let p = f([v[0], v[1], v[2]]);
+                format!("v {} {} {}", p[0], p[1], p[2])
+            }
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn mesh_tools_merge_compare_and_bake() {
+    let d = scratch("mesh-tools");
+    // The cup upright (cavity on the board) and turned over about x (on its roof's apex).
+    std::fs::write(d.join("a.obj"), moved_cup(|p| [p[0] + 0.01, p[1], p[2] + 0.02])).unwrap();
+    std::fs::write(d.join("b.obj"), moved_cup(|p| [p[0], -p[1] + 0.02, -p[2] + 0.035])).unwrap();
+    let out = d.join("merged");
+    let o = bin()
+        .arg("merge")
+        .arg(d.join("a.obj"))
+        .arg(d.join("b.obj"))
+        .args(["--res", "96", "--faces", "3000", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("transform.json")).unwrap()).unwrap();
+    assert!(t["residual"].as_f64().unwrap() < 1e-4, "{t}");
+    let o = bin()
+        .arg("compare-mesh")
+        .arg(out.join("merged.ply"))
+        .arg(d.join("b.obj"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let m: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // The cup is 8.6 cm across: within 1 % of that, and nearly the same volume.
+    assert!(m["chamfer_mean"].as_f64().unwrap() < 8.6e-4, "{m}");
+    assert!(m["volume_iou"].as_f64().unwrap() > 0.95, "{m}");
+    let o = bin()
+        .arg("bake")
+        .arg(out.join("merged.ply"))
+        .args(["--res", "24", "--out"])
+        .arg(d.join("cup.grid"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(d.join("cup.grid").exists());
+
+    // Bad input: an open mesh (the last face gone) and an empty one, named in the message;
+    // a failed merge leaves the earlier output alone.
+    let cup = moved_cup(|p| p);
+    let open = &cup[..cup.trim_end().rfind("\nf ").unwrap()];
+    std::fs::write(d.join("open.obj"), open).unwrap();
+    std::fs::write(d.join("empty.obj"), "# nothing\n").unwrap();
+    let before = std::fs::read(out.join("merged.ply")).unwrap();
+    for (args, needle) in [
+        (vec!["merge", "open.obj", "b.obj", "--out", "merged"], "open.obj"),
+        (vec!["merge", "a.obj", "empty.obj", "--out", "merged"], "empty.obj"),
+        (vec!["compare-mesh", "empty.obj", "b.obj"], "empty.obj"),
+        (vec!["bake", "open.obj", "--out", "open.grid"], "open.obj"),
+    ] {
+        let o = bin().current_dir(&d).args(&args).output().unwrap();
+        let msg = text(&o);
+        assert!(!o.status.success() && msg.contains(needle), "{args:?}: {msg}");
+    }
+    assert_eq!(std::fs::read(out.join("merged.ply")).unwrap(), before);
+    assert!(!d.join("open.grid").exists());
+    // compare-mesh works on an open mesh, but says why there is no volume IoU.
+    let o = bin()
+        .current_dir(&d)
+        .args(["compare-mesh", "open.obj", "b.obj"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("open.obj") && text(&o).contains("\"volume_iou\": null"),
+        "{}",
+        text(&o)
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -12,15 +12,18 @@
 
 mod collapse_coincident;
 mod components;
+mod decimate;
 pub mod icp;
 pub mod kdtree;
 mod marching_tetrahedra;
 pub mod merge;
 mod mesh_metrics;
 mod sample_sdf_grid;
+pub mod visibility;
 mod zero_level_points;
 
 pub use components::{components, largest_component, sub_mesh};
+pub use decimate::decimate;
 pub use icp::{icp, icp_auto, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
 pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged, PartialSurface};

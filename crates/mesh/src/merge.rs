@@ -15,8 +15,9 @@
 use crate::components::largest_component;
 use crate::icp::{icp_auto, IcpConfig, IcpResult, IcpTarget};
 use crate::marching_tetrahedra::{extract_zero_level, ScalarGrid};
+use crate::visibility::Visibility;
 use crate::zero_level_points::{zero_level_points, BatchSdf};
-use geom::{Pose, TriMesh, Vec3};
+use geom::{Camera, Pose, TriMesh, Vec3};
 use rayon::prelude::*;
 use sim::sdf::MeshDistance;
 
@@ -36,6 +37,10 @@ pub struct MergeConfig {
     pub max_residual: f64,
     /// Finite-difference step of a field's gradient when ICP samples are projected onto its zero level, m. Default 0.2 mm.
     pub fd_step: f64,
+    /// With cameras: a point is fully seen when at least this many cameras see it. Default 3.
+    pub min_cameras: usize,
+    /// With cameras: nodes along the longest side of the grid the visibility test traces through. Default 96.
+    pub visibility_resolution: usize,
     pub icp: IcpConfig,
 }
 
@@ -48,6 +53,8 @@ impl Default for MergeConfig {
             icp_points: 20000,
             max_residual: 1e-3,
             fd_step: 2e-4,
+            min_cameras: 3,
+            visibility_resolution: 96,
             icp: IcpConfig {
                 keep_fraction: 0.7,
                 ..IcpConfig::default()
@@ -78,6 +85,9 @@ pub struct PartialSurface<'a> {
     /// Whether ICP samples taken on `mesh` are projected onto the SDF's zero
     /// level (a field's mesh is only a marching approximation of it).
     project: bool,
+    /// The capture's cameras (its frame), if known: then "seen" also means
+    /// seen by them, not only "above the board".
+    cameras: Vec<Camera<f64>>,
 }
 
 impl<'a> PartialSurface<'a> {
@@ -92,6 +102,7 @@ impl<'a> PartialSurface<'a> {
             mesh: largest_component(&mesh),
             sdf: Box::new(move |pts: &[V]| pts.iter().map(|p| dist.signed_distance(*p).0).collect()),
             project: false,
+            cameras: Vec::new(),
         })
     }
 
@@ -106,7 +117,38 @@ impl<'a> PartialSurface<'a> {
             mesh,
             sdf: Box::new(sdf),
             project: true,
+            cameras: Vec::new(),
         })
+    }
+
+    /// The cameras of the part's capture (world frame of that capture), for
+    /// a visibility test: parts hidden from every camera (an overhang, the
+    /// side the object stands on) are taken from the other pose.
+    pub fn with_cameras(mut self, cameras: Vec<Camera<f64>>) -> Self {
+        self.cameras = cameras;
+        self
+    }
+
+    /// The part's box, padded by a tenth of its size.
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for v in &self.mesh.vertices {
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+        let pad = 0.1 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        (lo.map(|v| v - pad), hi.map(|v| v + pad))
+    }
+
+    /// The visibility test of this part, if it has cameras.
+    fn visibility(&self, resolution: usize) -> Option<Visibility> {
+        if self.cameras.is_empty() {
+            return None;
+        }
+        let (lo, hi) = self.bounds();
+        Some(Visibility::new(&*self.sdf, lo, hi, resolution, self.cameras.clone()))
     }
 
     /// The object's zero-level mesh (largest piece).
@@ -123,25 +165,32 @@ impl<'a> PartialSurface<'a> {
         Ok(d)
     }
 
-    /// Points (spread by area) with normals on the part above `z_min`.
-    fn visible_cloud(&self, z_min: f64, count: usize, fd_step: f64, seed: u64) -> (Vec<V>, Vec<V>) {
-        let m = &self.mesh;
-        let faces: Vec<[u32; 3]> = m
-            .faces
-            .iter()
-            .filter(|f| f.iter().all(|&i| m.vertices[i as usize][2] > z_min))
-            .copied()
-            .collect();
-        if faces.is_empty() {
+    /// Points (spread by area) with normals on the part where `seen`.
+    /// Samples of the whole surface are cut, not faces: a large face that
+    /// reaches down to the board still counts above it.
+    fn visible_cloud(
+        &self,
+        seen: &(dyn Fn(V) -> bool + Sync),
+        count: usize,
+        fd_step: f64,
+        seed: u64,
+    ) -> (Vec<V>, Vec<V>) {
+        let above = |pts: Vec<V>| -> Vec<V> { pts.into_par_iter().filter(|p| seen(*p)).collect() };
+        let mut pts = above(sim::sample_surface::sample_surface(&self.mesh, count, seed));
+        if !pts.is_empty() && pts.len() < count {
+            // Sample again, densely enough for `count` above the cut.
+            let more = (count as f64 * count as f64 / pts.len() as f64).min(20.0 * count as f64) as usize;
+            pts = above(sim::sample_surface::sample_surface(&self.mesh, more, seed + 1));
+            pts.truncate(count);
+        }
+        if pts.is_empty() {
             return (vec![], vec![]);
         }
-        let part = TriMesh::new(m.vertices.clone(), faces);
-        let pts = sim::sample_surface::sample_surface(&part, count, seed);
         if self.project {
             let (p, n) = zero_level_points(&*self.sdf, &pts, fd_step, 2, fd_step);
-            p.into_iter().zip(n).filter(|(p, _)| p.z > z_min).unzip()
+            p.into_iter().zip(n).filter(|(p, _)| seen(*p)).unzip()
         } else {
-            let md = MeshDistance::new(&part).expect("faces are not empty");
+            let md = MeshDistance::new(&self.mesh).expect("a partial surface has faces");
             let normals = pts
                 .iter()
                 .map(|p| md.face_normal(md.closest_point_triangle(*p).2))
@@ -168,8 +217,26 @@ fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
 /// Merge `a` (upright) and `b` (turned over), each in its own capture's
 /// frame (board at z = 0).
 pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig) -> Result<Merged, MergeError> {
-    let (pa, _) = a.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 1);
-    let (pb, nb) = b.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 2);
+    let (vis_a, vis_b) = (
+        a.visibility(cfg.visibility_resolution),
+        b.visibility(cfg.visibility_resolution),
+    );
+    // How surely a part saw the surface near x (its own frame): above the
+    // board's margin, and by enough of its cameras when they are known.
+    let by_cameras = |vis: &Option<Visibility>, x: V| -> f64 {
+        vis.as_ref().map_or(1.0, |v| {
+            smoothstep(
+                0.0,
+                cfg.min_cameras as f64 / v.cameras().max(1) as f64,
+                v.seen_fraction(x),
+            )
+        })
+    };
+    let above_board = |x: V| smoothstep(cfg.board_margin, cfg.board_margin + cfg.blend, x.z);
+    let seen_a = |x: V| x.z > cfg.board_margin && by_cameras(&vis_a, x) >= 1.0;
+    let seen_b = |x: V| x.z > cfg.board_margin && by_cameras(&vis_b, x) >= 1.0;
+    let (pa, _) = a.visible_cloud(&seen_a, cfg.icp_points, cfg.fd_step, 1);
+    let (pb, nb) = b.visible_cloud(&seen_b, cfg.icp_points, cfg.fd_step, 2);
     if pa.is_empty() {
         return Err(MergeError::NothingVisible('A', cfg.board_margin));
     }
@@ -185,30 +252,6 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     }
     let a_to_b = icp.transform;
     let b_to_a = a_to_b.inverse();
-    // The fused SDF in B's frame: B where B saw (z_B above the margin), else A.
-    let fused = |xs: &[V]| -> Result<Vec<f64>, MergeError> {
-        let xa: Vec<V> = xs.iter().map(|x| b_to_a.transform_point(*x)).collect();
-        let sb = b.distances('B', xs)?;
-        let sa = a.distances('A', &xa)?;
-        let edge = |z: f64| smoothstep(cfg.board_margin, cfg.board_margin + cfg.blend, z);
-        Ok((0..xs.len())
-            .map(|i| {
-                let (wb, wa) = (edge(xs[i].z), edge(xa[i].z));
-                if wa + wb <= 0.0 {
-                    // Seen by neither (only in a thin sliver at both boards): the nearer guess.
-                    if sa[i].abs() < sb[i].abs() {
-                        sa[i]
-                    } else {
-                        sb[i]
-                    }
-                } else {
-                    // Prefer B where B saw it; A fills where only A saw.
-                    let w = wb / (wb + wa * (1.0 - wb));
-                    w * sb[i] + (1.0 - w) * sa[i]
-                }
-            })
-            .collect())
-    };
     // The box of the object in B's frame: B's box and A's moved into it.
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     let moved_a = a
@@ -227,6 +270,44 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     let pad = 3.0 * h;
     let origin = lo.map(|v| v - pad);
     let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k] + 2.0 * pad) / h).ceil() as usize + 1);
+    // The cameras' share of the weights, on the narrow band's coarse grid
+    // (it changes slowly, and tracing every fine point would cost 64 times more).
+    let coarse = CoarseGrid::new(origin, h * NARROW_BAND_COARSENING as f64, dims);
+    let camera_weights: Vec<(f64, f64)> = if vis_a.is_none() && vis_b.is_none() {
+        Vec::new()
+    } else {
+        (0..coarse.len())
+            .into_par_iter()
+            .map(|i| {
+                let x = coarse.point(i);
+                (by_cameras(&vis_a, b_to_a.transform_point(x)), by_cameras(&vis_b, x))
+            })
+            .collect()
+    };
+    // The fused SDF in B's frame: B where B saw, else A.
+    let fused = |xs: &[V]| -> Result<Vec<f64>, MergeError> {
+        let xa: Vec<V> = xs.iter().map(|x| b_to_a.transform_point(*x)).collect();
+        let sb = b.distances('B', xs)?;
+        let sa = a.distances('A', &xa)?;
+        Ok((0..xs.len())
+            .map(|i| {
+                let (ca, cb) = coarse.interpolate(&camera_weights, xs[i]).unwrap_or((1.0, 1.0));
+                let (wb, wa) = (above_board(xs[i]) * cb, above_board(xa[i]) * ca);
+                if wa + wb <= 0.0 {
+                    // Seen by neither (only in a thin sliver at both boards): the nearer guess.
+                    if sa[i].abs() < sb[i].abs() {
+                        sa[i]
+                    } else {
+                        sb[i]
+                    }
+                } else {
+                    // Prefer B where B saw it; A fills where only A saw.
+                    let w = wb / (wb + wa * (1.0 - wb));
+                    w * sb[i] + (1.0 - w) * sa[i]
+                }
+            })
+            .collect())
+    };
     let values = narrow_band(&fused, origin, h, dims)?;
     let grid = ScalarGrid {
         origin,
@@ -257,8 +338,63 @@ fn eval_batched(f: &FusedSdf, points: &[V]) -> Result<Vec<f64>, MergeError> {
 /// times coarser first; a fine point whose coarse cell has every corner
 /// farther from the surface than the cell's diagonal takes the coarse
 /// interpolation (its sign, all marching needs there, is right).
+/// The coarse grid of [`narrow_band`], over the fine grid's box.
+struct CoarseGrid {
+    origin: [f64; 3],
+    step: f64,
+    dims: [usize; 3],
+}
+
+impl CoarseGrid {
+    fn new(origin: [f64; 3], step: f64, fine_dims: [usize; 3]) -> Self {
+        let k = NARROW_BAND_COARSENING;
+        let dims = std::array::from_fn(|a| (fine_dims[a] - 1).div_ceil(k) + 1);
+        Self { origin, step, dims }
+    }
+    fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+    fn point(&self, idx: usize) -> V {
+        let d = self.dims;
+        let ijk = [idx % d[0], (idx / d[0]) % d[1], idx / (d[0] * d[1])];
+        V::new(
+            self.origin[0] + ijk[0] as f64 * self.step,
+            self.origin[1] + ijk[1] as f64 * self.step,
+            self.origin[2] + ijk[2] as f64 * self.step,
+        )
+    }
+    /// Trilinear interpolation of per-node pairs at `x` (clamped to the grid); `None` without values.
+    fn interpolate(&self, values: &[(f64, f64)], x: V) -> Option<(f64, f64)> {
+        if values.is_empty() {
+            return None;
+        }
+        let d = self.dims;
+        let mut base = [0usize; 3];
+        let mut frac = [0.0; 3];
+        for a in 0..3 {
+            let t = ((x.to_array()[a] - self.origin[a]) / self.step).clamp(0.0, (d[a] - 1) as f64);
+            base[a] = (t.floor() as usize).min(d[a] - 2);
+            frac[a] = t - base[a] as f64;
+        }
+        let mut out = (0.0, 0.0);
+        for corner in 0..8 {
+            let o = [corner & 1, (corner >> 1) & 1, corner >> 2];
+            let w: f64 = (0..3)
+                .map(|a| if o[a] == 1 { frac[a] } else { 1.0 - frac[a] })
+                .product();
+            let v = values[(base[0] + o[0]) + d[0] * ((base[1] + o[1]) + d[1] * (base[2] + o[2]))];
+            out.0 += w * v.0;
+            out.1 += w * v.1;
+        }
+        Some(out)
+    }
+}
+
+/// How much coarser the first pass of [`narrow_band`] is.
+const NARROW_BAND_COARSENING: usize = 4;
+
 fn narrow_band(f: &FusedSdf, origin: [f64; 3], h: f64, dims: [usize; 3]) -> Result<Vec<f32>, MergeError> {
-    const K: usize = 4;
+    const K: usize = NARROW_BAND_COARSENING;
     let cd: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(K) + 1);
     let at = |i: usize, j: usize, k: usize, step: f64| {
         V::new(

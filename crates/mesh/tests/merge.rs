@@ -238,3 +238,65 @@ fn merging_two_fields_uses_their_distances_and_drops_floaters() {
     let alone = chamfer(&largest_component(&zero_b), &true_b, 20000, 1);
     assert!(alone.p95 > 2.0 * c.p95, "merge p95 {} vs B alone {}", c.p95, alone.p95);
 }
+
+/// Cameras around `look_at` from above the board, as a capture's.
+fn ring_of_cameras(look_at: Vec3<f64>, count: usize) -> Vec<geom::Camera<f64>> {
+    let k = geom::Intrinsics {
+        fx: 300.0,
+        fy: 300.0,
+        cx: 160.0,
+        cy: 120.0,
+        skew: 0.0,
+    };
+    (0..count)
+        .map(|i| {
+            let elevation = [30.0f64, 50.0, 70.0][i % 3].to_radians();
+            let azimuth = i as f64 * std::f64::consts::TAU / count as f64;
+            let eye = look_at
+                + Vec3::new(
+                    elevation.cos() * azimuth.cos(),
+                    elevation.cos() * azimuth.sin(),
+                    elevation.sin(),
+                ) * 0.3;
+            geom::Camera::look_at(eye, look_at, Vec3::new(0.0, 0.0, 1.0), k, 320, 240)
+        })
+        .collect()
+}
+
+/// A T-shaped post on the board (a stem with a wide cap at the top), seen by
+/// cameras from above: the cap's top is seen by all, its underside (an
+/// overhang high above the board) and the stem just under it by none, the
+/// stem's foot and the cap's sides by some.
+#[test]
+fn cameras_see_the_top_but_not_under_an_overhang() {
+    let stem = Shape::Cuboid(Cuboid {
+        half: [0.005, 0.005, 0.02],
+    })
+    .transformed(Pose::from_translation(Vec3::new(0.0, 0.0, 0.02)));
+    let cap = Shape::Cuboid(Cuboid {
+        half: [0.025, 0.025, 0.004],
+    })
+    .transformed(Pose::from_translation(Vec3::new(0.0, 0.0, 0.04)));
+    let t = Shape::Union(vec![stem, cap]);
+    let sdf = |pts: &[Vec3<f64>]| -> Vec<f64> { pts.iter().map(|p| t.distance_local(*p)).collect() };
+    let vis = mesh::visibility::Visibility::new(
+        &sdf,
+        [-0.04, -0.04, -0.005],
+        [0.04, 0.04, 0.055],
+        96,
+        ring_of_cameras(Vec3::new(0.0, 0.0, 0.02), 24),
+    );
+    let seen = |x: [f64; 3]| vis.seen_fraction(Vec3::cst(x));
+    assert_eq!(seen([0.01, 0.005, 0.044]), 1.0, "the cap's top");
+    assert_eq!(seen([0.015, 0.01, 0.036]), 0.0, "under the cap, 3.6 cm above the board");
+    assert_eq!(seen([0.005, 0.0, 0.03]), 0.0, "the stem just under the cap");
+    let foot = seen([0.005, 0.0, 0.002]);
+    assert!(
+        foot > 0.0 && foot < 0.5,
+        "the stem's foot, seen by low cameras only: {foot}"
+    );
+    let side = seen([0.025, 0.0, 0.04]);
+    assert!(side > 0.1 && side < 0.9, "the cap's side: {side}");
+    // The board hides what is below it.
+    assert_eq!(seen([0.0, 0.0, -0.001]), 0.0);
+}

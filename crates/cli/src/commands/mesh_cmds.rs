@@ -21,17 +21,24 @@ pub struct MeshArgs {
     /// Grid points along each side of the unit cube.
     #[arg(long, default_value_t = 256)]
     pub res: usize,
+    /// Simplify to at most this many faces by quadric edge collapses (a light mesh for the
+    /// simulator's contact points: `shape = "mesh"` with `contact_vertices = true`).
+    #[arg(long)]
+    pub faces: Option<usize>,
 }
 
 pub fn mesh(a: MeshArgs) -> Result<()> {
     let l = load_field(&checkpoint_of(&a.run))?;
     let t0 = std::time::Instant::now();
-    let m = zero_level_mesh(&l.field, l.config.field.grid.levels, l.centre, l.radius, a.res);
+    let mut m = zero_level_mesh(&l.field, l.config.field.grid.levels, l.centre, l.radius, a.res);
     if m.faces.is_empty() {
         bail!(
             "{}: the field has no zero level inside its unit sphere's cube (nothing to mesh)",
             a.run.display()
         );
+    }
+    if let Some(n) = a.faces {
+        m = mesh::decimate(&m, n);
     }
     if let Err(e) = sim::check_closed_mesh(&m) {
         tracing::warn!(
@@ -140,31 +147,65 @@ pub fn bake(a: BakeArgs) -> Result<()> {
 #[derive(Args)]
 pub struct CompareMeshArgs {
     pub a: PathBuf,
-    pub b: PathBuf,
+    /// The mesh to compare with (or give `--truth` and `--capture`).
+    #[arg(required_unless_present = "truth", conflicts_with = "truth")]
+    pub b: Option<PathBuf>,
+    /// Compare with the true mesh of a synthetic dataset's body ...
+    #[arg(long, requires = "capture")]
+    pub truth: Option<PathBuf>,
+    /// ... posed as in this static capture (e.g. `toy_b`): `a` is in that capture's frame.
+    #[arg(long, requires = "truth")]
+    pub capture: Option<String>,
     /// Surface samples per mesh (Chamfer, normals) and points for the volume IoU (×10).
     #[arg(long, default_value_t = 20000)]
     pub samples: usize,
 }
 
+/// The true mesh of the body captured in `capture`, posed as it was there.
+fn posed_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf)> {
+    let t = pganeus_io::read_truth(truth)?;
+    let (body, stat) = t
+        .bodies
+        .iter()
+        .find_map(|b| b.static_captures.iter().find(|s| s.capture == capture).map(|s| (b, s)))
+        .ok_or_else(|| anyhow!("{}: no body has a static capture named {capture:?}", truth.display()))?;
+    let path = truth.parent().unwrap_or(Path::new(".")).join(&body.mesh);
+    let mut m = read_mesh(&path)?;
+    let pose = geom::Pose::new(geom::Quat::<f64>::cst(stat.pose.q), Vec3::cst(stat.pose.t));
+    for v in &mut m.vertices {
+        *v = pose.transform_point(Vec3::cst(*v)).to_array();
+    }
+    Ok((m, path))
+}
+
 pub fn compare_mesh(a: CompareMeshArgs) -> Result<()> {
-    let (ma, mb) = (read_mesh(&a.a)?, read_mesh(&a.b)?);
-    for (m, p) in [(&ma, &a.a), (&mb, &a.b)] {
+    let ma = read_mesh(&a.a)?;
+    let (mb, b_path) = match (&a.b, &a.truth, &a.capture) {
+        (Some(b), _, _) => (read_mesh(b)?, b.clone()),
+        (None, Some(truth), Some(capture)) => posed_truth(truth, capture)?,
+        _ => bail!("give a second mesh, or --truth and --capture"),
+    };
+    for (m, p) in [(&ma, &a.a), (&mb, &b_path)] {
         if m.faces.is_empty() {
             bail!("{}: the mesh has no faces", p.display());
         }
     }
     let c = mesh::chamfer(&ma, &mb, a.samples, 1);
     let nc = mesh::normal_consistency(&ma, &mb, a.samples, 2);
-    let closed = sim::check_closed_mesh(&ma).is_ok() && sim::check_closed_mesh(&mb).is_ok();
-    let iou = closed.then(|| mesh::volume_iou(&ma, &mb, a.samples * 10, 3));
+    // Volume needs inside and outside: say which mesh is not closed, and why.
+    let open: Vec<String> = [(&ma, &a.a), (&mb, &b_path)]
+        .iter()
+        .filter_map(|(m, p)| sim::check_closed_mesh(m).err().map(|e| format!("{}: {e}", p.display())))
+        .collect();
+    let iou = open.is_empty().then(|| mesh::volume_iou(&ma, &mb, a.samples * 10, 3));
     println!(
         "{}",
         serde_json::to_string_pretty(&serde_json::json!({
-            "a": a.a, "b": a.b,
+            "a": a.a, "b": b_path, "capture": a.capture,
             "chamfer_mean": c.mean, "chamfer_p95": c.p95, "chamfer_max": c.max,
             "normal_consistency": nc,
             "volume_iou": iou,
-            "note": if closed { "" } else { "volume_iou needs two closed meshes" },
+            "note": if open.is_empty() { String::new() } else { format!("no volume_iou: {}", open.join("; ")) },
         }))?
     );
     Ok(())
@@ -191,6 +232,30 @@ pub struct MergeArgs {
     /// Refuse an alignment whose RMS point-to-plane residual is above this, m.
     #[arg(long, default_value_t = 1e-3)]
     pub max_residual: f64,
+    /// Simplify the merged mesh to at most this many faces (quadric edge collapses).
+    #[arg(long)]
+    pub faces: Option<usize>,
+    /// A's capture (NeuS layout): its cameras decide what A saw, so parts hidden
+    /// from every camera (an overhang, a roof the object stands on) come from B.
+    /// Without it, "seen" is "above the board's margin".
+    #[arg(long)]
+    pub capture_a: Option<PathBuf>,
+    /// B's capture, likewise.
+    #[arg(long)]
+    pub capture_b: Option<PathBuf>,
+}
+
+/// The cameras of a capture, in its world frame.
+fn capture_cameras(dir: &Path) -> Result<Vec<geom::Camera<f64>>> {
+    let c = pganeus_io::open_capture(dir)?;
+    c.cameras
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            geom::Camera::from_world_mat(&m.world_mat, c.width, c.height)
+                .map_err(|e| anyhow!("{}: camera {i}: {e}", dir.join("cameras_sphere.npz").display()))
+        })
+        .collect()
 }
 
 /// A run's field (its SDF in metres and its zero level), or a closed mesh
@@ -218,9 +283,9 @@ fn field_distances(l: &neus::checkpoint::LoadedField, levels: usize, pts: &[Vec3
         let u = (*p - l.centre) * (1.0 / l.radius);
         let n = u.norm();
         let (u, e) = if n > LIMIT {
-            (u * (LIMIT / n), n - LIMIT)
+            (u * (LIMIT / n), Some(n - LIMIT))
         } else {
-            (u, 0.0)
+            (u, None)
         };
         flat.extend(u.to_array().map(|v| v as f32));
         beyond.push(e);
@@ -228,21 +293,31 @@ fn field_distances(l: &neus::checkpoint::LoadedField, levels: usize, pts: &[Vec3
     let f = l.field.sdf_values(&flat, levels);
     f.iter()
         .zip(beyond)
-        .map(|(v, e)| (*v as f64).max(e) * l.radius)
+        .map(|(v, e)| e.map_or(*v as f64, |e| (*v as f64).max(e)) * l.radius)
         .collect()
 }
 
 pub fn merge(a: MergeArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let (pa, pb) = (partial_surface(&a.a, a.field_res)?, partial_surface(&a.b, a.field_res)?);
+    let mut pa = partial_surface(&a.a, a.field_res)?;
+    let mut pb = partial_surface(&a.b, a.field_res)?;
+    if let Some(dir) = &a.capture_a {
+        pa = pa.with_cameras(capture_cameras(dir)?);
+    }
+    if let Some(dir) = &a.capture_b {
+        pb = pb.with_cameras(capture_cameras(dir)?);
+    }
     let cfg = mesh::MergeConfig {
         board_margin: a.board_margin,
         resolution: a.res,
         max_residual: a.max_residual,
         ..mesh::MergeConfig::default()
     };
-    let merged = mesh::merge_two_poses(&pa, &pb, &cfg)
+    let mut merged = mesh::merge_two_poses(&pa, &pb, &cfg)
         .map_err(|e| anyhow!("merging {} into {}: {e}", a.a.display(), a.b.display()))?;
+    if let Some(n) = a.faces {
+        merged.mesh = mesh::decimate(&merged.mesh, n);
+    }
     std::fs::create_dir_all(&a.out)?;
     pganeus_io::write_ply(
         &a.out.join("merged.ply"),
@@ -254,6 +329,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         "R_1to2": r, "T_1to2": merged.a_to_b.t.to_array(), "q_1to2": merged.a_to_b.q.to_array_re(),
         "residual": merged.icp.residual, "rms_distance": merged.icp.rms_distance, "icp_iterations": merged.icp.iterations,
         "reference": "b", "a": a.a, "b": a.b, "board_margin": a.board_margin,
+        "capture_a": a.capture_a, "capture_b": a.capture_b,
         "note": "p_b = R_1to2 · p_a + T_1to2; merged.ply is in b's capture frame",
     });
     pganeus_io::write_atomic(

@@ -1,0 +1,113 @@
+//! Quadric decimation keeps a closed mesh closed and close to its shape:
+//! a sphere to a tenth of its faces stays within a small fraction of its
+//! radius, and a finely tessellated box loses its flat-face triangles
+//! while its corners stay exact.
+use std::collections::HashMap;
+
+use geom::TriMesh;
+use mesh::{chamfer, decimate, extract_zero_level, normal_consistency, sample_sdf_grid};
+
+fn sphere(r: f64, res: usize) -> TriMesh {
+    let grid = sample_sdf_grid(
+        &|pts: &[[f64; 3]]| {
+            pts.iter()
+                .map(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - r) as f32)
+                .collect()
+        },
+        [-1.2 * r; 3],
+        [1.2 * r; 3],
+        res,
+    );
+    extract_zero_level(&grid)
+}
+
+/// The box `[-h, h]³` with each side split into n × n squares.
+fn tessellated_box(h: [f64; 3], n: usize) -> TriMesh {
+    let mut index: HashMap<[i64; 3], u32> = HashMap::new();
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    let mut vertex = |p: [f64; 3]| {
+        let key = p.map(|v| (v * 1e9).round() as i64);
+        *index.entry(key).or_insert_with(|| {
+            vertices.push(p);
+            (vertices.len() - 1) as u32
+        })
+    };
+    for axis in 0..3 {
+        for side in [-1.0, 1.0] {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let at = |i: usize, j: usize| {
+                let mut p = [0.0; 3];
+                p[axis] = side * h[axis];
+                p[u] = -h[u] + 2.0 * h[u] * i as f64 / n as f64;
+                p[v] = -h[v] + 2.0 * h[v] * j as f64 / n as f64;
+                p
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    let q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)].map(&mut vertex);
+                    // (u, v, axis) is right-handed: counter-clockwise seen from +axis.
+                    if side > 0.0 {
+                        faces.push([q[0], q[1], q[2]]);
+                        faces.push([q[0], q[2], q[3]]);
+                    } else {
+                        faces.push([q[0], q[2], q[1]]);
+                        faces.push([q[0], q[3], q[2]]);
+                    }
+                }
+            }
+        }
+    }
+    TriMesh::new(vertices, faces)
+}
+
+#[test]
+fn a_sphere_keeps_its_shape_at_a_tenth_of_its_faces() {
+    let r = 0.05;
+    let fine = sphere(r, 96);
+    sim::check_closed_mesh(&fine).unwrap();
+    let target = fine.faces.len() / 10;
+    let coarse = decimate(&fine, target);
+    sim::check_closed_mesh(&coarse).unwrap();
+    assert!(
+        coarse.faces.len() <= target && coarse.faces.len() > target - 10,
+        "{} faces",
+        coarse.faces.len()
+    );
+    let c = chamfer(&coarse, &fine, 20000, 1);
+    assert!(
+        c.mean < 0.002 * r && c.max < 0.02 * r,
+        "Chamfer mean {:.2e}, max {:.2e}",
+        c.mean,
+        c.max
+    );
+    let nc = normal_consistency(&coarse, &fine, 20000, 2);
+    assert!(nc > 0.99, "normal consistency {nc}");
+    // Vertices stay on the sphere: quadrics keep them on the tangent planes.
+    let worst = coarse
+        .vertices
+        .iter()
+        .map(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - r).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.01 * r, "a vertex {worst} off the sphere");
+}
+
+#[test]
+fn a_tessellated_box_collapses_to_its_corners() {
+    let h = [0.03, 0.02, 0.01];
+    let fine = tessellated_box(h, 12);
+    sim::check_closed_mesh(&fine).unwrap();
+    let coarse = decimate(&fine, 12);
+    sim::check_closed_mesh(&coarse).unwrap();
+    assert_eq!(coarse.faces.len(), 12, "a box needs 12 triangles");
+    assert_eq!(coarse.vertices.len(), 8);
+    for v in &coarse.vertices {
+        for k in 0..3 {
+            assert!((v[k].abs() - h[k]).abs() < 1e-9, "vertex {v:?} is not a corner");
+        }
+    }
+    // Asking for fewer than a closed mesh can have stops at what stays closed.
+    let least = decimate(&fine, 0);
+    sim::check_closed_mesh(&least).unwrap();
+    assert!(least.faces.len() >= 4);
+}
