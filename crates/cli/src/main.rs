@@ -68,7 +68,15 @@ fn main() {
         Command::BenchTrain(a) => commands::bench_train::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        // The chain of causes, each once: many errors already quote their source.
+        let mut message = e.to_string();
+        for cause in e.chain().skip(1) {
+            let cause = cause.to_string();
+            if !message.contains(&cause) {
+                message = format!("{message}: {cause}");
+            }
+        }
+        eprintln!("error: {message}");
         std::process::exit(1);
     }
 }

@@ -579,6 +579,32 @@ fn mesh_tools_merge_compare_and_bake() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(d.join("cup.grid").exists());
 
+    // A known transform (from markers, say) used as given: written back unchanged, residual checked.
+    let known = serde_json::json!({"q_1to2": [0.0, 1.0, 0.0, 0.0], "T_1to2": [-0.01, 0.02, 0.055]});
+    std::fs::write(d.join("known.json"), known.to_string()).unwrap();
+    let o = bin()
+        .current_dir(&d)
+        .args([
+            "merge",
+            "a.obj",
+            "b.obj",
+            "--res",
+            "64",
+            "--start",
+            "known.json",
+            "--no-refine",
+            "--out",
+            "given",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("given/transform.json")).unwrap()).unwrap();
+    assert_eq!(t["T_1to2"], known["T_1to2"], "{t}");
+    assert_eq!(t["icp_iterations"], 0, "{t}");
+    assert!(t["residual"].as_f64().unwrap() < 1e-4, "{t}");
+
     // Bad input: an open mesh (the last face gone) and an empty one, named in the message;
     // a failed merge leaves the earlier output alone.
     let cup = moved_cup(|p| p);

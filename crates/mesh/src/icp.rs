@@ -50,6 +50,11 @@ pub struct IcpResult {
     /// RMS point-to-point distance of the kept pairs, m.
     pub rms_distance: f64,
     pub iterations: usize,
+    /// How well the kept pairs pin the pose down: the smallest over the
+    /// largest eigenvalue of the point-to-plane normal matrix, with rotations
+    /// scaled by the cloud's RMS radius (1 = every direction equally, 0 = a
+    /// direction is free, e.g. sliding along parallel walls).
+    pub conditioning: f64,
 }
 
 /// A target cloud with normals, indexed for nearest-neighbour queries.
@@ -139,12 +144,87 @@ pub fn icp(source: &[V], target: &IcpTarget, init: Pose<f64>, cfg: &IcpConfig, i
             break;
         }
     }
+    let kept: Vec<(V, V)> = pairs
+        .iter()
+        .map(|&(_, i, j)| (pose.transform_point(source[i]), target.normals[j]))
+        .collect();
     IcpResult {
         transform: pose,
         residual: last.0,
         rms_distance: last.1,
         iterations: done,
+        conditioning: conditioning(&kept),
     }
+}
+
+/// [`IcpResult::conditioning`] of points with their target normals.
+fn conditioning(pairs: &[(V, V)]) -> f64 {
+    if pairs.is_empty() {
+        return 0.0;
+    }
+    let n = pairs.len() as f64;
+    let c = pairs.iter().fold(V::zero(), |a, (p, _)| a + *p) * (1.0 / n);
+    let radius = (pairs.iter().map(|(p, _)| (*p - c).dot(*p - c)).sum::<f64>() / n).sqrt();
+    if !(radius > 0.0) {
+        return 0.0;
+    }
+    let mut a = [[0.0f64; 6]; 6];
+    for (p, nrm) in pairs {
+        let m = (*p - c).cross(*nrm) * (1.0 / radius);
+        let row = [m.x, m.y, m.z, nrm.x, nrm.y, nrm.z];
+        for u in 0..6 {
+            for v in 0..6 {
+                a[u][v] += row[u] * row[v] / n;
+            }
+        }
+    }
+    let (values, _) = symmetric_eigen(a);
+    let max = values.iter().copied().fold(0.0, f64::max);
+    let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+    if max > 0.0 {
+        (min / max).max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// The fit of `source` moved by `pose` to `target`, without moving it: the
+/// residuals and conditioning of one round of correspondences at `pose`
+/// (for a transform known in advance, e.g. from markers).
+pub fn icp_evaluate(source: &[V], target: &IcpTarget, pose: Pose<f64>, cfg: &IcpConfig) -> IcpResult {
+    // One iteration measures the residual before it steps; the step is dropped.
+    let mut r = icp(source, target, pose, cfg, 1);
+    r.transform = pose;
+    r.iterations = 0;
+    r
+}
+
+/// The share of `source` points that land on the target surface when moved
+/// by `pose`: within `distance` of its tangent plane at the nearest target
+/// point, that point being at most 4 `distance` away (point-to-point alone
+/// would count the sampling gaps). Only moved points for which `counts`
+/// holds are counted (where the target could have a surface); returns the
+/// share and how many were counted. How much of the two surfaces an
+/// alignment makes coincide: the largest-common-pointset score.
+pub fn inlier_fraction(
+    source: &[V],
+    target: &IcpTarget,
+    pose: Pose<f64>,
+    distance: f64,
+    counts: &(dyn Fn(V) -> bool + Sync),
+) -> (f64, usize) {
+    let (inliers, counted) = source
+        .par_iter()
+        .map(|p| pose.transform_point(*p))
+        .filter(|p| counts(*p))
+        .map(|p| {
+            let on = target.tree.nearest(p).is_some_and(|(j, d2)| {
+                d2 <= 16.0 * distance * distance && (p - target.points[j]).dot(target.normals[j]).abs() <= distance
+            });
+            (on as usize, 1usize)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    (inliers as f64 / counted.max(1) as f64, counted)
 }
 
 /// Solve a 6×6 system by Gaussian elimination with partial pivoting.
@@ -180,7 +260,8 @@ fn principal_frame(points: &[V]) -> (V, Mat3<f64>) {
     for p in points {
         cov = cov.add(&Mat3::outer(*p - c, *p - c));
     }
-    let (vals, vecs) = symmetric_eigen(&cov.scale(1.0 / n));
+    let (vals, vecs) = symmetric_eigen(cov.scale(1.0 / n).m);
+    let vecs = Mat3::from_rows(vecs);
     let mut idx = [0, 1, 2];
     idx.sort_by(|&i, &j| vals[j].total_cmp(&vals[i]));
     let cols: Vec<V> = idx.iter().map(|&k| vecs.col(k)).collect();
@@ -191,14 +272,18 @@ fn principal_frame(points: &[V]) -> (V, Mat3<f64>) {
     )
 }
 
-/// Eigen-decomposition of a symmetric 3×3 matrix (Jacobi rotations): values and vectors (columns).
-fn symmetric_eigen(m: &Mat3<f64>) -> ([f64; 3], Mat3<f64>) {
-    let mut a = m.m;
-    let mut v = Mat3::<f64>::identity().m;
-    for _ in 0..50 {
+/// Eigen-decomposition of a symmetric N×N matrix (Jacobi rotations): values
+/// and vectors (as columns).
+fn symmetric_eigen<const N: usize>(m: [[f64; N]; N]) -> ([f64; N], [[f64; N]; N]) {
+    let mut a = m;
+    let mut v = [[0.0; N]; N];
+    for (k, row) in v.iter_mut().enumerate() {
+        row[k] = 1.0;
+    }
+    for _ in 0..50 * N * N {
         let (mut p, mut q, mut off) = (0, 1, 0.0f64);
-        for i in 0..3 {
-            for j in i + 1..3 {
+        for i in 0..N {
+            for j in i + 1..N {
                 if a[i][j].abs() > off {
                     (p, q, off) = (i, j, a[i][j].abs());
                 }
@@ -211,12 +296,12 @@ fn symmetric_eigen(m: &Mat3<f64>) -> ([f64; 3], Mat3<f64>) {
         let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
         let t = if theta == 0.0 { 1.0 } else { t };
         let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
-        for k in 0..3 {
+        for k in 0..N {
             let (akp, akq) = (a[k][p], a[k][q]);
             a[k][p] = c * akp - s * akq;
             a[k][q] = s * akp + c * akq;
         }
-        for k in 0..3 {
+        for k in 0..N {
             let (apk, aqk) = (a[p][k], a[q][k]);
             a[p][k] = c * apk - s * aqk;
             a[q][k] = s * apk + c * aqk;
@@ -227,7 +312,7 @@ fn symmetric_eigen(m: &Mat3<f64>) -> ([f64; 3], Mat3<f64>) {
             row[q] = s * vp + c * vq;
         }
     }
-    ([a[0][0], a[1][1], a[2][2]], Mat3::from_rows(v))
+    (std::array::from_fn(|k| a[k][k]), v)
 }
 
 /// The 24 rotations that map coordinate axes onto coordinate axes.
@@ -255,21 +340,40 @@ const HYPOTHESIS_POINTS: usize = 2000;
 /// frames under the 24 axis rotations is refined briefly on a subsample, the
 /// best is refined fully on every point.
 pub fn icp_auto(source: &[V], target: &IcpTarget, cfg: &IcpConfig) -> IcpResult {
+    let start = icp_hypotheses(source, target, cfg)[0].transform;
+    icp(source, target, start, cfg, cfg.iterations)
+}
+
+/// The automatic start's hypotheses, each after `cfg.start_iterations` of
+/// ICP on a subsample: distinct poses (more than 5° or 2 % of the cloud's
+/// size apart), best (lowest RMS distance) first. A shape with symmetries
+/// gives several near-equal ones.
+pub fn icp_hypotheses(source: &[V], target: &IcpTarget, cfg: &IcpConfig) -> Vec<IcpResult> {
     let stride = source.len().div_ceil(HYPOTHESIS_POINTS).max(1);
     let sub: Vec<V> = source.iter().step_by(stride).copied().collect();
     let (cs, fs) = principal_frame(source);
     let (ct, ft) = principal_frame(&target.points);
-    let mut best: Option<IcpResult> = None;
-    for g in axis_rotations() {
-        // R maps the source frame's axes onto the target frame's, permuted by g.
-        let r = ft.mul_mat(&g).mul_mat(&fs.transpose());
-        let q = Quat::from_mat(&r);
-        let init = Pose::new(q, ct - q.rotate(cs));
-        let res = icp(&sub, target, init, cfg, cfg.start_iterations);
-        if best.as_ref().is_none_or(|b| res.rms_distance < b.rms_distance) {
-            best = Some(res);
+    let size = source.iter().map(|p| (*p - cs).norm()).fold(0.0, f64::max);
+    let mut all: Vec<IcpResult> = axis_rotations()
+        .into_iter()
+        .map(|g| {
+            // R maps the source frame's axes onto the target frame's, permuted by g.
+            let r = ft.mul_mat(&g).mul_mat(&fs.transpose());
+            let q = Quat::from_mat(&r);
+            let init = Pose::new(q, ct - q.rotate(cs));
+            icp(&sub, target, init, cfg, cfg.start_iterations)
+        })
+        .collect();
+    all.sort_by(|a, b| a.rms_distance.total_cmp(&b.rms_distance));
+    let mut distinct: Vec<IcpResult> = Vec::new();
+    for h in all {
+        let same = |d: &IcpResult| {
+            geom::rotation_distance(d.transform.q, h.transform.q) < 5f64.to_radians()
+                && (d.transform.t - h.transform.t).norm() < 0.02 * size
+        };
+        if !distinct.iter().any(same) {
+            distinct.push(h);
         }
     }
-    let start = best.expect("24 hypotheses").transform;
-    icp(source, target, start, cfg, cfg.iterations)
+    distinct
 }

@@ -24,7 +24,7 @@ mod zero_level_points;
 
 pub use components::{components, largest_component, sub_mesh};
 pub use decimate::decimate;
-pub use icp::{icp, icp_auto, IcpConfig, IcpResult, IcpTarget};
+pub use icp::{icp, icp_auto, icp_evaluate, icp_hypotheses, inlier_fraction, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
 pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged, PartialSurface};
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};

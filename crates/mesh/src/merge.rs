@@ -13,7 +13,7 @@
 //! fields, not as their meshes; its largest piece is the result.
 
 use crate::components::largest_component;
-use crate::icp::{icp_auto, IcpConfig, IcpResult, IcpTarget};
+use crate::icp::{icp, icp_evaluate, icp_hypotheses, inlier_fraction, IcpConfig, IcpResult, IcpTarget};
 use crate::marching_tetrahedra::{extract_zero_level, ScalarGrid};
 use crate::visibility::Visibility;
 use crate::zero_level_points::{zero_level_points, BatchSdf};
@@ -37,6 +37,17 @@ pub struct MergeConfig {
     pub max_residual: f64,
     /// Finite-difference step of a field's gradient when ICP samples are projected onto its zero level, m. Default 0.2 mm.
     pub fd_step: f64,
+    /// Where A lies in B's frame, if known (`p_B = start · p_A`, e.g. from
+    /// markers): ICP starts there instead of searching. Default none.
+    pub start: Option<Pose<f64>>,
+    /// Refine `start` by ICP (else it is used as given, and only measured). Default true.
+    pub refine: bool,
+    /// Pairs kept by the second ICP pass (the first keeps `icp.keep_fraction`). Default 0.95.
+    pub refine_keep_fraction: f64,
+    /// A's samples within this of B's count as landing on it, when the two passes are compared, m. Default 0.5 mm.
+    pub inlier_distance: f64,
+    /// Refuse an alignment whose [`IcpResult::conditioning`] is below this. Default 1e-3.
+    pub min_conditioning: f64,
     /// With cameras: a point is fully seen when at least this many cameras see it. Default 3.
     pub min_cameras: usize,
     /// With cameras: nodes along the longest side of the grid the visibility test traces through. Default 96.
@@ -53,6 +64,11 @@ impl Default for MergeConfig {
             icp_points: 20000,
             max_residual: 1e-3,
             fd_step: 2e-4,
+            start: None,
+            refine: true,
+            refine_keep_fraction: 0.95,
+            inlier_distance: 5e-4,
+            min_conditioning: 1e-3,
             min_cameras: 3,
             visibility_resolution: 96,
             icp: IcpConfig {
@@ -71,6 +87,8 @@ pub enum MergeError {
     NothingVisible(char, f64),
     #[error("ICP did not converge: RMS residual {residual:.3e} m is above {limit:.1e} m (the two parts may not overlap enough, or be different objects)")]
     NoConvergence { residual: f64, limit: f64 },
+    #[error("the alignment is not pinned down (conditioning {conditioning:.1e} < {limit:.0e}): the surfaces both parts show leave a direction free, e.g. only parallel walls; capture more of the object in both poses")]
+    IllConditioned { conditioning: f64, limit: f64 },
     #[error("the fused SDF has no zero level")]
     Empty,
     #[error("part {0}: the signed distance returned {1} values for {2} points")]
@@ -233,24 +251,39 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
         })
     };
     let above_board = |x: V| smoothstep(cfg.board_margin, cfg.board_margin + cfg.blend, x.z);
-    let seen_a = |x: V| x.z > cfg.board_margin && by_cameras(&vis_a, x) >= 1.0;
-    let seen_b = |x: V| x.z > cfg.board_margin && by_cameras(&vis_b, x) >= 1.0;
-    let (pa, _) = a.visible_cloud(&seen_a, cfg.icp_points, cfg.fd_step, 1);
-    let (pb, nb) = b.visible_cloud(&seen_b, cfg.icp_points, cfg.fd_step, 2);
+    // ICP aligns what lies above each board. Cutting its clouds down to what
+    // the cameras saw would, on boxy objects, leave little more than parallel
+    // walls, which do not fix the pose; the guesses above the board are close
+    // (masks carve them) and trimming drops the pairs that disagree.
+    let above = |x: V| x.z > cfg.board_margin;
+    let (pa, _) = a.visible_cloud(&above, cfg.icp_points, cfg.fd_step, 1);
+    let (pb, nb) = b.visible_cloud(&above, cfg.icp_points, cfg.fd_step, 2);
     if pa.is_empty() {
         return Err(MergeError::NothingVisible('A', cfg.board_margin));
     }
     if pb.is_empty() {
         return Err(MergeError::NothingVisible('B', cfg.board_margin));
     }
-    let icp = icp_auto(&pa, &IcpTarget::new(pb, nb), &cfg.icp);
-    if !(icp.residual <= cfg.max_residual) {
+    let target = IcpTarget::new(pb, nb);
+    // What A could not see (on its board), to tell symmetric alignments apart.
+    let a_hidden: Vec<V> = sim::sample_surface::sample_surface(&a.mesh, cfg.icp_points / 4, 3)
+        .into_iter()
+        .filter(|p| p.z <= cfg.board_margin)
+        .collect();
+    let fit = align(&pa, &target, &a_hidden, cfg);
+    if !(fit.residual <= cfg.max_residual) {
         return Err(MergeError::NoConvergence {
-            residual: icp.residual,
+            residual: fit.residual,
             limit: cfg.max_residual,
         });
     }
-    let a_to_b = icp.transform;
+    if !(fit.conditioning >= cfg.min_conditioning) {
+        return Err(MergeError::IllConditioned {
+            conditioning: fit.conditioning,
+            limit: cfg.min_conditioning,
+        });
+    }
+    let a_to_b = fit.transform;
     let b_to_a = a_to_b.inverse();
     // The box of the object in B's frame: B's box and A's moved into it.
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -319,7 +352,79 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     if mesh.faces.is_empty() {
         return Err(MergeError::Empty);
     }
-    Ok(Merged { mesh, a_to_b, icp })
+    Ok(Merged { mesh, a_to_b, icp: fit })
+}
+
+/// Rigid alignment of A's samples onto B's.
+///
+/// Each start is refined twice: trimmed ICP (robust to the parts' different
+/// extents and to wrong guesses), then a pass that keeps nearly every pair,
+/// since trimming alone can let a shape slide along a weakly held direction
+/// (a box's walls) and drop the pairs that would object, while keeping every
+/// pair lets wrong guesses pull. Of the two, the one under which more of A
+/// lands on B (of what it puts above B's board) wins. Without a given start, every distinct hypothesis of the
+/// automatic start within 1.5× the best's distance is refined (a symmetric
+/// object has several); of those that make about as much of A land on B
+/// (within 5 %), the one that moves most of A's hidden side (on its board)
+/// up into B's view wins: the second pose is there to show what the first hid.
+fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> IcpResult {
+    // The share of A landing on B, among A's samples that this alignment puts
+    // where B could have seen (above B's board); alignments that put less
+    // than half of A there score 0.
+    let lands = |r: &IcpResult| {
+        let above = |p: V| p.z > cfg.board_margin;
+        let (share, counted) = inlier_fraction(pa, target, r.transform, cfg.inlier_distance, &above);
+        if 2 * counted >= pa.len() {
+            share
+        } else {
+            0.0
+        }
+    };
+    let refine = |start: Pose<f64>| -> IcpResult {
+        let first = icp(pa, target, start, &cfg.icp, cfg.icp.iterations);
+        let fine = IcpConfig {
+            keep_fraction: cfg.refine_keep_fraction,
+            ..cfg.icp.clone()
+        };
+        let second = icp(pa, target, first.transform, &fine, cfg.icp.iterations);
+        if lands(&second) > lands(&first) {
+            second
+        } else {
+            first
+        }
+    };
+    match cfg.start {
+        Some(start) if !cfg.refine => icp_evaluate(pa, target, start, &cfg.icp),
+        Some(start) => refine(start),
+        None => {
+            let hypotheses = icp_hypotheses(pa, target, &cfg.icp);
+            let best = hypotheses[0].rms_distance;
+            let shown = |r: &IcpResult| {
+                let up = cfg.board_margin + cfg.blend;
+                let n = a_hidden
+                    .iter()
+                    .filter(|p| r.transform.transform_point(**p).z > up)
+                    .count();
+                n as f64 / a_hidden.len().max(1) as f64
+            };
+            let scored: Vec<(IcpResult, f64, f64)> = hypotheses
+                .iter()
+                .filter(|h| h.rms_distance <= 1.5 * best)
+                .take(4)
+                .map(|h| {
+                    let r = refine(h.transform);
+                    (r, lands(&r), shown(&r))
+                })
+                .collect();
+            let most = scored.iter().map(|s| s.1).fold(0.0, f64::max);
+            scored
+                .into_iter()
+                .filter(|s| s.1 >= most - 0.05)
+                .max_by(|x, y| x.2.total_cmp(&y.2).then(x.1.total_cmp(&y.1)))
+                .expect("the best hypothesis passes")
+                .0
+        }
+    }
 }
 
 /// The fused SDF at a batch of points.

@@ -243,6 +243,13 @@ pub struct MergeArgs {
     /// B's capture, likewise.
     #[arg(long)]
     pub capture_b: Option<PathBuf>,
+    /// Start ICP from a known transform (`q_1to2`, `T_1to2` as in `transform.json`, e.g. from
+    /// markers) instead of the automatic search.
+    #[arg(long)]
+    pub start: Option<PathBuf>,
+    /// Use `--start` as given: no ICP refinement (its residual is still checked).
+    #[arg(long, requires = "start")]
+    pub no_refine: bool,
 }
 
 /// The cameras of a capture, in its world frame.
@@ -311,6 +318,8 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         board_margin: a.board_margin,
         resolution: a.res,
         max_residual: a.max_residual,
+        start: a.start.as_deref().map(super::render::read_transform).transpose()?,
+        refine: !a.no_refine,
         ..mesh::MergeConfig::default()
     };
     let mut merged = mesh::merge_two_poses(&pa, &pb, &cfg)
@@ -328,6 +337,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     let doc = serde_json::json!({
         "R_1to2": r, "T_1to2": merged.a_to_b.t.to_array(), "q_1to2": merged.a_to_b.q.to_array_re(),
         "residual": merged.icp.residual, "rms_distance": merged.icp.rms_distance, "icp_iterations": merged.icp.iterations,
+        "icp_conditioning": merged.icp.conditioning,
         "reference": "b", "a": a.a, "b": a.b, "board_margin": a.board_margin,
         "capture_a": a.capture_a, "capture_b": a.capture_b,
         "note": "p_b = R_1to2 · p_a + T_1to2; merged.ply is in b's capture frame",

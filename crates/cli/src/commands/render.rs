@@ -138,7 +138,7 @@ fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
 }
 
 /// `p_b = a_to_b · p_a` from a `transform.json` written by `pganeus merge`.
-fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
+pub fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
     #[derive(Deserialize)]
     struct TransformJson {
         q_1to2: [f64; 4],
