@@ -264,6 +264,13 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     if pb.is_empty() {
         return Err(MergeError::NothingVisible('B', cfg.board_margin));
     }
+    // B's board is a seen surface too, and where B stands on it lies what A
+    // shows on top: it holds A at the right height when the walls both see
+    // leave that free.
+    let (mut pb, mut nb) = (pb, nb);
+    let board = board_patch(&b.mesh, cfg.board_margin, cfg.icp_points / 4);
+    nb.extend(std::iter::repeat_n(V::new(0.0, 0.0, 1.0), board.len()));
+    pb.extend(board);
     let target = IcpTarget::new(pb, nb);
     // What A could not see (on its board), to tell symmetric alignments apart.
     let a_hidden: Vec<V> = sim::sample_surface::sample_surface(&a.mesh, cfg.icp_points / 4, 3)
@@ -355,6 +362,27 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     Ok(Merged { mesh, a_to_b, icp: fit })
 }
 
+/// Points on the board plane z = 0 under and around where `m` stands on it
+/// (its footprint, within `margin` of the board, padded by 5 mm), about
+/// `count` of them on a square lattice.
+fn board_patch(m: &TriMesh, margin: f64, count: usize) -> Vec<V> {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for v in m.vertices.iter().filter(|v| v[2] <= margin) {
+        for k in 0..2 {
+            lo[k] = lo[k].min(v[k] - 5e-3);
+            hi[k] = hi[k].max(v[k] + 5e-3);
+        }
+    }
+    if !(lo[0] < hi[0] && lo[1] < hi[1]) || count == 0 {
+        return Vec::new();
+    }
+    let step = ((hi[0] - lo[0]) * (hi[1] - lo[1]) / count as f64).sqrt();
+    let n = [0, 1].map(|k| ((hi[k] - lo[k]) / step).ceil() as usize);
+    (0..n[0] * n[1])
+        .map(|i| V::new(lo[0] + (i % n[0]) as f64 * step, lo[1] + (i / n[0]) as f64 * step, 0.0))
+        .collect()
+}
+
 /// Rigid alignment of A's samples onto B's.
 ///
 /// Each start is refined twice: trimmed ICP (robust to the parts' different
@@ -362,19 +390,19 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
 /// since trimming alone can let a shape slide along a weakly held direction
 /// (a box's walls) and drop the pairs that would object, while keeping every
 /// pair lets wrong guesses pull. Of the two, the one under which more of A
-/// lands on B (of what it puts above B's board) wins. Without a given start, every distinct hypothesis of the
-/// automatic start within 1.5× the best's distance is refined (a symmetric
-/// object has several); of those that make about as much of A land on B
+/// lands on B (of what it puts where B saw) wins. Without a given start, the four best distinct hypotheses
+/// of the automatic start are refined (a symmetric object has several good ones); of those that make about as much of A land on B
 /// (within 5 %), the one that moves most of A's hidden side (on its board)
 /// up into B's view wins: the second pose is there to show what the first hid.
 fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> IcpResult {
-    // The share of A landing on B, among A's samples that this alignment puts
-    // where B could have seen (above B's board); alignments that put less
-    // than half of A there score 0.
+    // Of A's samples that an alignment puts where B saw (clear of its board),
+    // the share that lands on B's surface; where B did not see, A is free to
+    // differ from B's guess. Alignments that put under a quarter of A where B
+    // saw score 0.
     let lands = |r: &IcpResult| {
-        let above = |p: V| p.z > cfg.board_margin;
-        let (share, counted) = inlier_fraction(pa, target, r.transform, cfg.inlier_distance, &above);
-        if 2 * counted >= pa.len() {
+        let seen_by_b = |p: V| p.z > cfg.board_margin + cfg.blend;
+        let (share, counted) = inlier_fraction(pa, target, r.transform, cfg.inlier_distance, &seen_by_b);
+        if 4 * counted >= pa.len() {
             share
         } else {
             0.0
@@ -398,7 +426,6 @@ fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> Icp
         Some(start) => refine(start),
         None => {
             let hypotheses = icp_hypotheses(pa, target, &cfg.icp);
-            let best = hypotheses[0].rms_distance;
             let shown = |r: &IcpResult| {
                 let up = cfg.board_margin + cfg.blend;
                 let n = a_hidden
@@ -409,7 +436,6 @@ fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> Icp
             };
             let scored: Vec<(IcpResult, f64, f64)> = hypotheses
                 .iter()
-                .filter(|h| h.rms_distance <= 1.5 * best)
                 .take(4)
                 .map(|h| {
                     let r = refine(h.transform);

@@ -300,3 +300,49 @@ fn cameras_see_the_top_but_not_under_an_overhang() {
     // The board hides what is below it.
     assert_eq!(seen([0.0, 0.0, -0.001]), 0.0);
 }
+
+/// A box is the same shape upright and turned over, so ICP fits A to B as
+/// well unturned: then both guessed undersides would meet and stay. The merge
+/// picks the alignment that brings A's hidden side into B's view.
+#[test]
+fn a_symmetric_box_is_turned_over_not_left_as_is() {
+    let shape = Shape::Cuboid(Cuboid {
+        half: [0.03, 0.022, 0.018],
+    });
+    let grid = sample_sdf_grid(
+        &|pts: &[[f64; 3]]| {
+            pts.iter()
+                .map(|p| shape.distance_local(Vec3::<f64>::cst(*p)) as f32)
+                .collect()
+        },
+        [-0.04, -0.03, -0.025],
+        [0.04, 0.03, 0.025],
+        120,
+    );
+    let body = extract_zero_level(&grid);
+    let pose_a = rest(&body, Quat::identity(), [0.0, 0.0]);
+    let pose_b = rest(&body, Quat::exp(Vec3::new(std::f64::consts::PI, 0.0, 0.0)), [0.0, 0.0]);
+    let (true_a, true_b) = (posed(&body, &pose_a), posed(&body, &pose_b));
+    let (rec_a, rec_b) = (wrong_underside(&true_a), wrong_underside(&true_b));
+    let merged = merge_two_poses(
+        &PartialSurface::from_mesh(rec_a).unwrap(),
+        &PartialSurface::from_mesh(rec_b.clone()).unwrap(),
+        &MergeConfig {
+            resolution: 96,
+            ..MergeConfig::default()
+        },
+    )
+    .unwrap();
+    let r = merged.a_to_b.q.to_mat();
+    assert!(r.m[2][2] < -0.99, "A should be turned over onto B: R = {:?}", r.m);
+    let (c, alone) = (
+        chamfer(&merged.mesh, &true_b, 20000, 1),
+        chamfer(&rec_b, &true_b, 20000, 1),
+    );
+    assert!(
+        c.p95 < 0.5 * alone.p95,
+        "merged p95 {:.3} mm vs B alone {:.3} mm",
+        c.p95 * 1e3,
+        alone.p95 * 1e3
+    );
+}
