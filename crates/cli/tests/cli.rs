@@ -408,6 +408,29 @@ fn train_render_and_resume_end_to_end() {
         std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(),
         std::fs::read(out.join("rgb").join("001.png")).unwrap()
     );
+    // The zero level as a mesh, simplified, and as points with the field's normals.
+    let o = bin()
+        .arg("mesh")
+        .arg(&run)
+        .args(["--res", "48", "--faces", "400", "--point-count", "300", "--out"])
+        .arg(d.join("zero.ply"))
+        .arg("--points")
+        .arg(d.join("zero_points.ply"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let m = pganeus_io::read_ply(&d.join("zero.ply")).unwrap();
+    assert!(
+        !m.mesh.faces.is_empty() && m.mesh.faces.len() <= 400,
+        "{} faces",
+        m.mesh.faces.len()
+    );
+    let p = pganeus_io::read_ply(&d.join("zero_points.ply")).unwrap();
+    let normals = p.normals.expect("points come with normals");
+    assert!(p.mesh.vertices.len() > 100 && p.mesh.vertices.len() <= 300);
+    assert!(normals
+        .iter()
+        .all(|n| ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-4));
     // Switching render (Eq. 3–4): the run as both poses, A turned over about x
     // into B. A camera below B's board is camera 1 moved by p_b = R p_a + T, so
     // it renders camera 1's image through the other field.

@@ -25,6 +25,13 @@ pub struct MeshArgs {
     /// simulator's contact points: `shape = "mesh"` with `contact_vertices = true`).
     #[arg(long)]
     pub faces: Option<usize>,
+    /// Also write points on the zero level with the field's normals (a PLY point cloud):
+    /// samples of the mesh moved onto the field's zero level along its gradient.
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// How many points `--points` writes (at most: points that do not settle are dropped).
+    #[arg(long, default_value_t = 100_000)]
+    pub point_count: usize,
 }
 
 pub fn mesh(a: MeshArgs) -> Result<()> {
@@ -35,6 +42,26 @@ pub fn mesh(a: MeshArgs) -> Result<()> {
         bail!(
             "{}: the field has no zero level inside its unit sphere's cube (nothing to mesh)",
             a.run.display()
+        );
+    }
+    if let Some(path) = &a.points {
+        let levels = l.config.field.grid.levels;
+        // One finest-level cell as the finite-difference step and the tolerance.
+        let step = 2.0 * l.radius / l.config.field.grid.max_resolution as f64;
+        let start = sim::sample_surface::sample_surface(&m, a.point_count, 1);
+        let (pts, normals) =
+            mesh::zero_level_points(&|p: &[Vec3<f64>]| field_distances(&l, levels, p), &start, step, 3, step);
+        let cloud = pganeus_io::PlyMesh {
+            mesh: geom::TriMesh::new(pts.iter().map(|p| p.to_array()).collect(), vec![]),
+            colors: None,
+            normals: Some(normals.iter().map(|n| n.to_array().map(|v| v as f32)).collect()),
+        };
+        pganeus_io::write_ply(path, &cloud, pganeus_io::PlyEncoding::BinaryLittleEndian)?;
+        println!(
+            "{} of {} points on the zero level, with normals; wrote {}",
+            pts.len(),
+            start.len(),
+            path.display()
         );
     }
     if let Some(n) = a.faces {
