@@ -2,23 +2,20 @@
 //! a sphere to a tenth of its faces stays within a small fraction of its
 //! radius, and a finely tessellated box loses its flat-face triangles
 //! while its corners stay exact.
+mod common;
+
 use std::collections::HashMap;
 
 use geom::TriMesh;
-use mesh::{chamfer, decimate, extract_zero_level, normal_consistency, sample_sdf_grid};
+use mesh::{chamfer, decimate, extract_zero_level, normal_consistency};
 
 fn sphere(r: f64, res: usize) -> TriMesh {
-    let grid = sample_sdf_grid(
-        &|pts: &[[f64; 3]]| {
-            pts.iter()
-                .map(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - r) as f32)
-                .collect()
-        },
+    extract_zero_level(&common::grid_of(
+        &sim::sdf::Sphere { radius: r },
         [-1.2 * r; 3],
         [1.2 * r; 3],
         res,
-    );
-    extract_zero_level(&grid)
+    ))
 }
 
 /// The box `[-h, h]³` with each side split into n × n squares.
