@@ -581,6 +581,9 @@ fn mesh_tools_merge_compare_and_bake() {
     let t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("transform.json")).unwrap()).unwrap();
     assert!(t["residual"].as_f64().unwrap() < 1e-4, "{t}");
+    // Block 60 × 50 × 40 mm, roof 15 mm high, cavity 44 × 34 × 24 mm: 99.1 cm³.
+    let volume = t["object"]["volume_m3"].as_f64().unwrap();
+    assert!((volume / 9.91e-5 - 1.0).abs() < 0.03, "{t}");
     let o = bin()
         .arg("compare-mesh")
         .arg(out.join("merged.ply"))

@@ -175,8 +175,13 @@ impl Decimator {
             .map(|p| (p, q.error(p)))
             .min_by(|x, y| x.1.total_cmp(&y.1))
             .expect("options are not empty");
+        // Where the error is zero (a flat region) every collapse ties, and
+        // collapsing onto one vertex builds a fan of ever higher valence; a
+        // tiny length term makes short edges go first and keeps it even.
+        let area = q.0[0] + q.0[4] + q.0[7];
+        let tie_break = 1e-6 * area * (pb - pa).dot(pb - pa);
         Candidate {
-            cost: cost.max(0.0),
+            cost: cost.max(0.0) + tie_break,
             a,
             b,
             stamp: (self.stamp[a as usize], self.stamp[b as usize]),

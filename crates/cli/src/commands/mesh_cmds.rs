@@ -361,11 +361,16 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         pganeus_io::PlyEncoding::BinaryLittleEndian,
     )?;
     let r = merged.a_to_b.q.to_mat().m;
+    let body = sim::mass_properties(&merged.mesh, 1.0);
     let doc = serde_json::json!({
         "R_1to2": r, "T_1to2": merged.a_to_b.t.to_array(), "q_1to2": merged.a_to_b.q.to_array_re(),
         "residual": merged.icp.residual, "rms_distance": merged.icp.rms_distance, "icp_iterations": merged.icp.iterations,
         "icp_conditioning": merged.icp.conditioning,
         "reference": "b", "a": a.a, "b": a.b, "board_margin": a.board_margin,
+        "object": {
+            "note": "the merged object in b's capture frame; the simulator's body frame has its origin at the centre of mass (uniform density)",
+            "volume_m3": body.volume, "centre_of_mass": body.center_of_mass.to_array(),
+        },
         "capture_a": a.capture_a, "capture_b": a.capture_b,
         "note": "p_b = R_1to2 · p_a + T_1to2; merged.ply is in b's capture frame",
     });
