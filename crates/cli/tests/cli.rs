@@ -412,7 +412,16 @@ fn train_render_and_resume_end_to_end() {
     let o = bin()
         .arg("mesh")
         .arg(&run)
-        .args(["--res", "48", "--faces", "400", "--point-count", "300", "--out"])
+        .args([
+            "--res",
+            "48",
+            "--largest-piece",
+            "--faces",
+            "400",
+            "--point-count",
+            "300",
+            "--out",
+        ])
         .arg(d.join("zero.ply"))
         .arg("--points")
         .arg(d.join("zero_points.ply"))

@@ -29,6 +29,10 @@ pub struct MeshArgs {
     /// samples of the mesh moved onto the field's zero level along its gradient.
     #[arg(long)]
     pub points: Option<PathBuf>,
+    /// Keep only the largest connected piece (the object; NeuS leaves floaters and bits of
+    /// background near the unit cube's edge).
+    #[arg(long)]
+    pub largest_piece: bool,
     /// How many points `--points` writes (at most: points that do not settle are dropped).
     #[arg(long, default_value_t = 100_000)]
     pub point_count: usize,
@@ -43,6 +47,9 @@ pub fn mesh(a: MeshArgs) -> Result<()> {
             "{}: the field has no zero level inside its unit sphere's cube (nothing to mesh)",
             a.run.display()
         );
+    }
+    if a.largest_piece {
+        m = mesh::largest_component(&m);
     }
     if let Some(path) = &a.points {
         let levels = l.config.field.grid.levels;
