@@ -1,5 +1,6 @@
 //! Meshes from fields (stage 2 of DESIGN.md, "mesh"): the zero level of a
-//! signed distance field sampled on a grid, and distances between meshes.
+//! signed distance field sampled on a grid, distances between meshes, and
+//! the two-pose object of Sec. 3.2 (ICP, visibility, the fused SDF).
 //!
 //! NeuS (and PGA-NeuS, Sec. 3.2) take the reconstructed surface to be the
 //! zero level `{x : f(x) = 0}` of the learned SDF `f` and extract it with
@@ -7,8 +8,10 @@
 //! ([`extract_zero_level`]), which needs no ambiguity table and gives a
 //! closed, consistently oriented mesh wherever the zero level stays inside
 //! the grid. [`sample_sdf_grid`] evaluates a (batched, possibly neural) field
-//! on the grid; [`chamfer`] measures a mesh against another. No equation of
-//! the paper is carried out here beyond that definition of the surface.
+//! on the grid; [`chamfer`] measures a mesh against another; [`decimate`]
+//! simplifies a mesh by quadric edge collapses; [`zero_level_points`] puts
+//! points on a field's zero level with its normals; [`merge_two_poses`]
+//! aligns two partial reconstructions by ICP and fuses them (Fig. 2b).
 
 mod collapse_coincident;
 mod components;

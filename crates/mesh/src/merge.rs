@@ -10,7 +10,11 @@
 //! (a trained field's own SDF, or a closed mesh's) and its zero-level mesh,
 //! cut down to its largest piece (the object, without floaters). The fused
 //! SDF uses the distances themselves, so the merged surface is as good as the
-//! fields, not as their meshes; its largest piece is the result.
+//! fields, not as their meshes; its largest piece is the result. "Seen" is
+//! above the board's margin and, when a part knows its capture's cameras, also
+//! seen by enough of them ([`Visibility`]). How the alignment is chosen
+//! (several starts, two refinements, B's board in the target, a preference
+//! for the turned-over pose on symmetric objects) is told at `align` (below).
 
 use crate::components::largest_component;
 use crate::icp::{icp, icp_evaluate, icp_hypotheses, inlier_fraction, IcpConfig, IcpResult, IcpTarget};
