@@ -498,7 +498,7 @@ fn train_render_and_resume_end_to_end() {
         .output()
         .unwrap();
     assert!(
-        !o.status.success() && text(&o).contains("checkpoint.safetensors"),
+        !o.status.success() && text(&o).contains("checkpoint.safetensors") && text(&o).contains("truncated"),
         "{}",
         text(&o)
     );

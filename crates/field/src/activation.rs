@@ -15,42 +15,6 @@ pub enum Activation {
     Sigmoid,
 }
 
-impl Activation {
-    /// (value, derivative) at pre-activation `z`.
-    #[inline(always)]
-    pub fn eval(self, z: f32) -> (f32, f32) {
-        match self {
-            Activation::None => (z, 1.0),
-            Activation::Relu => {
-                if z > 0.0 {
-                    (z, 1.0)
-                } else {
-                    (0.0, 0.0)
-                }
-            }
-            Activation::Softplus { beta } => {
-                let x = beta * z;
-                if x > 20.0 {
-                    (z, 1.0)
-                } else {
-                    // One exp for both: softplus(x) = max(x, 0) + ln(1 + e^{−|x|}), σ(x) from the same e^{−|x|}.
-                    let e = (-x.abs()).exp();
-                    let sp = x.max(0.0) + e.ln_1p();
-                    let inv = 1.0 / (1.0 + e);
-                    let sig = if x >= 0.0 { inv } else { e * inv };
-                    (sp / beta, sig)
-                }
-            }
-            Activation::Sigmoid => {
-                let e = (-z.abs()).exp();
-                let inv = 1.0 / (1.0 + e);
-                let s = if z >= 0.0 { inv } else { e * inv };
-                (s, s * (1.0 - s))
-            }
-        }
-    }
-}
-
 /// `e^x` for `x ≤ 0` without a libm call, so that loops over it vectorise: `x = n ln2 + r` with `|r| ≤ ln2/2`
 /// (Cody–Waite split of ln2), `e^r` by its degree-7 Taylor polynomial (truncation ≤ 6e-9 relative), `2^n` by
 /// building the float's exponent bits. Relative error ≈ 1e-7 for `x ≥ −40`; below, it returns `e^−40` (4e-18):

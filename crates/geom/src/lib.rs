@@ -19,5 +19,5 @@ pub use pose::{left_jacobian, Pose};
 pub use quat::{rotation_distance, Quat};
 pub use real::Real;
 pub use rng::SplitMix64;
-pub use trimesh::TriMesh;
+pub use trimesh::{bounding_box, TriMesh};
 pub use vec3::{Mat3, Vec3};

@@ -13,6 +13,12 @@ impl TriMesh {
         Self { vertices, faces }
     }
 
+    /// The smallest axis-aligned box holding every vertex: `(min, max)`
+    /// (infinite and inverted for a mesh without vertices).
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        bounding_box(self.vertices.iter().copied())
+    }
+
     /// The three corners of face `f`.
     pub fn triangle(&self, f: usize) -> [[f64; 3]; 3] {
         let [a, b, c] = self.faces[f];
@@ -22,4 +28,17 @@ impl TriMesh {
             self.vertices[c as usize],
         ]
     }
+}
+
+/// The smallest axis-aligned box holding `points`: `(min, max)` (infinite and
+/// inverted when there are none).
+pub fn bounding_box(points: impl IntoIterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
 }

@@ -153,13 +153,7 @@ impl<'a> PartialSurface<'a> {
 
     /// The part's box, padded by a tenth of its size.
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for v in &self.mesh.vertices {
-            for k in 0..3 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
+        let (lo, hi) = self.mesh.bounds();
         let pad = 0.1 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         (lo.map(|v| v - pad), hi.map(|v| v + pad))
     }
@@ -187,17 +181,11 @@ impl<'a> PartialSurface<'a> {
         Ok(d)
     }
 
-    /// Points (spread by area) with normals on the part where `seen`.
+    /// Points (spread by area) with normals on the part above `z_min`.
     /// Samples of the whole surface are cut, not faces: a large face that
     /// reaches down to the board still counts above it.
-    fn visible_cloud(
-        &self,
-        seen: &(dyn Fn(V) -> bool + Sync),
-        count: usize,
-        fd_step: f64,
-        seed: u64,
-    ) -> (Vec<V>, Vec<V>) {
-        let above = |pts: Vec<V>| -> Vec<V> { pts.into_par_iter().filter(|p| seen(*p)).collect() };
+    fn visible_cloud(&self, z_min: f64, count: usize, fd_step: f64, seed: u64) -> (Vec<V>, Vec<V>) {
+        let above = |pts: Vec<V>| -> Vec<V> { pts.into_iter().filter(|p| p.z > z_min).collect() };
         let mut pts = above(sim::sample_surface::sample_surface(&self.mesh, count, seed));
         if !pts.is_empty() && pts.len() < count {
             // Sample again, densely enough for `count` above the cut.
@@ -210,7 +198,7 @@ impl<'a> PartialSurface<'a> {
         }
         if self.project {
             let (p, n) = zero_level_points(&*self.sdf, &pts, fd_step, 2, fd_step);
-            p.into_iter().zip(n).filter(|(p, _)| seen(*p)).unzip()
+            p.into_iter().zip(n).filter(|(p, _)| p.z > z_min).unzip()
         } else {
             let md = MeshDistance::new(&self.mesh).expect("a partial surface has faces");
             let normals = pts
@@ -259,9 +247,8 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     // the cameras saw would, on boxy objects, leave little more than parallel
     // walls, which do not fix the pose; the guesses above the board are close
     // (masks carve them) and trimming drops the pairs that disagree.
-    let above = |x: V| x.z > cfg.board_margin;
-    let (pa, _) = a.visible_cloud(&above, cfg.icp_points, cfg.fd_step, 1);
-    let (pb, nb) = b.visible_cloud(&above, cfg.icp_points, cfg.fd_step, 2);
+    let (pa, _) = a.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 1);
+    let (pb, nb) = b.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 2);
     if pa.is_empty() {
         return Err(MergeError::NothingVisible('A', cfg.board_margin));
     }
@@ -297,18 +284,12 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     let a_to_b = fit.transform;
     let b_to_a = a_to_b.inverse();
     // The box of the object in B's frame: B's box and A's moved into it.
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     let moved_a = a
         .mesh
         .vertices
         .iter()
         .map(|v| a_to_b.transform_point(V::cst(*v)).to_array());
-    for v in b.mesh.vertices.iter().copied().chain(moved_a) {
-        for k in 0..3 {
-            lo[k] = lo[k].min(v[k]);
-            hi[k] = hi[k].max(v[k]);
-        }
-    }
+    let (lo, hi) = geom::bounding_box(b.mesh.vertices.iter().copied().chain(moved_a));
     let longest = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
     let h = longest / (cfg.resolution.max(8) - 1) as f64;
     let pad = 3.0 * h;
@@ -352,7 +333,7 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
             })
             .collect())
     };
-    let values = narrow_band(&fused, origin, h, dims)?;
+    let values = narrow_band(&fused, &coarse, origin, h, dims)?;
     let grid = ScalarGrid {
         origin,
         spacing: h,
@@ -370,13 +351,8 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
 /// (its footprint, within `margin` of the board, padded by 5 mm), about
 /// `count` of them on a square lattice.
 fn board_patch(m: &TriMesh, margin: f64, count: usize) -> Vec<V> {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for v in m.vertices.iter().filter(|v| v[2] <= margin) {
-        for k in 0..2 {
-            lo[k] = lo[k].min(v[k] - 5e-3);
-            hi[k] = hi[k].max(v[k] + 5e-3);
-        }
-    }
+    let (lo, hi) = geom::bounding_box(m.vertices.iter().copied().filter(|v| v[2] <= margin));
+    let (lo, hi) = ([lo[0] - 5e-3, lo[1] - 5e-3], [hi[0] + 5e-3, hi[1] + 5e-3]);
     if !(lo[0] < hi[0] && lo[1] < hi[1]) || count == 0 {
         return Vec::new();
     }
@@ -528,19 +504,16 @@ impl CoarseGrid {
 /// How much coarser the first pass of [`narrow_band`] is.
 const NARROW_BAND_COARSENING: usize = 4;
 
-fn narrow_band(f: &FusedSdf, origin: [f64; 3], h: f64, dims: [usize; 3]) -> Result<Vec<f32>, MergeError> {
+fn narrow_band(
+    f: &FusedSdf,
+    grid: &CoarseGrid,
+    origin: [f64; 3],
+    h: f64,
+    dims: [usize; 3],
+) -> Result<Vec<f32>, MergeError> {
     const K: usize = NARROW_BAND_COARSENING;
-    let cd: [usize; 3] = std::array::from_fn(|a| (dims[a] - 1).div_ceil(K) + 1);
-    let at = |i: usize, j: usize, k: usize, step: f64| {
-        V::new(
-            origin[0] + i as f64 * step,
-            origin[1] + j as f64 * step,
-            origin[2] + k as f64 * step,
-        )
-    };
-    let coarse_points: Vec<V> = (0..cd.iter().product::<usize>())
-        .map(|idx| at(idx % cd[0], (idx / cd[0]) % cd[1], idx / (cd[0] * cd[1]), h * K as f64))
-        .collect();
+    let cd = grid.dims;
+    let coarse_points: Vec<V> = (0..grid.len()).map(|idx| grid.point(idx)).collect();
     let coarse = eval_batched(f, &coarse_points)?;
     let far = 1.8 * (K as f64) * h;
     let c = |i: usize, j: usize, k: usize| coarse[i + cd[0] * (j + cd[1] * k)];
@@ -574,7 +547,14 @@ fn narrow_band(f: &FusedSdf, origin: [f64; 3], h: f64, dims: [usize; 3]) -> Resu
         .collect();
     let exact_points: Vec<V> = exact
         .iter()
-        .map(|&idx| at(idx % dims[0], (idx / dims[0]) % dims[1], idx / (dims[0] * dims[1]), h))
+        .map(|&idx| {
+            let (i, j, k) = (idx % dims[0], (idx / dims[0]) % dims[1], idx / (dims[0] * dims[1]));
+            V::new(
+                origin[0] + i as f64 * h,
+                origin[1] + j as f64 * h,
+                origin[2] + k as f64 * h,
+            )
+        })
         .collect();
     for (idx, v) in exact.iter().zip(eval_batched(f, &exact_points)?) {
         values[*idx] = v as f32;

@@ -103,13 +103,7 @@ pub fn volume_iou(a: &TriMesh, b: &TriMesh, samples: usize, seed: u64) -> f64 {
         MeshDistance::new(a).unwrap_or_else(|e| panic!("volume_iou: {e}")),
         MeshDistance::new(b).unwrap_or_else(|e| panic!("volume_iou: {e}")),
     );
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for v in a.vertices.iter().chain(&b.vertices) {
-        for k in 0..3 {
-            lo[k] = lo[k].min(v[k]);
-            hi[k] = hi[k].max(v[k]);
-        }
-    }
+    let (lo, hi) = geom::bounding_box(a.vertices.iter().chain(&b.vertices).copied());
     let mut rng = geom::SplitMix64::new(seed);
     let pts: Vec<Vec3<f64>> = (0..samples.max(1)).map(|_| rng.in_box(lo, hi)).collect();
     let (inter, union) = pts

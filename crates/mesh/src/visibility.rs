@@ -9,6 +9,7 @@
 use geom::{Camera, Vec3};
 use sim::sdf::{Sdf, SdfGrid};
 
+use crate::sample_sdf_grid::sample_sdf_grid;
 use crate::zero_level_points::BatchSdf;
 
 type V = Vec3<f64>;
@@ -24,19 +25,18 @@ pub struct Visibility {
 impl Visibility {
     /// Bakes `sdf` over the box `[lo, hi]` with `resolution` nodes along its longest side.
     pub fn new(sdf: &BatchSdf, lo: [f64; 3], hi: [f64; 3], resolution: usize, cameras: Vec<Camera<f64>>) -> Self {
-        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (resolution.max(2) - 1) as f64;
-        let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / h).ceil() as usize + 1);
-        let mut points = Vec::with_capacity(dims.iter().product());
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    points.push(V::new(lo[0] + i as f64 * h, lo[1] + j as f64 * h, lo[2] + k as f64 * h));
-                }
-            }
-        }
-        let values = sdf(&points).iter().map(|v| *v as f32).collect();
-        let grid = SdfGrid::from_values(lo, h, dims, values).expect("a valid grid by construction");
-        let hi = grid.max_corner();
+        let sampled = sample_sdf_grid(
+            &|pts: &[[f64; 3]]| {
+                let pts: Vec<V> = pts.iter().map(|p| V::cst(*p)).collect();
+                sdf(&pts).iter().map(|v| *v as f32).collect()
+            },
+            lo,
+            hi,
+            resolution.max(2),
+        );
+        let grid = SdfGrid::from_values(sampled.origin, sampled.spacing, sampled.dims, sampled.values)
+            .expect("a valid grid by construction");
+        let (lo, hi) = (grid.origin, grid.max_corner());
         Self { cameras, grid, lo, hi }
     }
 

@@ -4,8 +4,6 @@
 //! while its corners stay exact.
 mod common;
 
-use std::collections::HashMap;
-
 use geom::TriMesh;
 use mesh::{chamfer, decimate, extract_zero_level, normal_consistency};
 
@@ -16,46 +14,6 @@ fn sphere(r: f64, res: usize) -> TriMesh {
         [1.2 * r; 3],
         res,
     ))
-}
-
-/// The box `[-h, h]³` with each side split into n × n squares.
-fn tessellated_box(h: [f64; 3], n: usize) -> TriMesh {
-    let mut index: HashMap<[i64; 3], u32> = HashMap::new();
-    let mut vertices = Vec::new();
-    let mut faces = Vec::new();
-    let mut vertex = |p: [f64; 3]| {
-        let key = p.map(|v| (v * 1e9).round() as i64);
-        *index.entry(key).or_insert_with(|| {
-            vertices.push(p);
-            (vertices.len() - 1) as u32
-        })
-    };
-    for axis in 0..3 {
-        for side in [-1.0, 1.0] {
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-            let at = |i: usize, j: usize| {
-                let mut p = [0.0; 3];
-                p[axis] = side * h[axis];
-                p[u] = -h[u] + 2.0 * h[u] * i as f64 / n as f64;
-                p[v] = -h[v] + 2.0 * h[v] * j as f64 / n as f64;
-                p
-            };
-            for i in 0..n {
-                for j in 0..n {
-                    let q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)].map(&mut vertex);
-                    // (u, v, axis) is right-handed: counter-clockwise seen from +axis.
-                    if side > 0.0 {
-                        faces.push([q[0], q[1], q[2]]);
-                        faces.push([q[0], q[2], q[3]]);
-                    } else {
-                        faces.push([q[0], q[2], q[1]]);
-                        faces.push([q[0], q[3], q[2]]);
-                    }
-                }
-            }
-        }
-    }
-    TriMesh::new(vertices, faces)
 }
 
 #[test]
@@ -92,7 +50,7 @@ fn a_sphere_keeps_its_shape_at_a_tenth_of_its_faces() {
 #[test]
 fn a_tessellated_box_collapses_to_its_corners() {
     let h = [0.03, 0.02, 0.01];
-    let fine = tessellated_box(h, 12);
+    let fine = sim::tessellate::cuboid_mesh(&sim::sdf::Cuboid { half: h }, 12);
     sim::check_closed_mesh(&fine).unwrap();
     let coarse = decimate(&fine, 12);
     sim::check_closed_mesh(&coarse).unwrap();

@@ -11,8 +11,8 @@ use mesh::{
 };
 use sim::sdf::{Cuboid, Sdf, Shape};
 
-/// An L-shaped block (no rotational symmetry), meshed from its SDF, body frame.
-fn l_block() -> TriMesh {
+/// An L-shaped block (no rotational symmetry), body frame.
+fn l_shape() -> Shape {
     let base = Shape::Cuboid(Cuboid {
         half: [0.03, 0.02, 0.01],
     });
@@ -20,7 +20,12 @@ fn l_block() -> TriMesh {
         half: [0.01, 0.02, 0.015],
     })
     .transformed(Pose::from_translation(Vec3::new(0.02, 0.0, 0.02)));
-    let shape = Shape::Union(vec![base, post]);
+    Shape::Union(vec![base, post])
+}
+
+/// [`l_shape`] meshed from its SDF.
+fn l_block() -> TriMesh {
+    let shape = l_shape();
     extract_zero_level(&common::grid_of(
         &shape,
         [-0.045, -0.035, -0.025],
@@ -177,14 +182,7 @@ fn footprint(m: &TriMesh) -> ([f64; 2], [f64; 2]) {
 #[test]
 fn merging_two_fields_uses_their_distances_and_drops_floaters() {
     let body = l_block();
-    let base = Shape::Cuboid(Cuboid {
-        half: [0.03, 0.02, 0.01],
-    });
-    let post = Shape::Cuboid(Cuboid {
-        half: [0.01, 0.02, 0.015],
-    })
-    .transformed(Pose::from_translation(Vec3::new(0.02, 0.0, 0.02)));
-    let shape = Shape::Union(vec![base, post]);
+    let shape = l_shape();
     let pose_a = rest(&body, Quat::identity(), [0.0, 0.01]);
     let pose_b = rest(
         &body,

@@ -128,11 +128,6 @@ impl Dataset {
         }
     }
 
-    /// World point of a unit-sphere point.
-    pub fn to_world(&self, p: Vec3<f64>) -> Vec3<f64> {
-        self.centre + p * self.radius
-    }
-
     pub fn has_masks(&self) -> bool {
         self.views.first().is_some_and(|v| v.mask.is_some())
     }

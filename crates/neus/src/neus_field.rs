@@ -105,10 +105,6 @@ impl NeusField {
         [self.extra[1], self.extra[2], self.extra[3]].map(|v| v.clamp(0.0, 1.0))
     }
 
-    pub fn all_levels(&self) -> usize {
-        self.config.grid.levels
-    }
-
     /// SDF MLP outputs (N × (1 + feature_dim)) at unit-coordinate points
     /// (N × 3). `unit01` (the points in the hash grid's [0, 1] cube, kept
     /// for the backward pass), `enc` and `input` are scratch.

@@ -93,6 +93,10 @@ fn checkpoints_round_trip_resume_exactly_and_refuse_truncation() {
     let (capture, _, _) = ball_capture(&dir);
     let mut cfg = tiny_config();
     cfg.iterations = 30;
+    // Refresh the occupancy grid before and after the checkpoint, so that its
+    // state is part of what must round-trip.
+    cfg.occupancy_warmup = 8;
+    cfg.occupancy_every = 4;
     let mut straight = NeusTrainer::new(cfg.clone(), Dataset::load(&capture).unwrap()).unwrap();
     for _ in 0..30 {
         straight.step();
@@ -117,6 +121,12 @@ fn checkpoints_round_trip_resume_exactly_and_refuse_truncation() {
     );
     assert_eq!(resumed.field.sdf_params, straight.field.sdf_params);
     assert_eq!(resumed.field.color_params, straight.field.color_params);
+    assert_eq!(resumed.field.extra, straight.field.extra);
+    assert_eq!(resumed.occupancy.cells, straight.occupancy.cells);
+    assert!(
+        straight.occupancy.cells.contains(&0),
+        "the grid should have been refreshed (some cells empty)"
+    );
     // A truncated checkpoint is an error, not a panic.
     let bytes = std::fs::read(&path).unwrap();
     let cut = dir.join("cut.safetensors");

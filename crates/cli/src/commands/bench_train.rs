@@ -2,11 +2,12 @@
 //! with wall time, rays/s, samples/s, held-out PSNR and the Chamfer distance
 //! of the zero level to the true mesh; peak memory at the end.
 
+use super::mesh_cmds::posed_truth;
 use super::render::{holdout_psnr, zero_level_mesh};
 use super::train::load_config;
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
-use geom::{Pose, Quat, TriMesh, Vec3};
+use geom::TriMesh;
 use neus::{Dataset, NeusTrainer};
 use std::path::PathBuf;
 
@@ -35,35 +36,12 @@ pub struct BenchTrainArgs {
     pub mesh_res: usize,
 }
 
-/// The true mesh of the body seen in `capture`, posed as it stood (world frame).
-fn true_mesh(args: &BenchTrainArgs) -> Result<TriMesh> {
-    let truth = pganeus_io::read_truth(&args.dataset.join("truth.json"))?;
-    for b in &truth.bodies {
-        if let Some(sc) = b.static_captures.iter().find(|s| s.capture == args.capture) {
-            let mut m = pganeus_io::read_ply(&args.dataset.join(&b.mesh))?.mesh;
-            let pose = Pose::new(Quat::cst(sc.pose.q), Vec3::cst(sc.pose.t));
-            for v in &mut m.vertices {
-                *v = pose.transform_point(Vec3::cst(*v)).to_array();
-            }
-            return Ok(m);
-        }
-    }
-    Err(anyhow!(
-        "{}: no body has a static capture named {}",
-        args.dataset.display(),
-        args.capture
-    ))
-}
-
-/// Keep the faces whose vertices are all at least `z` above the board.
+/// The faces whose vertices are all at least `z` above the board.
 fn above(m: &TriMesh, z: f64) -> TriMesh {
-    let faces = m
-        .faces
-        .iter()
-        .filter(|f| f.iter().all(|&i| m.vertices[i as usize][2] >= z))
-        .copied()
+    let faces: Vec<usize> = (0..m.faces.len())
+        .filter(|&f| m.faces[f].iter().all(|&i| m.vertices[i as usize][2] >= z))
         .collect();
-    TriMesh::new(m.vertices.clone(), faces)
+    mesh::sub_mesh(m, &faces)
 }
 
 fn peak_memory_mib() -> Option<f64> {
@@ -74,15 +52,10 @@ fn peak_memory_mib() -> Option<f64> {
 }
 
 pub fn run(a: BenchTrainArgs) -> Result<()> {
-    let truth_mesh = true_mesh(&a)?;
+    let (truth_mesh, _) = posed_truth(&a.dataset.join("truth.json"), &a.capture)?;
+    let truth_visible = above(&truth_mesh, 0.003);
     let diameter = {
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for v in &truth_mesh.vertices {
-            for k in 0..3 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
+        let (lo, hi) = truth_mesh.bounds();
         (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
     };
     let capture = a.dataset.join(&a.capture);
@@ -108,7 +81,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
             } else {
                 (
                     mesh::chamfer(&m, &truth_mesh, 20000, 1).mean,
-                    mesh::chamfer(&above(&m, 0.003), &above(&truth_mesh, 0.003), 20000, 1).mean,
+                    mesh::chamfer(&above(&m, 0.003), &truth_visible, 20000, 1).mean,
                 )
             };
             let round = |v: f64, k: f64| (v * k).round() / k;

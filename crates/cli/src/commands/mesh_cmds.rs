@@ -133,13 +133,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
     let grid = if is_mesh {
         let m = read_mesh(&a.source)?;
         sim::check_closed_mesh(&m).map_err(|e| anyhow!("{}: {e}", a.source.display()))?;
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for v in &m.vertices {
-            for k in 0..3 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
+        let (lo, hi) = m.bounds();
         let pad = 0.05 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         let (lo, hi) = bounds(lo.map(|v| v - pad), hi.map(|v| v + pad))?;
         let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
@@ -196,7 +190,7 @@ pub struct CompareMeshArgs {
 }
 
 /// The true mesh of the body captured in `capture`, posed as it was there.
-fn posed_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf)> {
+pub(crate) fn posed_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf)> {
     let t = pganeus_io::read_truth(truth)?;
     let (body, stat) = t
         .bodies

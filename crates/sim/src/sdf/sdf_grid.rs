@@ -65,13 +65,7 @@ impl SdfGrid {
     /// `pad_cells` cells all round.
     pub fn from_mesh(mesh: &geom::TriMesh, cells: usize, pad_cells: f64) -> Result<Self, GridError> {
         let dist = super::MeshDistance::new(mesh)?;
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for v in &mesh.vertices {
-            for a in 0..3 {
-                lo[a] = lo[a].min(v[a]);
-                hi[a] = hi[a].max(v[a]);
-            }
-        }
+        let (lo, hi) = mesh.bounds();
         let h = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max) / cells.max(1) as f64;
         let pad = pad_cells * h;
         Self::bake(&dist, lo.map(|v| v - pad), hi.map(|v| v + pad), h)
