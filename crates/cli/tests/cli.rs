@@ -673,3 +673,138 @@ fn mesh_tools_merge_compare_and_bake() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A scene field, tiny but real: the board plane start and a small background field.
+const TINY_SCENE_TRAIN: &str = r#"
+iterations = 400
+batch_rays = 512
+steps_per_ray = 256
+max_samples_per_ray = 32
+occupancy_res = 32
+occupancy_warmup = 100
+anneal_end = 100
+level_every = 25
+checkpoint_every = 400
+[field.grid]
+levels = 10
+log2_table_size = 15
+max_resolution = 512
+[field.background]
+samples = 12
+[field.background.grid]
+levels = 4
+log2_table_size = 12
+max_resolution = 64
+"#;
+
+/// A toy sliding on the board (not reaching the wall), against `scene` shapes.
+fn slide_scene(scene: &str) -> String {
+    format!(
+        r#"
+[sim]
+fps = 30
+frames = 30
+substeps = 20
+[contact]
+restitution = 0.5
+friction = 0.25
+{scene}
+[[body]]
+name = "toy"
+mass = 0.08
+t = [-0.15, -0.08, 0.0181]
+v = [0.7, 0.05, 0.0]
+omega = [0.0, 0.0, 1.5]
+contact_points = 500
+[body.shape]
+shape = "rounded_box"
+half = [0.03, 0.022, 0.018]
+radius = 0.005
+"#
+    )
+}
+
+/// `train --kind` defaults to scene for the synth background capture (capture.json says so), `bake` of the
+/// run covers the board region with the floor below it, and a toy slides on the baked reconstruction as on the
+/// true board.
+#[test]
+fn scene_train_bake_and_simulate_on_the_reconstruction() {
+    let d = scratch("scene");
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 96", 1)
+        .replacen("height = 120", "height = 72", 1)
+        .replacen("views = 24", "views = 16", 1)
+        .replace("frames = 30", "frames = 1");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let o = bin()
+        .args(["synth", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(d.join("data"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    std::fs::write(d.join("tiny.toml"), TINY_SCENE_TRAIN).unwrap();
+    let run = d.join("run");
+    let o = bin()
+        .arg("train")
+        .arg(d.join("data/background"))
+        .arg("--out")
+        .arg(&run)
+        .arg("--config")
+        .arg(d.join("tiny.toml"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("training a scene field (capture.json)"), "{}", text(&o));
+    let cfg = std::fs::read_to_string(run.join("config.toml")).unwrap();
+    assert!(cfg.contains("kind = \"scene\"") && cfg.contains("init = \"board\""), "{cfg}");
+    // The preview is cut at the unit sphere and compares with the true scene over the board.
+    let o = bin()
+        .arg("compare-mesh")
+        .arg(run.join("preview.ply"))
+        .arg("--truth")
+        .arg(d.join("data/truth.json"))
+        .args(["--capture", "background"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let cmp: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let chamfer = cmp["chamfer_mean"].as_f64().unwrap();
+    assert!(chamfer < 0.01, "preview Chamfer {chamfer}");
+
+    let grid = d.join("scene.sdf");
+    let o = bin().arg("bake").arg(&run).arg("--out").arg(&grid).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let g = sim::sdf::SdfGrid::load(&grid).unwrap();
+    let top = g.max_corner();
+    // The board region: the sphere's square (±0.45 m) in x, y; from below the board to above the wall (7 cm).
+    assert!(g.origin[2] < -0.02 && g.origin[2] > -0.1, "grid bottom {}", g.origin[2]);
+    assert!(top[2] > 0.07 && top[2] < 0.25, "grid top {}", top[2]);
+    // Under the board is solid, however little was seen there.
+    use sim::sdf::Sdf;
+    for p in [[0.0, 0.0, -0.03], [-0.2, 0.1, -0.01], [0.1, -0.2, -0.04]] {
+        let d: f64 = g.distance_local(geom::Vec3::<f64>::cst(p));
+        assert!(d < 0.0, "{p:?} below the board has distance {d}");
+    }
+
+    let simulate = |name: &str, scene: String| {
+        let f = d.join(format!("{name}.toml"));
+        std::fs::write(&f, slide_scene(&scene)).unwrap();
+        let out = d.join(format!("{name}.json"));
+        let o = bin().args(["simulate", "--scene"]).arg(&f).arg("--out").arg(&out).output().unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+        pganeus_io::read_trajectory(&out).unwrap()
+    };
+    let truth = simulate("analytic", "[[scene]]\nshape = \"plane\"\n".into());
+    let recon = simulate(
+        "baked",
+        format!("[[scene]]\nshape = \"grid\"\nfile = {:?}\n", grid.display().to_string()),
+    );
+    let (a, b) = (truth.bodies[0].poses.last().unwrap(), recon.bodies[0].poses.last().unwrap());
+    let gap = (0..3).map(|k| (a.t[k] - b.t[k]).powi(2)).sum::<f64>().sqrt();
+    assert!(gap < 0.005, "final positions {:?} vs {:?}: {:.1} mm apart", a.t, b.t, gap * 1e3);
+    let _ = std::fs::remove_dir_all(&d);
+}

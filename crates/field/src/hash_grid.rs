@@ -13,7 +13,7 @@ const POINT_CHUNK: usize = 256;
 
 /// Hash-grid hyper-parameters (Instant-NGP Table 1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct HashGridConfig {
     /// Number of levels `L`. Default 16.
     pub levels: usize,

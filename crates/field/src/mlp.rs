@@ -206,6 +206,85 @@ impl Mlp {
         params[last.b] = -radius;
     }
 
+    /// Initialisation for a scene: output 0 starts as the signed distance `n·x − offset` of the half-space below
+    /// the plane `n·x = offset` (unit `normal`, inside below), in the first 3 inputs. Needs exactly one hidden
+    /// layer with a softplus or ReLU activation and 3 plain inputs.
+    ///
+    /// A ± pair of hidden units with rows `±u` and biases `±b` gives `act(u·x + b) − act(−u·x − b) = u·x + b`
+    /// exactly for softplus (and ReLU), so any SDF row weights `c_j` on the pairs give the linear function
+    /// `(Σ c_j u_j)·x + Σ c_j b_j`. The directions `u_j` are a randomly rotated Fibonacci sphere (as in
+    /// [`Mlp::init_geometric`]) and the biases spread over ±0.5, so the units start different from one another
+    /// and learn different things; `c` is the least-norm solution of `Σ c_j u_j = n` and the output bias
+    /// absorbs the rest. Weights from the other inputs (hash features) start at 0; outputs other than 0 get the
+    /// `init_params` rule.
+    pub fn init_geometric_plane(&self, params: &mut [f32], rng: &mut geom::SplitMix64, normal: [f32; 3], offset: f32) {
+        assert_eq!(
+            params.len(),
+            self.param_count,
+            "Mlp::init_geometric_plane: params length"
+        );
+        assert_eq!(
+            self.layers.len(),
+            2,
+            "Mlp::init_geometric_plane: needs exactly one hidden layer"
+        );
+        let (first, last) = (self.layers[0], self.layers[1]);
+        assert!(
+            first.n_in >= 3 && first.n_out >= 2,
+            "Mlp::init_geometric_plane: needs ≥ 3 inputs and ≥ 2 hidden units"
+        );
+        params.fill(0.0);
+        let pairs = first.n_out / 2;
+        let q = rng.quat();
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let mut dirs = Vec::with_capacity(pairs);
+        let mut biases = Vec::with_capacity(pairs);
+        for j in 0..pairs {
+            let z = 1.0 - (2 * j + 1) as f64 / pairs as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * j as f64;
+            dirs.push(q.rotate(geom::Vec3::new(r * phi.cos(), r * phi.sin(), z)).to_array());
+            biases.push(rng.range(-0.5, 0.5));
+        }
+        // c = Uᵀ (U Uᵀ)⁻¹ n: the least-norm row weights whose pairs sum to the plane's normal.
+        let mut gram = geom::Mat3::<f64>::zero();
+        for u in &dirs {
+            let u = geom::Vec3::cst(*u);
+            gram = gram.add(&geom::Mat3::outer(u, u));
+        }
+        let n = geom::Vec3::new(normal[0] as f64, normal[1] as f64, normal[2] as f64);
+        let y = gram.try_inverse().unwrap_or(geom::Mat3::identity()).mul_vec(n);
+        let c: Vec<f64> = dirs.iter().map(|u| u[0] * y.x + u[1] * y.y + u[2] * y.z).collect();
+        {
+            let w = &mut params[self.weight_range(0)];
+            for j in 0..pairs {
+                for d in 0..3 {
+                    w[j * first.n_in + d] = dirs[j][d] as f32;
+                    w[(j + pairs) * first.n_in + d] = -dirs[j][d] as f32;
+                }
+            }
+        }
+        {
+            let b = &mut params[self.bias_range(0)];
+            for j in 0..pairs {
+                b[j] = biases[j] as f32;
+                b[j + pairs] = -biases[j] as f32;
+            }
+        }
+        let w = &mut params[self.weight_range(1)];
+        let (row0, rest) = w.split_at_mut(last.n_in);
+        for j in 0..pairs {
+            row0[j] = c[j] as f32;
+            row0[j + pairs] = -c[j] as f32;
+        }
+        let bound = (6.0 / last.n_in as f64).sqrt();
+        for x in rest {
+            *x = rng.range(-bound, bound) as f32;
+        }
+        let absorbed: f64 = c.iter().zip(&biases).map(|(c, b)| c * b).sum();
+        params[last.b] = (-(offset as f64) - absorbed) as f32;
+    }
+
     /// Forward `input` (n×in, row-major) through the network; returns the n×out output held by `scratch`.
     /// Rows are cut into fixed chunks (the size depends only on `n`), each chunk one sgemm per layer, chunks in
     /// parallel. `scratch` keeps what `backward` needs, and reallocates only when `n` grows.

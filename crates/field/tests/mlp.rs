@@ -345,3 +345,38 @@ fn geometric_init_zeroes_feature_weights() {
     assert!(params[m.bias_range(0)].iter().all(|&x| x == 0.0));
     assert_eq!(params[m.bias_range(1)][0], -0.5);
 }
+
+/// The plane initialisation of a scene field is exact (softplus pairs are linear) and its hidden units differ
+/// from one another, so they can learn different things: SDF = n·x − offset to float precision, for a tilted
+/// normal and with random "hash features" that must not disturb it.
+#[test]
+fn plane_init_is_the_half_space_and_breaks_symmetry() {
+    let m = mlp(&[35, 64, 16], Activation::Softplus { beta: 100.0 }, Activation::None);
+    let n = [0.2f32, -0.3, 0.932_737_9];
+    let mut rng = SplitMix64::new(5);
+    let mut params = vec![0.0; m.param_count()];
+    m.init_geometric_plane(&mut params, &mut rng, n, -0.25);
+    let pts = ball_points(&mut rng, 2000);
+    let mut input = vec![0.0f32; pts.len() * 35];
+    for (i, p) in pts.iter().enumerate() {
+        input[i * 35..i * 35 + 3].copy_from_slice(p);
+        for x in &mut input[i * 35 + 3..(i + 1) * 35] {
+            *x = rng.range(-1.0, 1.0) as f32;
+        }
+    }
+    let mut s = MlpScratch::new();
+    let out = m.forward(&params, &input, pts.len(), &mut s);
+    let max = pts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (out[i * 16] - (n[0] * p[0] + n[1] * p[1] + n[2] * p[2] + 0.25)).abs())
+        .fold(0.0f32, f32::max);
+    assert!(max < 1e-4, "max |SDF − plane| = {max}");
+    let w = &params[m.weight_range(0)];
+    let rows: Vec<&[f32]> = w.chunks_exact(35).map(|r| &r[..3]).collect();
+    for a in 0..rows.len() {
+        for b in a + 1..rows.len() {
+            assert_ne!(rows[a], rows[b], "hidden units {a} and {b} start identical");
+        }
+    }
+}

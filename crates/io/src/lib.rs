@@ -32,7 +32,7 @@ pub use error::{IoError, Result};
 pub use formats::mesh_file::read_mesh;
 pub use formats::neus::{
     open_capture, read_cameras_npz, read_capture_info, write_cameras_npz, write_capture_info, CameraMats, CaptureIndex,
-    CaptureInfo, CaptureKind, CAMERAS_FILE, CAPTURE_INFO_FILE, EXTRA_MASK_PREFIX, IMAGE_DIR, MASK_DIR,
+    CaptureInfo, CaptureKind, CaptureSubject, CAMERAS_FILE, CAPTURE_INFO_FILE, EXTRA_MASK_PREFIX, IMAGE_DIR, MASK_DIR,
 };
 pub use formats::npz::{
     npy_bytes, npz_bytes, read_npy, read_npy_bytes, read_npz, read_npz_bytes, write_npy, write_npz, NpyArray, NpyData,

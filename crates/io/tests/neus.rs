@@ -64,6 +64,7 @@ fn make_capture(name: &str, n: usize) -> TempDir {
     write_cameras_npz(&dir.0.join("cameras_sphere.npz"), &cams).unwrap();
     let info = CaptureInfo {
         kind: CaptureKind::Video,
+        subject: None,
         fps: Some(30.0),
         extra: Map::new(),
     };
@@ -347,6 +348,7 @@ fn capture_info_round_trips_extra_keys() {
 
     let video = CaptureInfo {
         kind: CaptureKind::Video,
+        subject: None,
         fps: Some(f64::NAN),
         extra: Map::new(),
     };

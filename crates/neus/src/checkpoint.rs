@@ -14,6 +14,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 const FORMAT: &str = "pganeus-neus-1";
+/// Tensor names of the background field's parameters (scenes).
+const BG_NAMES: [&str; 3] = ["background.grid", "background.density", "background.color"];
 
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointError {
@@ -59,6 +61,18 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
         tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
         tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
     }
+    if let (Some(b), Some(opt)) = (&f.background, &trainer.bg_optim) {
+        for (name, p) in BG_NAMES
+            .iter()
+            .zip([&b.grid_params, &b.density_params, &b.color_params])
+        {
+            tensors.insert(name.to_string(), f32_tensor(p));
+        }
+        for (name, a) in BG_NAMES.iter().zip(&opt.adam) {
+            tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
+            tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
+        }
+    }
     let occ = &trainer.occupancy;
     tensors.insert(
         "occupancy".into(),
@@ -75,9 +89,11 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
     );
     metadata.insert("step".into(), trainer.step.to_string());
     metadata.insert("rng".into(), trainer.rng.0.to_string());
+    let bg_steps = trainer.bg_optim.iter().flat_map(|o| o.adam.iter().map(|a| a.step));
     metadata.insert(
         "adam_steps".into(),
-        serde_json::to_string(&trainer.adam.iter().map(|a| a.step).collect::<Vec<_>>()).expect("numbers"),
+        serde_json::to_string(&trainer.adam.iter().map(|a| a.step).chain(bg_steps).collect::<Vec<_>>())
+            .expect("numbers"),
     );
     metadata.insert(
         "centre".into(),
@@ -132,11 +148,17 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
     }
     let config: TrainConfig = serde_json::from_str(meta(st, path, "config")?)
         .map_err(|e| invalid(path, format!("config in the header: {e}")))?;
-    let mut field = NeusField::new(&config.field, config.seed);
+    // The start does not matter: every parameter is read below.
+    let mut field = NeusField::new(&config.field, config.seed, 0.0);
     field.grid_params = floats(st, path, "grid", field.grid_params.len())?;
     field.sdf_params = floats(st, path, "sdf", field.sdf_params.len())?;
     field.color_params = floats(st, path, "color", field.color_params.len())?;
     field.extra = floats(st, path, "extra", field.extra.len())?;
+    if let Some(b) = &mut field.background {
+        b.grid_params = floats(st, path, BG_NAMES[0], b.grid_params.len())?;
+        b.density_params = floats(st, path, BG_NAMES[1], b.density_params.len())?;
+        b.color_params = floats(st, path, BG_NAMES[2], b.color_params.len())?;
+    }
     let res = config.occupancy_res;
     let occupancy = match st.tensors.get("occupancy").map(|t| &t.data) {
         Some(TensorData::U8(c)) if c.len() == res * res * res => OccupancyGrid { res, cells: c.clone() },
@@ -166,14 +188,24 @@ pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError
     t.rng = SplitMix64(parse(path, "rng", meta(&st, path, "rng")?)?);
     let steps: Vec<u64> = serde_json::from_str(meta(&st, path, "adam_steps")?)
         .map_err(|e| invalid(path, format!("adam_steps in the header: {e}")))?;
-    if steps.len() != 4 {
-        return Err(invalid(path, "adam_steps must list 4 counters"));
+    let expected = 4 + 3 * usize::from(t.bg_optim.is_some());
+    if steps.len() != expected {
+        return Err(invalid(path, format!("adam_steps must list {expected} counters")));
     }
-    for (k, name) in ["grid", "sdf", "color", "extra"].iter().enumerate() {
-        let n = t.adam[k].m.len();
-        t.adam[k].m = floats(&st, path, &format!("adam.{name}.m"), n)?;
-        t.adam[k].v = floats(&st, path, &format!("adam.{name}.v"), n)?;
-        t.adam[k].step = steps[k];
+    let bg = t
+        .bg_optim
+        .iter_mut()
+        .flat_map(|o| BG_NAMES.iter().copied().zip(o.adam.iter_mut()));
+    for ((name, adam), &step) in ["grid", "sdf", "color", "extra"]
+        .into_iter()
+        .zip(t.adam.iter_mut())
+        .chain(bg)
+        .zip(&steps)
+    {
+        let n = adam.m.len();
+        adam.m = floats(&st, path, &format!("adam.{name}.m"), n)?;
+        adam.v = floats(&st, path, &format!("adam.{name}.v"), n)?;
+        adam.step = step;
     }
     Ok(t)
 }

@@ -1,11 +1,15 @@
 //! Training settings: one struct, saved in every checkpoint.
 
-use crate::neus_field::FieldConfig;
+use crate::background_field::BackgroundConfig;
+use crate::neus_field::{FieldConfig, FieldInit};
+pub use pganeus_io::CaptureSubject;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrainConfig {
+    /// Object or scene. Default object.
+    pub kind: CaptureSubject,
     /// Optimiser steps. Default 3000.
     pub iterations: usize,
     /// Rays per step. Default 2048.
@@ -47,6 +51,7 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
+            kind: CaptureSubject::Object,
             iterations: 3000,
             batch_rays: 2048,
             lr: 0.01,
@@ -71,8 +76,24 @@ impl Default for TrainConfig {
 }
 
 impl TrainConfig {
-    /// `fast` (the default) or `quality` (longer, bigger batches, more samples).
-    pub fn preset(name: &str) -> Option<Self> {
+    /// `fast` (the default) or `quality` (longer, bigger batches, more samples), for an object or a scene.
+    pub fn preset(name: &str, kind: CaptureSubject) -> Option<Self> {
+        let base = Self::preset_object(name)?;
+        Some(match kind {
+            CaptureSubject::Object => base,
+            CaptureSubject::Scene => Self {
+                kind,
+                field: FieldConfig {
+                    init: FieldInit::Board,
+                    background: Some(BackgroundConfig::default()),
+                    ..base.field
+                },
+                ..base
+            },
+        })
+    }
+
+    fn preset_object(name: &str) -> Option<Self> {
         match name {
             "fast" => Some(Self::default()),
             "quality" => Some(Self {
@@ -121,6 +142,15 @@ impl TrainConfig {
         }
         if self.field.grid.levels == 0 || self.field.feature_dim == 0 {
             return Err("field: at least one hash level and one feature".into());
+        }
+        if self.field.init == FieldInit::Board && self.field.sdf_hidden.len() != 1 {
+            return Err(format!(
+                "field.init = \"board\" needs exactly one hidden layer in field.sdf_hidden, got {:?}",
+                self.field.sdf_hidden
+            ));
+        }
+        if let Some(b) = &self.field.background {
+            b.validate()?;
         }
         Ok(())
     }

@@ -3,7 +3,10 @@
 //! with an occupancy grid, NeuS's unbiased volume rendering, training with
 //! colour, eikonal and mask losses, checkpoints that resume, and rendering,
 //! also of two fields of one object switched by the camera's side (Eq. 3–4).
+//! Objects start from a sphere; scenes start from the board plane and put
+//! what lies beyond the unit sphere in a background field (NeRF++).
 
+pub mod background_field;
 pub mod checkpoint;
 pub mod config;
 pub mod dataset;
@@ -15,7 +18,7 @@ pub mod switching;
 pub mod trainer;
 pub mod volume;
 
-pub use config::TrainConfig;
+pub use config::{CaptureSubject, TrainConfig};
 pub use dataset::{Dataset, DatasetError};
-pub use neus_field::{FieldConfig, NeusField};
+pub use neus_field::{FieldConfig, FieldInit, NeusField};
 pub use trainer::{LossTerms, NeusTrainer, StepStats};

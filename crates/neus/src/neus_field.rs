@@ -2,9 +2,20 @@
 //! MLP give the signed distance and a feature vector; a colour MLP takes the
 //! view direction (spherical harmonics), the normal and the feature.
 
+use crate::background_field::{BackgroundConfig, BackgroundField};
 use field::{Activation, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, SH_DIM};
 use geom::SplitMix64;
 use serde::{Deserialize, Serialize};
+
+/// How the SDF starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldInit {
+    /// A sphere of `init_radius` about the centre (an object).
+    Sphere,
+    /// The half-space below the board, the world's plane z = 0 (a scene: captures are calibrated on the board).
+    Board,
+}
 
 /// Architecture of the field (recorded in every checkpoint).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -20,10 +31,14 @@ pub struct FieldConfig {
     /// Hidden activation of the SDF MLP. Default softplus with β = 100 (as
     /// NeuS): smooth, so finite-difference normals are well behaved.
     pub sdf_activation: Activation,
+    /// How the SDF starts. Default `sphere`.
+    pub init: FieldInit,
     /// Radius of the initial sphere, unit coordinates. Default 0.5.
     pub init_radius: f32,
     /// Initial value of the variance parameter (inv_s = exp(10 · variance)). Default 0.3.
     pub init_variance: f32,
+    /// A field for what lies beyond the unit sphere (scenes); without it, a constant colour. Default none.
+    pub background: Option<BackgroundConfig>,
 }
 
 impl Default for FieldConfig {
@@ -34,8 +49,10 @@ impl Default for FieldConfig {
             feature_dim: 15,
             color_hidden: vec![64, 64],
             sdf_activation: Activation::Softplus { beta: 100.0 },
+            init: FieldInit::Sphere,
             init_radius: 0.5,
             init_variance: 0.3,
+            background: None,
         }
     }
 }
@@ -49,15 +66,18 @@ pub struct NeusField {
     pub grid_params: Vec<f32>,
     pub sdf_params: Vec<f32>,
     pub color_params: Vec<f32>,
-    /// `[variance, background r, g, b]`.
+    /// `[variance, background r, g, b]`: the colour behind everything (behind the background field, if any).
     pub extra: Vec<f32>,
+    pub background: Option<BackgroundField>,
 }
 
 /// Input width of the SDF MLP: xyz then the encoding.
 pub const XYZ: usize = 3;
 
 impl NeusField {
-    pub fn new(config: &FieldConfig, seed: u64) -> Self {
+    /// A new field. `board_height` is the board plane z = 0 of the world in unit coordinates (`−centre_z /
+    /// radius`), where a `Board` init puts the surface.
+    pub fn new(config: &FieldConfig, seed: u64, board_height: f32) -> Self {
         let grid = HashGrid::new(&config.grid);
         let sdf_in = XYZ + grid.output_dim();
         let mut dims = vec![sdf_in];
@@ -80,10 +100,14 @@ impl NeusField {
         let mut grid_params = vec![0.0; grid.param_count()];
         grid.init_params(&mut grid_params, &mut rng);
         let mut sdf_params = vec![0.0; sdf.param_count()];
-        sdf.init_geometric(&mut sdf_params, &mut rng, config.init_radius, XYZ);
+        match config.init {
+            FieldInit::Sphere => sdf.init_geometric(&mut sdf_params, &mut rng, config.init_radius, XYZ),
+            FieldInit::Board => sdf.init_geometric_plane(&mut sdf_params, &mut rng, [0.0, 0.0, 1.0], board_height),
+        }
         let mut color_params = vec![0.0; color.param_count()];
         color.init_params(&mut color_params, &mut rng);
         let extra = vec![config.init_variance, 0.5, 0.5, 0.5];
+        let background = config.background.as_ref().map(|b| BackgroundField::new(b, &mut rng));
         Self {
             config: config.clone(),
             grid,
@@ -93,6 +117,7 @@ impl NeusField {
             sdf_params,
             color_params,
             extra,
+            background,
         }
     }
 

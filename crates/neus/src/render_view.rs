@@ -1,6 +1,7 @@
 //! Rendering whole views from a trained field: colour, depth and normals,
 //! and PSNR against a capture's images.
 
+use crate::background_field::BackgroundScratch;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
 use crate::neus_field::NeusField;
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
@@ -30,88 +31,120 @@ pub struct RenderSettings {
     pub fd_eps: f32,
 }
 
-/// Render rays (origins and directions in unit coordinates).
+/// Buffers of [`render_rays`], reused across calls (a view is rendered in
+/// chunks: allocating per chunk cost more than rendering on scenes, where
+/// every ray carries samples).
+#[derive(Default)]
+pub struct RenderScratch {
+    t: Vec<f32>,
+    dt: Vec<f32>,
+    offsets: Vec<usize>,
+    pts: Vec<f32>,
+    sdirs: Vec<f32>,
+    unit01: Vec<f32>,
+    enc: Vec<f32>,
+    input: Vec<f32>,
+    sdf_mlp: MlpScratch,
+    sdf_out: Vec<f32>,
+    sh: Vec<f32>,
+    grad: Vec<[f32; 3]>,
+    sdf0: Vec<f32>,
+    cos: Vec<f32>,
+    color_in: Vec<f32>,
+    color_mlp: MlpScratch,
+    rgb: Vec<[f32; 3]>,
+    alpha: Vec<f32>,
+    w: Vec<f32>,
+    bg: BackgroundScratch,
+}
+
+/// Render rays (origins and directions in unit coordinates): each ray's
+/// output and its normal (Σ w n).
 pub fn render_rays(
     field: &NeusField,
     occupancy: &OccupancyGrid,
     set: &RenderSettings,
     origins: &[[f32; 3]],
     dirs: &[[f32; 3]],
+    sc: &mut RenderScratch,
 ) -> Vec<(crate::volume::RayOutput, [f32; 3])> {
-    let (mut t, mut dt, mut offsets) = (Vec::new(), Vec::new(), vec![0usize]);
+    sc.t.clear();
+    sc.dt.clear();
+    sc.offsets.clear();
+    sc.offsets.push(0);
     let march = Marching {
         steps: set.steps_per_ray,
         cap: set.max_samples_per_ray,
     };
     for (o, d) in origins.iter().zip(dirs) {
-        sample_ray(occupancy, *o, *d, march, 0.5, &mut t, &mut dt);
-        offsets.push(t.len());
+        sample_ray(occupancy, *o, *d, march, 0.5, &mut sc.t, &mut sc.dt);
+        sc.offsets.push(sc.t.len());
     }
-    let m = t.len();
+    let m = sc.t.len();
     let eps = set.fd_eps;
-    let (mut pts, mut sdirs) = (Vec::new(), Vec::new());
-    fd_points(origins, dirs, &offsets, &t, eps, &mut pts, &mut sdirs);
+    fd_points(origins, dirs, &sc.offsets, &sc.t, eps, &mut sc.pts, &mut sc.sdirs);
     let width = 1 + field.config.feature_dim;
-    let (mut unit01, mut enc, mut input, mut scratch) = (Vec::new(), Vec::new(), Vec::new(), MlpScratch::default());
-    let out = field.sdf_forward(&pts, set.active_levels, &mut unit01, &mut enc, &mut input, &mut scratch);
-    let cin = SH_DIM + 3 + field.config.feature_dim;
-    let mut sh = vec![0.0f32; m * SH_DIM];
-    sh_encode(&sdirs, &mut sh);
-    let (mut grad, mut sdf0, mut cos, mut color_in) = (
-        vec![[0.0f32; 3]; m],
-        vec![0.0f32; m],
-        vec![0.0f32; m],
-        vec![0.0f32; m * cin],
+    let out = field.sdf_forward(
+        &sc.pts,
+        set.active_levels,
+        &mut sc.unit01,
+        &mut sc.enc,
+        &mut sc.input,
+        &mut sc.sdf_mlp,
     );
+    sc.sdf_out.clear();
+    sc.sdf_out.extend_from_slice(out);
+    let cin = SH_DIM + 3 + field.config.feature_dim;
+    sc.sh.resize(m * SH_DIM, 0.0);
+    sh_encode(&sc.sdirs, &mut sc.sh);
+    sc.grad.resize(m, [0.0; 3]);
+    sc.sdf0.resize(m, 0.0);
+    sc.cos.resize(m, 0.0);
+    sc.color_in.resize(m * cin, 0.0);
     fd_gradients(
-        out,
+        &sc.sdf_out,
         width,
         eps,
-        &sdirs,
-        &sh,
+        &sc.sdirs,
+        &sc.sh,
         FdOut {
-            grad: &mut grad,
-            sdf0: &mut sdf0,
-            cos: &mut cos,
-            color_in: &mut color_in,
+            grad: &mut sc.grad,
+            sdf0: &mut sc.sdf0,
+            cos: &mut sc.cos,
+            color_in: &mut sc.color_in,
         },
     );
-    let normals: Vec<[f32; 3]> = grad
-        .iter()
-        .map(|g| {
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
-            g.map(|v| v / len)
-        })
-        .collect();
-    let mut cscratch = MlpScratch::default();
-    let rgb: Vec<[f32; 3]> = field
-        .color
-        .forward(&field.color_params, &color_in, m, &mut cscratch)
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    let (inv_s, bg) = (field.inv_s(), field.background());
-    let (mut alpha, mut w) = (Vec::new(), Vec::new());
+    let rgb = field.color.forward(&field.color_params, &sc.color_in, m, &mut sc.color_mlp);
+    sc.rgb.clear();
+    sc.rgb.extend(rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+    let inv_s = field.inv_s();
+    let end = field.background();
+    sc.bg.out.clear();
+    if let Some(b) = &field.background {
+        b.forward(origins, dirs, |_| 0.5, end, &mut sc.bg);
+    }
     (0..origins.len())
         .map(|i| {
-            let (a, b) = (offsets[i], offsets[i + 1]);
-            alpha.resize(b - a, 0.0);
-            w.resize(b - a, 0.0);
+            let (a, b) = (sc.offsets[i], sc.offsets[i + 1]);
+            sc.alpha.resize(b - a, 0.0);
+            sc.w.resize(b - a, 0.0);
             let x = RayInputs {
-                sdf: &sdf0[a..b],
-                cos: &cos[a..b],
-                dt: &dt[a..b],
-                t: &t[a..b],
-                rgb: &rgb[a..b],
+                sdf: &sc.sdf0[a..b],
+                cos: &sc.cos[a..b],
+                dt: &sc.dt[a..b],
+                t: &sc.t[a..b],
+                rgb: &sc.rgb[a..b],
                 inv_s,
                 anneal: 1.0,
-                background: bg,
+                background: sc.bg.out.get(i).copied().unwrap_or(end),
             };
-            let o = render_ray(&x, &mut alpha, &mut w);
+            let o = render_ray(&x, &mut sc.alpha, &mut sc.w);
             let mut n = [0.0f32; 3];
-            for (s, wi) in (a..b).zip(&w) {
+            for (s, wi) in (a..b).zip(&sc.w) {
+                let g = sc.grad[s];
+                let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
                 for k in 0..3 {
-                    n[k] += wi * normals[s][k];
+                    n[k] += wi * g[k] / len;
                 }
             }
             (o, n)
@@ -136,7 +169,10 @@ pub fn render_view(
         normal: Vec::with_capacity(n),
         opacity: Vec::with_capacity(n),
     };
-    let rows_per_chunk = (8192 / w.max(1)).max(1);
+    // About 2,000 rays per chunk: a scene's rays all carry samples (up to 4 SDF
+    // evaluations × the sample cap each), and the MLP scratch grows with them.
+    let rows_per_chunk = (2048 / w.max(1)).max(1);
+    let mut scratch = RenderScratch::default();
     for y0 in (0..h).step_by(rows_per_chunk as usize) {
         let (mut o, mut d) = (Vec::new(), Vec::new());
         for y in y0..(y0 + rows_per_chunk).min(h) {
@@ -146,7 +182,7 @@ pub fn render_view(
                 d.push(r.dir.to_array().map(|v| v as f32));
             }
         }
-        for (out, nrm) in render_rays(field, occupancy, set, &o, &d) {
+        for (out, nrm) in render_rays(field, occupancy, set, &o, &d, &mut scratch) {
             img.rgb.push(out.rgb);
             img.depth.push(out.depth);
             img.normal.push(nrm);

@@ -8,7 +8,8 @@
 //! through rendering, the colour MLP, the SDF MLP and the hash grid; Adam
 //! (sparse on the hash tables).
 
-use crate::config::TrainConfig;
+use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratch};
+use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
 use crate::neus_field::{NeusField, XYZ};
@@ -84,6 +85,29 @@ struct Scratch {
     dirs: Vec<f32>,
     sh: Vec<f32>,
     sdf_out: Vec<f32>,
+    /// The colour behind each ray (the background field's, or the constant), and its gradient.
+    behind: Vec<[f32; 3]>,
+    d_behind: Vec<[f32; 3]>,
+    bg_jitter: Vec<f32>,
+    bg: BackgroundScratch,
+}
+
+/// Adam state, gradients and touched hash entries of the background field.
+pub(crate) struct BackgroundOptim {
+    pub(crate) adam: [Adam; 3],
+    grads: [Vec<f32>; 3],
+    touched: Touched,
+}
+
+impl BackgroundOptim {
+    fn new(b: &BackgroundField) -> Self {
+        let sizes = [b.grid_params.len(), b.density_params.len(), b.color_params.len()];
+        Self {
+            adam: sizes.map(Adam::new),
+            grads: sizes.map(|n| vec![0.0; n]),
+            touched: Touched::new(&b.grid),
+        }
+    }
 }
 
 pub struct NeusTrainer {
@@ -95,6 +119,7 @@ pub struct NeusTrainer {
     pub occupancy: OccupancyGrid,
     pub step: usize,
     pub(crate) adam: [Adam; 4],
+    pub(crate) bg_optim: Option<BackgroundOptim>,
     pub(crate) rng: SplitMix64,
     touched: Touched,
     grads: [Vec<f32>; 4],
@@ -127,7 +152,10 @@ impl NeusTrainer {
                 train_views.push(i);
             }
         }
-        let field = NeusField::new(&config.field, config.seed);
+        // The world's plane z = 0 (the board) in unit coordinates, where a scene field starts.
+        let board_height = (-data.centre.z / data.radius) as f32;
+        let field = NeusField::new(&config.field, config.seed, board_height);
+        let bg_optim = field.background.as_ref().map(BackgroundOptim::new);
         let adam = [
             Adam::new(field.grid_params.len()),
             Adam::new(field.sdf_params.len()),
@@ -151,6 +179,7 @@ impl NeusTrainer {
             holdout_views,
             step: 0,
             adam,
+            bg_optim,
             touched,
             grads,
             scratch: Scratch::default(),
@@ -174,6 +203,9 @@ impl NeusTrainer {
         let anneal = (step as f32 / cfg.anneal_end.max(1) as f32).min(1.0);
         let eps = self.fd_eps(levels);
         let masked = self.data.has_masks();
+        // An object's masks say where it is (mask loss); a scene's say what is not scene (left out).
+        let scene = cfg.kind == CaptureSubject::Scene;
+        let object_masks = masked && !scene;
         let sc = &mut self.scratch;
 
         // Rays from random pixels of the training views.
@@ -182,17 +214,28 @@ impl NeusTrainer {
         sc.rays_d.clear();
         sc.gt.clear();
         sc.mask.clear();
+        sc.bg_jitter.clear();
         let (w, h) = (self.data.width as f64, self.data.height as f64);
         for _ in 0..r {
-            let v = self.train_views[(self.rng.next_u64() % self.train_views.len() as u64) as usize];
-            let (x, y) = (self.rng.next_f64() * w, self.rng.next_f64() * h);
-            let px = (y as usize).min(h as usize - 1) * w as usize + (x as usize).min(w as usize - 1);
+            // A scene's masked pixels are drawn again (a few times), so rays are not wasted on them.
+            let mut tries = 0;
+            let (v, x, y, px, weight) = loop {
+                let v = self.train_views[(self.rng.next_u64() % self.train_views.len() as u64) as usize];
+                let (x, y) = (self.rng.next_f64() * w, self.rng.next_f64() * h);
+                let px = (y as usize).min(h as usize - 1) * w as usize + (x as usize).min(w as usize - 1);
+                let m = self.data.views[v].mask.as_ref().map_or(1.0, |m| m[px]);
+                let weight = if scene && masked { 1.0 - m } else { m };
+                tries += 1;
+                if weight > 0.0 || !scene || tries == 8 {
+                    break (v, x, y, px, weight);
+                }
+            };
             let ray = self.data.ray(v, x, y);
-            let view = &self.data.views[v];
             sc.rays_o.push(ray.origin);
             sc.rays_d.push(ray.dir);
-            sc.gt.push(view.rgb[px]);
-            sc.mask.push(view.mask.as_ref().map_or(1.0, |m| m[px]));
+            sc.gt.push(self.data.views[v].rgb[px]);
+            sc.mask.push(weight);
+            sc.bg_jitter.push(self.rng.next_f64() as f32);
         }
 
         // Samples where the occupancy grid allows.
@@ -290,9 +333,22 @@ impl NeusTrainer {
         sc.rgb.clear();
         sc.rgb.extend(rgb_out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
 
+        // What lies behind each ray's samples.
+        let end = self.field.background();
+        match &self.field.background {
+            Some(b) => {
+                let jit = &sc.bg_jitter;
+                b.forward(&sc.rays_o, &sc.rays_d, |i| jit[i], end, &mut sc.bg);
+                sc.behind.clone_from(&sc.bg.out);
+            }
+            None => {
+                sc.behind.clear();
+                sc.behind.resize(r, end);
+            }
+        }
+
         // Render, losses and their gradients, ray by ray.
         let inv_s = self.field.inv_s();
-        let bg = self.field.background();
         let count = if masked {
             sc.mask.iter().sum::<f32>().max(1.0)
         } else {
@@ -304,8 +360,17 @@ impl NeusTrainer {
         let ds = split_by(&mut sc.d_sdf0, &sc.offsets);
         let dc = split_by(&mut sc.d_cos, &sc.offsets);
         let dr = split_by(&mut sc.d_rgb, &sc.offsets);
-        let (offsets, sdf0, cos, dt, tt, rgb, gt, mask) =
-            (&sc.offsets, &sc.sdf0, &sc.cos, &sc.dt, &sc.t, &sc.rgb, &sc.gt, &sc.mask);
+        let (offsets, sdf0, cos, dt, tt, rgb, gt, mask, behind) = (
+            &sc.offsets,
+            &sc.sdf0,
+            &sc.cos,
+            &sc.dt,
+            &sc.t,
+            &sc.rgb,
+            &sc.gt,
+            &sc.mask,
+            &sc.behind,
+        );
         let mask_w = cfg.mask_weight;
         let per_ray: Vec<(f32, f32, f32, f32, [f32; 3])> = ds
             .into_par_iter()
@@ -324,7 +389,7 @@ impl NeusTrainer {
                         rgb: &rgb[a..b],
                         inv_s,
                         anneal,
-                        background: bg,
+                        background: behind[i],
                     };
                     alpha.resize(b - a, 0.0);
                     trans.resize(b - a, 0.0);
@@ -340,7 +405,7 @@ impl NeusTrainer {
                         d_rgb[k] = wm * diff.signum() / (3.0 * count);
                     }
                     let (mut bce, mut d_op) = (0.0, 0.0);
-                    if masked {
+                    if object_masks {
                         let op = o.opacity.clamp(1e-3, 1.0 - 1e-3);
                         bce = -(wm * op.ln() + (1.0 - wm) * (1.0 - op).ln());
                         if o.opacity > 1e-3 && o.opacity < 1.0 - 1e-3 {
@@ -370,16 +435,35 @@ impl NeusTrainer {
             .collect();
         let mut loss = LossTerms::default();
         let mut sq = 0.0f32;
-        let (mut d_inv_s, mut d_bg) = (0.0f32, [0.0f32; 3]);
+        let mut d_inv_s = 0.0f32;
+        sc.d_behind.clear();
         for (l1, se, bce, dis, dbg) in &per_ray {
             loss.rgb += l1;
             sq += se;
             loss.mask += bce;
             d_inv_s += dis;
-            for k in 0..3 {
-                d_bg[k] += dbg[k];
-            }
+            sc.d_behind.push(*dbg);
         }
+        // Through the background field to the colour at infinity.
+        let d_bg = match (&self.field.background, &mut self.bg_optim) {
+            (Some(b), Some(opt)) => {
+                let [gg, gd, gc] = &mut opt.grads;
+                b.backward(
+                    &mut sc.bg,
+                    &sc.d_behind,
+                    BackgroundGrads {
+                        grid: gg,
+                        touched: &mut opt.touched,
+                        density: gd,
+                        color: gc,
+                    },
+                )
+            }
+            _ => sc
+                .d_behind
+                .iter()
+                .fold([0.0f32; 3], |a, d| [a[0] + d[0], a[1] + d[1], a[2] + d[2]]),
+        };
         loss.rgb /= count;
         loss.mask /= r as f32;
         loss.eikonal = (eik / m.max(1) as f64) as f32;
@@ -472,6 +556,13 @@ impl NeusTrainer {
         as_.step_dense(&adam_cfg, lr, &mut self.field.sdf_params, gs);
         ac.step_dense(&adam_cfg, lr, &mut self.field.color_params, gc);
         ae.step_dense(&adam_cfg, lr * 0.1, &mut self.field.extra, ge);
+        if let (Some(b), Some(opt)) = (&mut self.field.background, &mut self.bg_optim) {
+            let [gg, gd, gc] = &mut opt.grads;
+            let [ag, ad, ac] = &mut opt.adam;
+            ag.step_sparse(&adam_cfg, lr, &mut b.grid_params, gg, &mut opt.touched, &b.grid);
+            ad.step_dense(&adam_cfg, lr, &mut b.density_params, gd);
+            ac.step_dense(&adam_cfg, lr, &mut b.color_params, gc);
+        }
 
         self.step += 1;
         if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {

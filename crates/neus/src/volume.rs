@@ -160,3 +160,58 @@ pub fn render_ray_backward(
         g.cos[i] = (d_en - d_ep) * x.dt[i] * 0.5 * dic;
     }
 }
+
+/// Alpha compositing of density samples (NeRF, for the content beyond the
+/// unit sphere): `α_k = 1 − exp(−σ_k δ_k)`, `w_k = T_k α_k`, colour
+/// `Σ w_k c_k + T_n c_end` where `c_end` is what lies at infinity. Returns the
+/// colour and `T_n`.
+pub fn composite_density(sigma: &[f32], delta: &[f32], rgb: &[[f32; 3]], c_end: [f32; 3]) -> ([f32; 3], f32) {
+    let mut out = [0.0f32; 3];
+    let mut trans = 1.0f32;
+    for k in 0..sigma.len() {
+        let keep = (-sigma[k] * delta[k]).exp();
+        let w = trans * (1.0 - keep);
+        for c in 0..3 {
+            out[c] += w * rgb[k][c];
+        }
+        trans *= keep;
+    }
+    for c in 0..3 {
+        out[c] += trans * c_end[c];
+    }
+    (out, trans)
+}
+
+/// Backward of [`composite_density`] for `d_out`: writes `d_sigma` and
+/// `d_rgb` per sample and returns the gradient of `c_end`. With
+/// `x_k = σ_k δ_k`, `∂C/∂x_k = T_k (1 − α_k) c_k − (what lies behind k)`:
+/// no division, so it stays finite when a sample is opaque.
+pub fn composite_density_backward(
+    sigma: &[f32],
+    delta: &[f32],
+    rgb: &[[f32; 3]],
+    c_end: [f32; 3],
+    d_out: [f32; 3],
+    d_sigma: &mut [f32],
+    d_rgb: &mut [[f32; 3]],
+) -> [f32; 3] {
+    let n = sigma.len();
+    let dot = |c: [f32; 3]| c[0] * d_out[0] + c[1] * d_out[1] + c[2] * d_out[2];
+    // Forward again, keeping the transmittance in front of each sample in d_sigma.
+    let mut trans = 1.0f32;
+    for k in 0..n {
+        d_sigma[k] = trans;
+        trans *= (-sigma[k] * delta[k]).exp();
+    }
+    let mut after = trans * dot(c_end);
+    for k in (0..n).rev() {
+        let t_k = d_sigma[k];
+        let keep = (-sigma[k] * delta[k]).exp();
+        let w = t_k * (1.0 - keep);
+        d_rgb[k] = d_out.map(|g| w * g);
+        let v = dot(rgb[k]);
+        d_sigma[k] = (t_k * keep * v - after) * delta[k];
+        after += w * v;
+    }
+    d_out.map(|g| trans * g)
+}

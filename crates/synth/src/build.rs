@@ -138,6 +138,8 @@ pub(crate) struct StaticScene {
     pub shape: Shape,
     /// What the camera sees, and each obstacle's mesh (world frame) for background.ply.
     pub objects: Vec<RenderObject>,
+    /// `objects` starts with the board and the table (if any): this many, then the obstacles.
+    pub board_and_table: usize,
     pub meshes: Vec<TriMesh>,
     /// The region of interest: a ball around the board top and the obstacles.
     pub region: (Vec3<f64>, f64),
@@ -149,10 +151,6 @@ pub(crate) struct Bodies {
     pub textures: Vec<Texture>,
 }
 
-impl StaticScene {
-    /// `objects` starts with the board and the table, then the obstacles.
-    pub const BOARD_AND_TABLE: usize = 2;
-}
 
 pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScene, SynthError> {
     let b = &scene.board;
@@ -161,33 +159,37 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScen
     }
     positive("board.thickness", b.thickness)?;
     texture("board.texture", &b.texture)?;
-    texture("board.table", &b.table)?;
+    if let Some(t) = &b.table {
+        texture("board.table", t)?;
+    }
     let slab = Cuboid {
         half: [b.half[0], b.half[1], 0.5 * b.thickness],
     };
     let slab_pose = Pose::from_translation(Vec3::new(0.0, 0.0, -0.5 * b.thickness));
     let board_shape = Shape::Cuboid(slab);
-    let table = Shape::Plane(Plane {
-        normal: [0.0, 0.0, 1.0],
-        offset: -b.thickness,
-    });
-    let mut objects = vec![
-        RenderObject {
-            shape: board_shape.clone(),
-            pose: slab_pose,
-            texture: b.texture.clone(),
-            bound: Some((slab_pose.t, Vec3::cst(slab.half).norm())),
-            mask_id: None,
-        },
-        RenderObject {
+    let mut objects = vec![RenderObject {
+        shape: board_shape.clone(),
+        pose: slab_pose,
+        texture: b.texture.clone(),
+        bound: Some((slab_pose.t, Vec3::cst(slab.half).norm())),
+        mask_id: None,
+    }];
+    let mut sim_parts = vec![board_shape.clone().transformed(slab_pose)];
+    if let Some(texture) = &b.table {
+        let table = Shape::Plane(Plane {
+            normal: [0.0, 0.0, 1.0],
+            offset: -b.thickness,
+        });
+        objects.push(RenderObject {
             shape: table.clone(),
             pose: Pose::identity(),
-            texture: b.table.clone(),
+            texture: texture.clone(),
             bound: None,
             mask_id: None,
-        },
-    ];
-    let mut sim_parts = vec![board_shape.clone().transformed(slab_pose), table];
+        });
+        sim_parts.push(table);
+    }
+    let board_and_table = objects.len();
     let mut board_mesh = sim::tessellate::cuboid_mesh(&slab, 1);
     for v in &mut board_mesh.vertices {
         v[2] -= 0.5 * b.thickness;
@@ -234,6 +236,7 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScen
     Ok(StaticScene {
         shape: Shape::Union(sim_parts),
         objects,
+        board_and_table,
         meshes,
         region,
     })

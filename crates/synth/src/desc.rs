@@ -38,15 +38,17 @@ pub enum ShapeDesc {
 }
 
 /// The calibration board: the slab `|x| ≤ half[0]`, `|y| ≤ half[1]`,
-/// `−thickness ≤ z ≤ 0`, lying on an endless table.
+/// `−thickness ≤ z ≤ 0`, lying on an endless table (if any).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Board {
     pub half: [f64; 2],
     pub thickness: f64,
     pub texture: Texture,
-    /// The table under the board.
-    pub table: Texture,
+    /// The endless table under the board; without one, the board floats in front of the sky (set the sky's
+    /// two colours equal for a plain backdrop).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<Texture>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

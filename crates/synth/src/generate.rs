@@ -9,8 +9,8 @@ use crate::desc::SynthScene;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
 use geom::{Camera, Pose, TriMesh, Vec3};
 use pganeus_io::{
-    BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, Contact, Image, PlyEncoding, PlyMesh, Pose as IoPose,
-    StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
+    BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Contact, Image, PlyEncoding, PlyMesh,
+    Pose as IoPose, StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
 };
 use sim::{BodyState, ContactParams, SimConfig, World};
 use std::path::{Path, PathBuf};
@@ -19,6 +19,8 @@ use std::path::{Path, PathBuf};
 struct CapturePlan {
     name: String,
     kind: CaptureKind,
+    /// What a static capture shows (written to capture.json).
+    subject: Option<CaptureSubject>,
     fps: Option<f64>,
     cameras: Vec<Camera<f64>>,
     /// One scene per image (videos move), or one for all.
@@ -191,7 +193,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
     let bodies = build_bodies(scene, base)?;
     let videos = simulate_built(scene, &stat, &bodies)?;
     // The board and the table alone, for the static captures of bodies.
-    let bare: Vec<_> = stat.objects[..StaticScene::BOARD_AND_TABLE].to_vec();
+    let bare: Vec<_> = stat.objects[..stat.board_and_table].to_vec();
     let k = intrinsics(rig.width, rig.height, rig.fov_deg);
     let (w, h) = (rig.width, rig.height);
     let light = scene.light.clone();
@@ -214,6 +216,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
     plans.push(CapturePlan {
         name: "background".into(),
         kind: CaptureKind::Static,
+        subject: Some(CaptureSubject::Scene),
         fps: None,
         cameras: cams,
         scenes: vec![bg_scene],
@@ -249,6 +252,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             plans.push(CapturePlan {
                 name: name.clone(),
                 kind: CaptureKind::Static,
+                subject: Some(CaptureSubject::Object),
                 fps: None,
                 cameras: cams,
                 scenes: vec![rs],
@@ -320,6 +324,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         plans.push(CapturePlan {
             name: vdesc.name.clone(),
             kind: CaptureKind::Video,
+            subject: None,
             fps: Some(vdesc.fps),
             cameras: vec![cam; traj.frames.len()],
             scenes,
@@ -494,6 +499,7 @@ fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnIm
     pganeus_io::write_cameras_npz(&dir.join("cameras_sphere.npz"), &mats)?;
     let info = CaptureInfo {
         kind: p.kind,
+        subject: p.subject,
         fps: p.fps,
         extra: Default::default(),
     };

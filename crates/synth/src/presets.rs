@@ -1,13 +1,16 @@
 //! Built-in scenes. `tabletop`: a box slides into a wall and bounces back, and
 //! is dropped with spin in a second video. `two-body`: a box slides into a
-//! resting block.
+//! resting block. `backdrop`: the tabletop's motion on a board with more and
+//! larger obstacles, another board texture and light, and no table: beyond
+//! the board a plain grey backdrop (as a studio capture, or another renderer's
+//! empty world).
 
 use crate::desc::*;
 use crate::render::Light;
 use crate::texture::{Pattern, Texture};
 use sim::ContactParams;
 
-pub const PRESETS: [&str; 2] = ["tabletop", "two-body"];
+pub const PRESETS: [&str; 3] = ["tabletop", "two-body", "backdrop"];
 
 /// Image size, view and frame counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -26,7 +29,7 @@ fn board() -> Board {
             detail: 0.45,
             ..Texture::new(Pattern::Checker, 0.03, vec![[0.92, 0.9, 0.85], [0.18, 0.2, 0.24]], 11)
         },
-        table: Texture {
+        table: Some(Texture {
             direction: [0.2, 1.0, 0.0],
             ..Texture::new(
                 Pattern::Marble,
@@ -34,7 +37,45 @@ fn board() -> Board {
                 vec![[0.42, 0.27, 0.15], [0.62, 0.43, 0.26], [0.35, 0.22, 0.12]],
                 12,
             )
+        }),
+    }
+}
+
+/// A plain grey world beyond a noise-textured board, lit from the other side.
+fn backdrop_board_and_light() -> (Board, Light) {
+    let board = Board {
+        half: [0.3, 0.3],
+        thickness: 0.012,
+        texture: Texture {
+            detail: 0.35,
+            ..Texture::new(
+                Pattern::Noise,
+                0.02,
+                vec![[0.85, 0.82, 0.7], [0.35, 0.4, 0.45], [0.6, 0.3, 0.25]],
+                13,
+            )
         },
+        table: None,
+    };
+    let grey = [0.55, 0.55, 0.55];
+    let light = Light {
+        ambient: 0.4,
+        direction: [-0.5, 0.45, 1.0],
+        intensity: 0.7,
+        softness: 8.0,
+        sky_horizon: grey,
+        sky_zenith: grey,
+    };
+    (board, light)
+}
+
+fn obstacle(name: &str, shape: ShapeDesc, t: [f64; 3], texture: Texture) -> ObstacleDesc {
+    ObstacleDesc {
+        name: name.into(),
+        shape,
+        t,
+        q: [1.0, 0.0, 0.0, 0.0],
+        texture,
     }
 }
 
@@ -207,6 +248,35 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
                 ],
             )],
         },
+        "backdrop" => {
+            let (board, light) = backdrop_board_and_light();
+            let mut scene = preset("tabletop", scale).expect("a preset");
+            scene.name = "backdrop".into();
+            scene.board = board;
+            scene.light = light;
+            scene.obstacles.extend([
+                obstacle(
+                    "crate",
+                    ShapeDesc::Box {
+                        half: [0.05, 0.05, 0.05],
+                    },
+                    [-0.08, 0.19, 0.05],
+                    Texture::new(Pattern::Checker, 0.02, vec![[0.8, 0.6, 0.3], [0.3, 0.2, 0.15]], 61),
+                ),
+                obstacle(
+                    "ramp",
+                    ShapeDesc::Wedge {
+                        half: [0.08, 0.06, 0.03],
+                    },
+                    [0.02, -0.19, 0.03],
+                    Texture {
+                        direction: [1.0, 0.0, 0.3],
+                        ..Texture::new(Pattern::Stripes, 0.015, vec![[0.3, 0.3, 0.75], [0.85, 0.85, 0.9]], 62)
+                    },
+                ),
+            ]);
+            scene
+        }
         _ => return None,
     })
 }

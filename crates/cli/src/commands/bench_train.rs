@@ -1,10 +1,10 @@
-//! Training benchmark on a synthetic object capture: every N steps a JSON line
+//! Training benchmark on a synthetic object or scene capture: every N steps a JSON line
 //! with wall time, rays/s, samples/s, held-out PSNR and the Chamfer distance
 //! of the zero level to the true mesh; peak memory at the end.
 
-use super::mesh_cmds::posed_truth;
+use super::mesh_cmds::capture_truth;
 use super::render::{holdout_psnr, zero_level_mesh};
-use super::train::load_config;
+use super::train::{capture_kind, load_config};
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use geom::TriMesh;
@@ -52,15 +52,21 @@ fn peak_memory_mib() -> Option<f64> {
 }
 
 pub fn run(a: BenchTrainArgs) -> Result<()> {
-    let (truth_mesh, _) = posed_truth(&a.dataset.join("truth.json"), &a.capture)?;
-    let truth_visible = above(&truth_mesh, 0.003);
+    // A scene is compared over its footprint (its truth is already the visible part); an object whole and
+    // above the board, which is what the cameras saw.
+    let (truth_mesh, _, region) = capture_truth(&a.dataset.join("truth.json"), &a.capture)?;
+    let truth_visible = match region {
+        Some(_) => truth_mesh.clone(),
+        None => above(&truth_mesh, 0.003),
+    };
     let diameter = {
         let (lo, hi) = truth_mesh.bounds();
         (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
     };
     let capture = a.dataset.join(&a.capture);
     let data = Dataset::load(&capture).with_context(|| format!("loading {}", capture.display()))?;
-    let mut cfg = load_config(&a.preset, a.config.as_deref())?;
+    let kind = capture_kind(None, &capture, &data)?;
+    let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
     cfg.iterations = a.iterations;
     let mut t = NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?;
     let (mut total_secs, mut window_secs, mut rays, mut samples) = (0.0f64, 0.0f64, 0usize, 0usize);
@@ -76,13 +82,16 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
             let psnr = holdout_psnr(&t);
             let levels = t.config.active_levels(t.step);
             let m = zero_level_mesh(&t.field, levels, t.data.centre, t.data.radius, a.mesh_res);
-            let (full, visible) = if m.faces.is_empty() {
-                (f64::INFINITY, f64::INFINITY)
-            } else {
-                (
+            let (full, visible) = match region {
+                _ if m.faces.is_empty() => (f64::INFINITY, f64::INFINITY),
+                Some(r) => {
+                    let c = mesh::chamfer(&r.crop(&m), &truth_visible, 20000, 1).mean;
+                    (c, c)
+                }
+                None => (
                     mesh::chamfer(&m, &truth_mesh, 20000, 1).mean,
                     mesh::chamfer(&above(&m, 0.003), &truth_visible, 20000, 1).mean,
-                )
+                ),
             };
             let round = |v: f64, k: f64| (v * k).round() / k;
             println!(

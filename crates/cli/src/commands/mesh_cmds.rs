@@ -106,10 +106,29 @@ pub struct BakeArgs {
     /// Nodes along the longest side.
     #[arg(long, default_value_t = 128)]
     pub res: usize,
-    /// Bounds "xmin,ymin,zmin,xmax,ymax,zmax" in metres (default: the field's
-    /// unit-sphere cube, or the mesh's box padded by 5 %).
+    /// Bounds "xmin,ymin,zmin,xmax,ymax,zmax" in metres (default: an object field's unit-sphere cube; a scene
+    /// field's board region: the unit sphere's square in x and y, from 10 % of its radius below the board to as
+    /// far above its highest surface; a mesh's box padded by 5 %).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub bounds: Option<Vec<f64>>,
+    /// Height of the floor, m: everything below it is solid (the grid takes the union of the field with that
+    /// half-space), so the sign is right under the board however little the cameras saw there. Default for
+    /// scene fields 0 (captures are calibrated on the board, the plane z = 0); none for objects and meshes.
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "no_floor")]
+    pub floor: Option<f64>,
+    /// No floor, also for a scene field.
+    #[arg(long)]
+    pub no_floor: bool,
+}
+
+/// The board region of a scene field: the unit sphere's square in x and y; in z, from 10 % of its radius below
+/// the board (z = 0) to as far above the highest point of its zero level.
+fn scene_box(l: &neus::checkpoint::LoadedField) -> ([f64; 3], [f64; 3]) {
+    let (c, r) = (l.centre.to_array(), l.radius);
+    let m = zero_level_mesh(&l.field, l.config.field.grid.levels, l.centre, r, 96);
+    let top = m.vertices.iter().map(|v| v[2]).fold(0.0, f64::max);
+    let z_hi = (top + 0.1 * r).min(c[2] + r);
+    ([c[0] - r, c[1] - r, -0.1 * r], [c[0] + r, c[1] + r, z_hi])
 }
 
 pub fn bake(a: BakeArgs) -> Result<()> {
@@ -142,7 +161,18 @@ pub fn bake(a: BakeArgs) -> Result<()> {
     } else {
         let l = load_field(&checkpoint_of(&a.source))?;
         let (c, r) = (l.centre.to_array(), l.radius);
-        let (lo, hi) = bounds([0, 1, 2].map(|k| c[k] - r), [0, 1, 2].map(|k| c[k] + r))?;
+        let scene = l.config.kind == neus::CaptureSubject::Scene;
+        let (lo, hi) = if scene {
+            let (lo, hi) = scene_box(&l);
+            bounds(lo, hi)?
+        } else {
+            bounds([0, 1, 2].map(|k| c[k] - r), [0, 1, 2].map(|k| c[k] + r))?
+        };
+        let floor = match (a.floor, a.no_floor) {
+            (_, true) => None,
+            (Some(z), _) => Some(z),
+            (None, false) => scene.then_some(0.0),
+        };
         let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
         let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / h).ceil() as usize + 1);
         let mut pts = Vec::with_capacity(dims.iter().product::<usize>() * 3);
@@ -158,8 +188,19 @@ pub fn bake(a: BakeArgs) -> Result<()> {
         if !sdf.iter().any(|v| *v < 0.0) || !sdf.iter().any(|v| *v > 0.0) {
             bail!("{}: the field has no zero level inside the bounds", a.source.display());
         }
-        // Unit-sphere distances to metres.
-        SdfGrid::from_values(lo, h, dims, sdf.iter().map(|v| v * r as f32).collect())?
+        // Unit-sphere distances to metres, united with the solid below the floor.
+        let values = sdf
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let d = v * r as f32;
+                match floor {
+                    Some(f) => d.min((lo[2] + (i / (dims[0] * dims[1])) as f64 * h - f) as f32),
+                    None => d,
+                }
+            })
+            .collect();
+        SdfGrid::from_values(lo, h, dims, values)?
     };
     grid.save(&a.out)?;
     println!(
@@ -181,12 +222,71 @@ pub struct CompareMeshArgs {
     /// Compare with the true mesh of a synthetic dataset's body ...
     #[arg(long, requires = "capture")]
     pub truth: Option<PathBuf>,
-    /// ... posed as in this static capture (e.g. `toy_b`): `a` is in that capture's frame.
+    /// ... posed as in this static capture (e.g. `toy_b`): `a` is in that capture's frame. With the
+    /// background capture (e.g. `background`), the true scene: both are cropped to its footprint on the board.
     #[arg(long, requires = "truth")]
     pub capture: Option<String>,
     /// Surface samples per mesh (Chamfer, normals) and points for the volume IoU (×10).
     #[arg(long, default_value_t = 20000)]
     pub samples: usize,
+}
+
+/// The part of a scene that a comparison covers: the true scene's footprint on the board (its xy box).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SceneRegion {
+    pub lo: [f64; 2],
+    pub hi: [f64; 2],
+}
+
+impl SceneRegion {
+    /// The faces of `m` whose centroid lies over the region.
+    pub fn crop(&self, m: &geom::TriMesh) -> geom::TriMesh {
+        let faces: Vec<usize> = (0..m.faces.len())
+            .filter(|&f| {
+                let c = centroid(m, f);
+                (0..2).all(|k| c[k] >= self.lo[k] && c[k] <= self.hi[k])
+            })
+            .collect();
+        mesh::sub_mesh(m, &faces)
+    }
+}
+
+fn centroid(m: &geom::TriMesh, f: usize) -> Vec3<f64> {
+    let [a, b, c] = m.faces[f].map(|i| Vec3::cst(m.vertices[i as usize]));
+    (a + b + c) * (1.0 / 3.0)
+}
+
+/// A synthetic dataset's true scene (`truth.json`'s `background`): the part a camera above the board can see
+/// (faces turned down, such as the board's underside lying on the table, are left out), and its region.
+pub(crate) fn scene_truth(truth: &Path) -> Result<Option<(geom::TriMesh, PathBuf, SceneRegion)>> {
+    let t = pganeus_io::read_truth(truth)?;
+    let Some(bg) = &t.background else { return Ok(None) };
+    let path = truth.parent().unwrap_or(Path::new(".")).join(&bg.mesh);
+    let m = read_mesh(&path)?;
+    let (lo, hi) = m.bounds();
+    let up: Vec<usize> = (0..m.faces.len())
+        .filter(|&f| {
+            let [a, b, c] = m.faces[f].map(|i| Vec3::cst(m.vertices[i as usize]));
+            (b - a).cross(c - a).normalize_or(Vec3::new(0.0, 0.0, 1.0)).z > -0.5
+        })
+        .collect();
+    let region = SceneRegion {
+        lo: [lo[0], lo[1]],
+        hi: [hi[0], hi[1]],
+    };
+    Ok(Some((mesh::sub_mesh(&m, &up), path, region)))
+}
+
+/// The true mesh of `capture`: the body captured there, posed as it was, or, for the background capture, the
+/// visible scene and the region to crop a reconstruction to.
+pub(crate) fn capture_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf, Option<SceneRegion>)> {
+    let t = pganeus_io::read_truth(truth)?;
+    if t.background.as_ref().is_some_and(|b| b.capture == capture) {
+        let (m, p, r) = scene_truth(truth)?.expect("checked above");
+        return Ok((m, p, Some(r)));
+    }
+    let (m, p) = posed_truth(truth, capture)?;
+    Ok((m, p, None))
 }
 
 /// The true mesh of the body captured in `capture`, posed as it was there.
@@ -207,10 +307,17 @@ pub(crate) fn posed_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh,
 }
 
 pub fn compare_mesh(a: CompareMeshArgs) -> Result<()> {
-    let ma = read_mesh(&a.a)?;
+    let mut ma = read_mesh(&a.a)?;
     let (mb, b_path) = match (&a.b, &a.truth, &a.capture) {
         (Some(b), _, _) => (read_mesh(b)?, b.clone()),
-        (None, Some(truth), Some(capture)) => posed_truth(truth, capture)?,
+        (None, Some(truth), Some(capture)) => {
+            let (m, p, region) = capture_truth(truth, capture)?;
+            if let Some(r) = region {
+                // A scene: compare over the true scene's footprint only (the table beyond is not scene).
+                ma = r.crop(&ma);
+            }
+            (m, p)
+        }
         _ => bail!("give a second mesh, or --truth and --capture"),
     };
     for (m, p) in [(&ma, &a.a), (&mb, &b_path)] {

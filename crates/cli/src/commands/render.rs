@@ -69,7 +69,10 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
 }
 
 /// The zero level of a field inside the unit sphere's cube, in world
-/// coordinates (`p_world = centre + radius · p_unit`).
+/// coordinates (`p_world = centre + radius · p_unit`). A field with a
+/// background field (a scene) keeps only the faces inside the unit sphere:
+/// beyond it the background field holds the content, and the SDF there was
+/// never trained (an open mesh, cut at the sphere).
 pub fn zero_level_mesh(field: &NeusField, levels: usize, centre: Vec3<f64>, radius: f64, res: usize) -> TriMesh {
     let grid = mesh::sample_sdf_grid(
         &|pts: &[[f64; 3]]| {
@@ -81,6 +84,18 @@ pub fn zero_level_mesh(field: &NeusField, levels: usize, centre: Vec3<f64>, radi
         res,
     );
     let mut m = mesh::extract_zero_level(&grid);
+    if field.background.is_some() {
+        let inside: Vec<usize> = (0..m.faces.len())
+            .filter(|&f| {
+                let c = m.faces[f].iter().fold([0.0f64; 3], |a, &i| {
+                    let v = m.vertices[i as usize];
+                    [a[0] + v[0], a[1] + v[1], a[2] + v[2]]
+                });
+                c.iter().map(|x| x * x).sum::<f64>() <= 9.0
+            })
+            .collect();
+        m = mesh::sub_mesh(&m, &inside);
+    }
     for v in &mut m.vertices {
         *v = (centre + Vec3::cst(*v) * radius).to_array();
     }

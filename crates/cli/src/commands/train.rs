@@ -1,6 +1,6 @@
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use neus::{checkpoint, Dataset, NeusTrainer, TrainConfig};
+use neus::{checkpoint, CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -14,6 +14,11 @@ pub struct TrainArgs {
     /// fast (default) or quality.
     #[arg(long, default_value = "fast")]
     pub preset: String,
+    /// What the capture shows: `object` (sphere start; masks mark the object) or `scene` (board-plane
+    /// start, a background field beyond the unit sphere; masks mark what is not scene). Default: capture.json's
+    /// "subject", else object when the capture has masks and scene when it has none.
+    #[arg(long, value_parser = parse_kind)]
+    pub kind: Option<CaptureSubject>,
     /// A TOML file with TrainConfig fields, over the preset.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -34,15 +39,51 @@ pub struct TrainArgs {
     pub preview_res: usize,
 }
 
-/// A preset with a config file's fields laid over it.
-pub fn load_config(preset: &str, file: Option<&Path>) -> Result<TrainConfig> {
-    let base =
-        TrainConfig::preset(preset).ok_or_else(|| anyhow!("--preset: unknown preset \"{preset}\" (fast, quality)"))?;
+fn parse_kind(s: &str) -> Result<CaptureSubject, String> {
+    match s {
+        "object" => Ok(CaptureSubject::Object),
+        "scene" => Ok(CaptureSubject::Scene),
+        _ => Err(format!("\"{s}\" is not object or scene")),
+    }
+}
+
+/// The subject of a capture: the user's choice, else capture.json's, else object with masks, scene without.
+/// Says which and why in the log.
+pub fn capture_kind(given: Option<CaptureSubject>, capture: &Path, data: &Dataset) -> Result<CaptureSubject> {
+    let (kind, why) = match given {
+        Some(k) => (k, "--kind".to_string()),
+        None => match pganeus_io::open_capture(capture)?.info.and_then(|i| i.subject) {
+            Some(k) => (k, "capture.json".to_string()),
+            None if data.has_masks() => (CaptureSubject::Object, "the capture has masks".to_string()),
+            None => (CaptureSubject::Scene, "the capture has no masks".to_string()),
+        },
+    };
+    tracing::info!("training a {} field ({why})", kind.name());
+    Ok(kind)
+}
+
+/// Lay `over` on `base` key by key: a nested table (`[field.grid]`) changes only the keys it names, so a
+/// config file keeps the rest of the preset (a scene's start and background field among them).
+fn merge_tables(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+/// A preset for a kind of capture with a config file's fields laid over it.
+pub fn load_config(preset: &str, kind: CaptureSubject, file: Option<&Path>) -> Result<TrainConfig> {
+    let base = TrainConfig::preset(preset, kind)
+        .ok_or_else(|| anyhow!("--preset: unknown preset \"{preset}\" (fast, quality)"))?;
     let Some(file) = file else { return Ok(base) };
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
     let over: toml::Table = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", file.display()))?;
     let mut merged = toml::Table::try_from(&base)?;
-    merged.extend(over);
+    merge_tables(&mut merged, over);
     toml::Value::Table(merged)
         .try_into()
         .map_err(|e| anyhow!("{}: {e}", file.display()))
@@ -76,7 +117,8 @@ pub fn run(a: TrainArgs) -> Result<()> {
                 ckpt.display()
             );
         }
-        let mut cfg = load_config(&a.preset, a.config.as_deref())?;
+        let kind = capture_kind(a.kind, &a.capture, &data)?;
+        let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
         if let Some(n) = a.iterations {
             cfg.iterations = n;
         }

@@ -7,7 +7,7 @@
 //!   mask/000.png  001.png ...   optional; the same names; white (>127) = the object
 //!   mask_<name>/000.png ...     optional extra masks (e.g. one per body), same rules
 //!   cameras_sphere.npz          world_mat_i and scale_mat_i per image i (float64, 4x4)
-//!   capture.json                optional: {"kind": "static" | "video", "fps": 30.0}
+//!   capture.json                optional: {"kind": "static" | "video", "fps": 30.0, "subject": "scene" | "object"}
 //! ```
 //!
 //! [`open_capture`] lists and checks a capture without decoding any pixels;
@@ -46,11 +46,36 @@ pub enum CaptureKind {
     Video,
 }
 
+/// What a static capture shows (optional in `capture.json`), which decides how a field trained on it starts
+/// and what its masks mean.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CaptureSubject {
+    /// One object; masks, if any, mark the object.
+    #[default]
+    Object,
+    /// The static scene: board, obstacles and whatever lies beyond (table, room, backdrop); masks, if any,
+    /// mark what is *not* scene.
+    Scene,
+}
+
+impl CaptureSubject {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Object => "object",
+            Self::Scene => "scene",
+        }
+    }
+}
+
 /// `capture.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CaptureInfo {
     /// Static multi-view images or a video.
     pub kind: CaptureKind,
+    /// What a static capture shows; absent: an object when the capture has masks, a scene otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subject: Option<CaptureSubject>,
     /// Frames per second (> 0), for a video.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,

@@ -1,0 +1,102 @@
+//! A scene capture (no masks; a table beyond the board, or a plain backdrop)
+//! trains into a clean surface: the board where it is, sparse occupancy, no
+//! fog above it. Before the scene kind (a sphere start and a constant colour
+//! behind the sphere), such a capture gave a fog filling most of the sphere.
+use geom::Vec3;
+use neus::{CaptureSubject, Dataset, NeusTrainer, TrainConfig};
+use std::path::{Path, PathBuf};
+
+/// The background capture of a preset at 96×72, 16 views.
+fn scene_capture(preset: &str, dir: &Path) -> PathBuf {
+    let mut scene = synth::preset(preset, synth::Scale::Small).unwrap();
+    scene.cameras.width = 96;
+    scene.cameras.height = 72;
+    scene.cameras.views = 16;
+    scene.videos.truncate(1);
+    scene.videos[0].frames = 1;
+    synth::generate(&scene, Path::new("."), dir, &mut |_, _, _| {}).unwrap();
+    dir.join("background")
+}
+
+fn tiny_scene_config() -> TrainConfig {
+    let mut c = TrainConfig {
+        iterations: 400,
+        batch_rays: 512,
+        steps_per_ray: 256,
+        max_samples_per_ray: 32,
+        occupancy_res: 32,
+        occupancy_warmup: 100,
+        anneal_end: 100,
+        level_start: 4,
+        level_every: 25,
+        holdout_every: 8,
+        ..TrainConfig::preset("fast", CaptureSubject::Scene).unwrap()
+    };
+    c.field.grid.levels = 10;
+    c.field.grid.log2_table_size = 15;
+    c.field.grid.max_resolution = 512;
+    if let Some(b) = &mut c.field.background {
+        b.grid.levels = 4;
+        b.grid.log2_table_size = 12;
+        b.grid.max_resolution = 64;
+        b.samples = 12;
+    }
+    c
+}
+
+/// The height (world z, m) where the field's zero level crosses the vertical line at `(x, y)`, searched
+/// between `lo` and `hi`.
+fn surface_height(t: &NeusTrainer, x: f64, y: f64, lo: f64, hi: f64) -> Option<f64> {
+    let (c, r) = (t.data.centre, t.data.radius);
+    let n = 400;
+    let zs: Vec<f64> = (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect();
+    let pts: Vec<f32> = zs
+        .iter()
+        .flat_map(|&z| ((Vec3::new(x, y, z) - c) * (1.0 / r)).to_array().map(|v| v as f32))
+        .collect();
+    let sdf = t.field.sdf_values(&pts, t.config.field.grid.levels);
+    // The highest crossing from outside (above) to inside (below).
+    (0..n)
+        .rev()
+        .find(|&k| sdf[k] <= 0.0 && sdf[k + 1] > 0.0)
+        .map(|k| zs[k] + (zs[k + 1] - zs[k]) * (sdf[k] as f64 / (sdf[k] - sdf[k + 1]) as f64))
+}
+
+fn check_scene(preset: &str) {
+    let dir = testkit::scratch_dir("neus", &format!("scene_{preset}"));
+    let capture = scene_capture(preset, &dir);
+    let data = Dataset::load(&capture).unwrap();
+    assert!(!data.has_masks());
+    let mut t = NeusTrainer::new(tiny_scene_config(), data).unwrap();
+    let stats: Vec<_> = (0..400).map(|_| t.step()).collect();
+    let last = stats.last().unwrap();
+    let psnr: f32 = stats[350..].iter().map(|s| s.psnr).sum::<f32>() / 50.0;
+    // The board's top (z = 0) at points of the board away from the obstacles.
+    let spots = [(-0.15, -0.05), (-0.05, 0.05), (0.1, -0.05), (0.05, 0.1), (-0.2, -0.15)];
+    let heights: Vec<f64> = spots
+        .iter()
+        .map(|&(x, y)| surface_height(&t, x, y, -0.05, 0.2).unwrap_or(f64::INFINITY))
+        .collect();
+    let worst = heights.iter().map(|h| h.abs()).fold(0.0, f64::max);
+    eprintln!(
+        "{preset}: occupied {:.3}, inv_s {:.0}, batch PSNR {psnr:.1} dB, board heights (mm) {:?}",
+        last.occupied,
+        last.inv_s,
+        heights.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>()
+    );
+    assert!(worst < 0.002, "{preset}: board height off by {:.1} mm", worst * 1e3);
+    // Empty space is known to be empty: samples concentrate at the surface.
+    assert!(last.occupied < 0.15, "{preset}: occupancy {:.3}", last.occupied);
+    assert!(psnr > 20.0, "{preset}: batch PSNR {psnr:.1} dB");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn board_on_a_table_trains_into_a_clean_surface() {
+    check_scene("tabletop");
+}
+
+#[test]
+fn board_before_a_plain_backdrop_trains_into_a_clean_surface() {
+    check_scene("backdrop");
+}
