@@ -32,6 +32,9 @@ pub struct TrainConfig {
     pub occupancy_warmup: usize,
     /// Steps over which NeuS's cosine annealing goes from 0 to 1. Default 500.
     pub anneal_end: usize,
+    /// Colour ignores the view direction (only the constant spherical harmonic) for this many steps: the
+    /// geometry forms first. Default 0 (objects); 1000 for scenes.
+    pub view_independent_steps: usize,
     /// Weight of the eikonal term. Default 0.1.
     pub eikonal_weight: f32,
     /// Weight of the mask BCE term (when the capture has masks). Default 0.1.
@@ -63,6 +66,7 @@ impl Default for TrainConfig {
             occupancy_every: 16,
             occupancy_warmup: 200,
             anneal_end: 500,
+            view_independent_steps: 0,
             eikonal_weight: 0.1,
             mask_weight: 0.1,
             level_start: 4,
@@ -83,6 +87,7 @@ impl TrainConfig {
             CaptureSubject::Object => base,
             CaptureSubject::Scene => Self {
                 kind,
+                view_independent_steps: 1000,
                 field: FieldConfig {
                     init: FieldInit::Board,
                     background: Some(BackgroundConfig::default()),

@@ -114,7 +114,9 @@ pub fn render_rays(
             color_in: &mut sc.color_in,
         },
     );
-    let rgb = field.color.forward(&field.color_params, &sc.color_in, m, &mut sc.color_mlp);
+    let rgb = field
+        .color
+        .forward(&field.color_params, &sc.color_in, m, &mut sc.color_mlp);
     sc.rgb.clear();
     sc.rgb.extend(rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
     let inv_s = field.inv_s();

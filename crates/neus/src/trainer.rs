@@ -312,6 +312,13 @@ impl NeusTrainer {
         sc.color_in.resize(m * cin, 0.0);
         sc.sh.resize(m * SH_DIM, 0.0);
         sh_encode(&sc.dirs, &mut sc.sh);
+        if step < cfg.view_independent_steps {
+            // Colour from the point alone: a view-dependent colour could paint an unformed obstacle onto the
+            // surface behind it, differently for each view, instead of growing it.
+            for row in sc.sh.chunks_exact_mut(SH_DIM) {
+                row[1..].fill(0.0);
+            }
+        }
         let eik = fd_gradients(
             out,
             width,

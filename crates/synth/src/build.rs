@@ -151,7 +151,6 @@ pub(crate) struct Bodies {
     pub textures: Vec<Texture>,
 }
 
-
 pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScene, SynthError> {
     let b = &scene.board;
     if !(b.half.iter().all(|v| v.is_finite() && *v > 0.0)) {
