@@ -295,14 +295,15 @@ fn synth_refuses_a_bad_scene_and_keeps_the_old_dataset() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// A tiny capture of the tabletop toy, rendered by `pganeus synth`.
-fn tiny_capture(d: &Path) -> PathBuf {
+/// The tabletop preset rendered by `pganeus synth` into `d/data` at `width`×`height` with `views` views per
+/// static capture and one frame per video.
+fn tiny_dataset(d: &Path, width: u32, height: u32, views: usize) -> PathBuf {
     let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
     let scene = String::from_utf8(printed.stdout)
         .unwrap()
-        .replacen("width = 160", "width = 48", 1)
-        .replacen("height = 120", "height = 36", 1)
-        .replacen("views = 24", "views = 6", 1)
+        .replacen("width = 160", &format!("width = {width}"), 1)
+        .replacen("height = 120", &format!("height = {height}"), 1)
+        .replacen("views = 24", &format!("views = {views}"), 1)
         .replace("frames = 30", "frames = 1");
     std::fs::write(d.join("scene.toml"), scene).unwrap();
     let o = bin()
@@ -313,7 +314,12 @@ fn tiny_capture(d: &Path) -> PathBuf {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", text(&o));
-    d.join("data").join("toy_a")
+    d.join("data")
+}
+
+/// A tiny capture of the tabletop toy.
+fn tiny_capture(d: &Path) -> PathBuf {
+    tiny_dataset(d, 48, 36, 6).join("toy_a")
 }
 
 const TINY_TRAIN: &str = r#"
@@ -730,22 +736,7 @@ radius = 0.005
 #[test]
 fn scene_train_bake_and_simulate_on_the_reconstruction() {
     let d = scratch("scene");
-    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", "width = 96", 1)
-        .replacen("height = 120", "height = 72", 1)
-        .replacen("views = 24", "views = 16", 1)
-        .replace("frames = 30", "frames = 1");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    let o = bin()
-        .args(["synth", "--scene"])
-        .arg(d.join("scene.toml"))
-        .arg("--out")
-        .arg(d.join("data"))
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    tiny_dataset(&d, 96, 72, 16);
     std::fs::write(d.join("tiny.toml"), TINY_SCENE_TRAIN).unwrap();
     let run = d.join("run");
     let o = bin()

@@ -155,3 +155,48 @@ fn sphere_weights_match_the_closed_form() {
     assert!((out.opacity - 1.0).abs() < 1e-3, "opacity {}", out.opacity);
     assert!((out.depth as f64 - 0.7).abs() < 0.01, "depth {}", out.depth);
 }
+
+/// The background field's compositing (density samples, colour at infinity): its backward matches finite
+/// differences for σ, the sample colours and the colour at infinity, with one sample nearly opaque.
+#[test]
+fn density_compositing_backward_matches_finite_differences() {
+    use neus::volume::{composite_density, composite_density_backward};
+    let n = 6;
+    let mut rng = geom::SplitMix64::new(9);
+    let sigma: Vec<f32> = (0..n)
+        .map(|i| {
+            if i == 3 {
+                40.0
+            } else {
+                0.5 + 3.0 * rng.next_f64() as f32
+            }
+        })
+        .collect();
+    let delta: Vec<f32> = (0..n).map(|_| 0.05 + 0.1 * rng.next_f64() as f32).collect();
+    let rgb: Vec<[f32; 3]> = (0..n).map(|_| [0; 3].map(|_| rng.next_f64() as f32)).collect();
+    let end = [0.2f32, 0.5, 0.8];
+    let d_out = [0.6f32, -0.3, 0.9];
+    let mut x: Vec<f64> = sigma.iter().map(|v| *v as f64).collect();
+    x.extend(rgb.iter().flatten().map(|v| *v as f64));
+    x.extend(end.iter().map(|v| *v as f64));
+    let loss = |x: &[f64]| {
+        let s: Vec<f32> = x[..n].iter().map(|v| *v as f32).collect();
+        let c: Vec<[f32; 3]> = (0..n).map(|i| [0, 1, 2].map(|k| x[n + 3 * i + k] as f32)).collect();
+        let e = [0, 1, 2].map(|k| x[4 * n + k] as f32);
+        let (o, _) = composite_density(&s, &delta, &c, e);
+        vec![(0..3).map(|k| (o[k] * d_out[k]) as f64).sum()]
+    };
+    let (mut ds, mut dc) = (vec![0.0f32; n], vec![[0.0f32; 3]; n]);
+    let de = composite_density_backward(&sigma, &delta, &rgb, end, d_out, &mut ds, &mut dc);
+    let mut analytic: Vec<f64> = ds.iter().map(|v| *v as f64).collect();
+    analytic.extend(dc.iter().flatten().map(|v| *v as f64));
+    analytic.extend(de.iter().map(|v| *v as f64));
+    let tol = GradTolerance {
+        eps: 1e-3,
+        abs_tol: 2e-4,
+        rel_tol: 2e-2,
+        pass_fraction: 1.0,
+    };
+    let names: Vec<String> = (0..analytic.len()).map(|i| format!("x{i}")).collect();
+    check_jacobian("composite_density", &loss, &x, &[analytic], &names, tol).unwrap_or_else(|e| panic!("{e}"));
+}
