@@ -771,6 +771,8 @@ fn scene_train_bake_and_simulate_on_the_reconstruction() {
     assert!(o.status.success(), "{}", text(&o));
     let cmp: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let chamfer = cmp["chamfer_mean"].as_f64().unwrap();
+    eprintln!("scene preview: Chamfer {:.2} mm to the true scene", chamfer * 1e3);
+    // Measured 4.5 mm (the wall is not formed yet: issue 9); a fog is hundreds of millimetres off.
     assert!(chamfer < 0.01, "preview Chamfer {chamfer}");
 
     let grid = d.join("scene.sdf");

@@ -154,13 +154,7 @@ impl Mlp {
         {
             let w = &mut params[self.weight_range(0)];
             if pairs > 0 {
-                let q = rng.quat();
-                let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-                for j in 0..pairs {
-                    let z = 1.0 - (2 * j + 1) as f64 / pairs as f64;
-                    let r = (1.0 - z * z).max(0.0).sqrt();
-                    let phi = golden * j as f64;
-                    let u = q.rotate(geom::Vec3::new(r * phi.cos(), r * phi.sin(), z)).to_array();
+                for (j, u) in fibonacci_directions(pairs, rng).into_iter().enumerate() {
                     for d in 0..3 {
                         w[j * first.n_in + d] = u[d] as f32;
                         w[(j + pairs) * first.n_in + d] = -u[d] as f32;
@@ -235,17 +229,8 @@ impl Mlp {
         );
         params.fill(0.0);
         let pairs = first.n_out / 2;
-        let q = rng.quat();
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        let mut dirs = Vec::with_capacity(pairs);
-        let mut biases = Vec::with_capacity(pairs);
-        for j in 0..pairs {
-            let z = 1.0 - (2 * j + 1) as f64 / pairs as f64;
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let phi = golden * j as f64;
-            dirs.push(q.rotate(geom::Vec3::new(r * phi.cos(), r * phi.sin(), z)).to_array());
-            biases.push(rng.range(-0.5, 0.5));
-        }
+        let dirs = fibonacci_directions(pairs, rng);
+        let biases: Vec<f64> = (0..pairs).map(|_| rng.range(-0.5, 0.5)).collect();
         // c = Uᵀ (U Uᵀ)⁻¹ n: the least-norm row weights whose pairs sum to the plane's normal.
         let mut gram = geom::Mat3::<f64>::zero();
         for u in &dirs {
@@ -436,6 +421,21 @@ impl Mlp {
             }
         }
     }
+}
+
+/// `n` unit directions spread evenly over the sphere (a Fibonacci lattice) under a random rotation: a
+/// quadrature of the sphere rather than a Monte-Carlo sample.
+fn fibonacci_directions(n: usize, rng: &mut geom::SplitMix64) -> Vec<[f64; 3]> {
+    let q = rng.quat();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|j| {
+            let z = 1.0 - (2 * j + 1) as f64 / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * j as f64;
+            q.rotate(geom::Vec3::new(r * phi.cos(), r * phi.sin(), z)).to_array()
+        })
+        .collect()
 }
 
 /// Standard normal draw (Box–Muller).

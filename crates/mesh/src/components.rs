@@ -60,6 +60,15 @@ pub fn sub_mesh(m: &TriMesh, faces: &[usize]) -> TriMesh {
     TriMesh::new(vertices, faces)
 }
 
+/// The faces of `m` whose three corners `keep` accepts, as a mesh of their own (crops by region, height,
+/// facing).
+pub fn faces_where(m: &TriMesh, keep: impl Fn([[f64; 3]; 3]) -> bool) -> TriMesh {
+    let faces: Vec<usize> = (0..m.faces.len())
+        .filter(|&f| keep(m.faces[f].map(|i| m.vertices[i as usize])))
+        .collect();
+    sub_mesh(m, &faces)
+}
+
 /// The largest connected piece of `m` (an empty mesh stays empty).
 pub fn largest_component(m: &TriMesh) -> TriMesh {
     match components(m).first() {

@@ -25,7 +25,7 @@ mod sample_sdf_grid;
 pub mod visibility;
 mod zero_level_points;
 
-pub use components::{components, largest_component, sub_mesh};
+pub use components::{components, faces_where, largest_component, sub_mesh};
 pub use decimate::decimate;
 pub use icp::{icp, icp_auto, icp_evaluate, icp_hypotheses, inlier_fraction, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};

@@ -34,6 +34,8 @@ pub struct Dataset {
     /// Unit sphere → world: `p_world = centre + radius · p_unit`.
     pub centre: Vec3<f64>,
     pub radius: f64,
+    /// What `capture.json` says the capture shows, if it says.
+    pub subject: Option<pganeus_io::CaptureSubject>,
 }
 
 /// A ray in unit coordinates.
@@ -116,6 +118,7 @@ impl Dataset {
             views,
             centre,
             radius,
+            subject: index.info.as_ref().and_then(|i| i.subject),
         })
     }
 

@@ -2,7 +2,7 @@
 //! MLP give the signed distance and a feature vector; a colour MLP takes the
 //! view direction (spherical harmonics), the normal and the feature.
 
-use crate::background_field::{BackgroundConfig, BackgroundField};
+use crate::background_field::{BackgroundConfig, BackgroundField, BackgroundScratch};
 use field::{Activation, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, SH_DIM};
 use geom::SplitMix64;
 use serde::{Deserialize, Serialize};
@@ -128,6 +128,25 @@ impl NeusField {
 
     pub fn background(&self) -> [f32; 3] {
         [self.extra[1], self.extra[2], self.extra[3]].map(|v| v.clamp(0.0, 1.0))
+    }
+
+    /// The colour behind each ray's samples (unit coordinates), into `sc.out`: the background field's, or the
+    /// constant colour. `jitter(i)` places ray i's background samples in their strata (0.5: the middle).
+    pub fn colour_behind(
+        &self,
+        origins: &[[f32; 3]],
+        dirs: &[[f32; 3]],
+        jitter: impl Fn(usize) -> f32,
+        sc: &mut BackgroundScratch,
+    ) {
+        let end = self.background();
+        match &self.background {
+            Some(b) => b.forward(origins, dirs, jitter, end, sc),
+            None => {
+                sc.out.clear();
+                sc.out.resize(origins.len(), end);
+            }
+        }
     }
 
     /// SDF MLP outputs (N × (1 + feature_dim)) at unit-coordinate points

@@ -120,11 +120,7 @@ pub fn render_rays(
     sc.rgb.clear();
     sc.rgb.extend(rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
     let inv_s = field.inv_s();
-    let end = field.background();
-    sc.bg.out.clear();
-    if let Some(b) = &field.background {
-        b.forward(origins, dirs, |_| 0.5, end, &mut sc.bg);
-    }
+    field.colour_behind(origins, dirs, |_| 0.5, &mut sc.bg);
     (0..origins.len())
         .map(|i| {
             let (a, b) = (sc.offsets[i], sc.offsets[i + 1]);
@@ -138,7 +134,7 @@ pub fn render_rays(
                 rgb: &sc.rgb[a..b],
                 inv_s,
                 anneal: 1.0,
-                background: sc.bg.out.get(i).copied().unwrap_or(end),
+                background: sc.bg.out[i],
             };
             let o = render_ray(&x, &mut sc.alpha, &mut sc.w);
             let mut n = [0.0f32; 3];

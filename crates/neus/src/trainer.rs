@@ -85,8 +85,7 @@ struct Scratch {
     dirs: Vec<f32>,
     sh: Vec<f32>,
     sdf_out: Vec<f32>,
-    /// The colour behind each ray (the background field's, or the constant), and its gradient.
-    behind: Vec<[f32; 3]>,
+    /// The gradient of the colour behind each ray (which `bg.out` holds).
     d_behind: Vec<[f32; 3]>,
     bg_jitter: Vec<f32>,
     bg: BackgroundScratch,
@@ -341,18 +340,8 @@ impl NeusTrainer {
         sc.rgb.extend(rgb_out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
 
         // What lies behind each ray's samples.
-        let end = self.field.background();
-        match &self.field.background {
-            Some(b) => {
-                let jit = &sc.bg_jitter;
-                b.forward(&sc.rays_o, &sc.rays_d, |i| jit[i], end, &mut sc.bg);
-                sc.behind.clone_from(&sc.bg.out);
-            }
-            None => {
-                sc.behind.clear();
-                sc.behind.resize(r, end);
-            }
-        }
+        let jit = &sc.bg_jitter;
+        self.field.colour_behind(&sc.rays_o, &sc.rays_d, |i| jit[i], &mut sc.bg);
 
         // Render, losses and their gradients, ray by ray.
         let inv_s = self.field.inv_s();
@@ -376,7 +365,7 @@ impl NeusTrainer {
             &sc.rgb,
             &sc.gt,
             &sc.mask,
-            &sc.behind,
+            &sc.bg.out,
         );
         let mask_w = cfg.mask_weight;
         let per_ray: Vec<(f32, f32, f32, f32, [f32; 3])> = ds

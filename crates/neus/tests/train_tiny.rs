@@ -89,9 +89,32 @@ fn tiny_training_fits_a_ball() {
 
 #[test]
 fn checkpoints_round_trip_resume_exactly_and_refuse_truncation() {
-    let dir = scratch("ckpt");
-    let (capture, _, _) = ball_capture(&dir);
+    round_trip("ckpt", tiny_config());
+}
+
+/// The same for a scene field: the background field's parameters and Adam state round-trip too (on the
+/// ball's masked capture, whose masks then mark what is not scene).
+#[test]
+fn scene_checkpoints_round_trip_with_the_background_field() {
     let mut cfg = tiny_config();
+    cfg.kind = neus::CaptureSubject::Scene;
+    cfg.field.init = neus::FieldInit::Board;
+    cfg.field.background = Some(neus::background_field::BackgroundConfig {
+        grid: field::HashGridConfig {
+            levels: 4,
+            log2_table_size: 12,
+            max_resolution: 64,
+            ..Default::default()
+        },
+        samples: 8,
+        ..Default::default()
+    });
+    round_trip("ckpt_scene", cfg);
+}
+
+fn round_trip(name: &str, mut cfg: TrainConfig) {
+    let dir = scratch(name);
+    let (capture, _, _) = ball_capture(&dir);
     cfg.iterations = 30;
     // Refresh the occupancy grid before and after the checkpoint, so that its
     // state is part of what must round-trip.
@@ -122,6 +145,15 @@ fn checkpoints_round_trip_resume_exactly_and_refuse_truncation() {
     assert_eq!(resumed.field.sdf_params, straight.field.sdf_params);
     assert_eq!(resumed.field.color_params, straight.field.color_params);
     assert_eq!(resumed.field.extra, straight.field.extra);
+    match (&resumed.field.background, &straight.field.background) {
+        (Some(a), Some(b)) => {
+            assert_eq!(a.grid_params, b.grid_params);
+            assert_eq!(a.density_params, b.density_params);
+            assert_eq!(a.color_params, b.color_params);
+        }
+        (None, None) => {}
+        _ => panic!("the background field did not survive the checkpoint"),
+    }
     assert_eq!(resumed.occupancy.cells, straight.occupancy.cells);
     assert!(
         straight.occupancy.cells.contains(&0),

@@ -4,6 +4,14 @@
 use neus::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
 use testkit::{check_jacobian, GradTolerance};
 
+/// f32 arithmetic: a 1e-3 step and a 2 % relative tolerance are what single precision allows.
+const F32_TOL: GradTolerance = GradTolerance {
+    eps: 1e-3,
+    abs_tol: 2e-4,
+    rel_tol: 2e-2,
+    pass_fraction: 1.0,
+};
+
 /// A ray approaching a surface: SDF decreasing along it, so every section is
 /// opaque-ish and away from the α clamp.
 struct Case {
@@ -101,15 +109,8 @@ fn backward_matches_finite_differences() {
         analytic.extend(gr.iter().flatten().map(|v| *v as f64));
         analytic.push(gi as f64);
         analytic.extend(gb.iter().map(|v| *v as f64));
-        // f32 arithmetic: a 1e-3 step and a 2 % relative tolerance are what single precision allows.
-        let tol = GradTolerance {
-            eps: 1e-3,
-            abs_tol: 2e-4,
-            rel_tol: 2e-2,
-            pass_fraction: 1.0,
-        };
         let names: Vec<String> = (0..analytic.len()).map(|i| format!("x{i}")).collect();
-        check_jacobian("render_ray", &loss, &pack(&c), &[analytic], &names, tol)
+        check_jacobian("render_ray", &loss, &pack(&c), &[analytic], &names, F32_TOL)
             .unwrap_or_else(|e| panic!("anneal {anneal}: {e}"));
     }
 }
@@ -191,12 +192,6 @@ fn density_compositing_backward_matches_finite_differences() {
     let mut analytic: Vec<f64> = ds.iter().map(|v| *v as f64).collect();
     analytic.extend(dc.iter().flatten().map(|v| *v as f64));
     analytic.extend(de.iter().map(|v| *v as f64));
-    let tol = GradTolerance {
-        eps: 1e-3,
-        abs_tol: 2e-4,
-        rel_tol: 2e-2,
-        pass_fraction: 1.0,
-    };
     let names: Vec<String> = (0..analytic.len()).map(|i| format!("x{i}")).collect();
-    check_jacobian("composite_density", &loss, &x, &[analytic], &names, tol).unwrap_or_else(|e| panic!("{e}"));
+    check_jacobian("composite_density", &loss, &x, &[analytic], &names, F32_TOL).unwrap_or_else(|e| panic!("{e}"));
 }

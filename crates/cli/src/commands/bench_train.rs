@@ -38,10 +38,7 @@ pub struct BenchTrainArgs {
 
 /// The faces whose vertices are all at least `z` above the board.
 fn above(m: &TriMesh, z: f64) -> TriMesh {
-    let faces: Vec<usize> = (0..m.faces.len())
-        .filter(|&f| m.faces[f].iter().all(|&i| m.vertices[i as usize][2] >= z))
-        .collect();
-    mesh::sub_mesh(m, &faces)
+    mesh::faces_where(m, |corners| corners.iter().all(|v| v[2] >= z))
 }
 
 fn peak_memory_mib() -> Option<f64> {
@@ -65,7 +62,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
     };
     let capture = a.dataset.join(&a.capture);
     let data = Dataset::load(&capture).with_context(|| format!("loading {}", capture.display()))?;
-    let kind = capture_kind(None, &capture, &data)?;
+    let kind = capture_kind(None, &data);
     let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
     cfg.iterations = a.iterations;
     let mut t = NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?;

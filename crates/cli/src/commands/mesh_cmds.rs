@@ -241,57 +241,43 @@ pub(crate) struct SceneRegion {
 impl SceneRegion {
     /// The faces of `m` whose centroid lies over the region.
     pub fn crop(&self, m: &geom::TriMesh) -> geom::TriMesh {
-        let faces: Vec<usize> = (0..m.faces.len())
-            .filter(|&f| {
-                let c = centroid(m, f);
-                (0..2).all(|k| c[k] >= self.lo[k] && c[k] <= self.hi[k])
+        mesh::faces_where(m, |[a, b, c]| {
+            (0..2).all(|k| {
+                let x = (a[k] + b[k] + c[k]) / 3.0;
+                x >= self.lo[k] && x <= self.hi[k]
             })
-            .collect();
-        mesh::sub_mesh(m, &faces)
+        })
     }
 }
 
-fn centroid(m: &geom::TriMesh, f: usize) -> Vec3<f64> {
-    let [a, b, c] = m.faces[f].map(|i| Vec3::cst(m.vertices[i as usize]));
-    (a + b + c) * (1.0 / 3.0)
-}
-
-/// A synthetic dataset's true scene (`truth.json`'s `background`): the part a camera above the board can see
-/// (faces turned down, such as the board's underside lying on the table, are left out), and its region.
-pub(crate) fn scene_truth(truth: &Path) -> Result<Option<(geom::TriMesh, PathBuf, SceneRegion)>> {
-    let t = pganeus_io::read_truth(truth)?;
-    let Some(bg) = &t.background else { return Ok(None) };
-    let path = truth.parent().unwrap_or(Path::new(".")).join(&bg.mesh);
-    let m = read_mesh(&path)?;
-    let (lo, hi) = m.bounds();
-    let up: Vec<usize> = (0..m.faces.len())
-        .filter(|&f| {
-            let [a, b, c] = m.faces[f].map(|i| Vec3::cst(m.vertices[i as usize]));
-            (b - a).cross(c - a).normalize_or(Vec3::new(0.0, 0.0, 1.0)).z > -0.5
-        })
-        .collect();
-    let region = SceneRegion {
-        lo: [lo[0], lo[1]],
-        hi: [hi[0], hi[1]],
-    };
-    Ok(Some((mesh::sub_mesh(&m, &up), path, region)))
-}
-
-/// The true mesh of `capture`: the body captured there, posed as it was, or, for the background capture, the
-/// visible scene and the region to crop a reconstruction to.
+/// The true mesh of `capture` in `truth.json` (read once): the body captured there, posed as it was, or, for
+/// the background capture, the part of the true scene a camera above the board can see (faces turned down,
+/// such as the board's underside lying on the table, are left out) and its footprint, the region to crop a
+/// reconstruction to.
 pub(crate) fn capture_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf, Option<SceneRegion>)> {
     let t = pganeus_io::read_truth(truth)?;
-    if t.background.as_ref().is_some_and(|b| b.capture == capture) {
-        let (m, p, r) = scene_truth(truth)?.expect("checked above");
-        return Ok((m, p, Some(r)));
+    let dir = truth.parent().unwrap_or(Path::new("."));
+    if let Some(bg) = t.background.as_ref().filter(|b| b.capture == capture) {
+        let path = dir.join(&bg.mesh);
+        let m = read_mesh(&path)?;
+        let (lo, hi) = m.bounds();
+        let up = mesh::faces_where(&m, |[a, b, c]| {
+            let [a, b, c] = [a, b, c].map(Vec3::cst);
+            (b - a).cross(c - a).normalize_or(Vec3::new(0.0, 0.0, 1.0)).z > -0.5
+        });
+        let region = SceneRegion {
+            lo: [lo[0], lo[1]],
+            hi: [hi[0], hi[1]],
+        };
+        return Ok((up, path, Some(region)));
     }
-    let (m, p) = posed_truth(truth, capture)?;
+    let (m, p) = posed_truth(&t, truth, capture)?;
     Ok((m, p, None))
 }
 
-/// The true mesh of the body captured in `capture`, posed as it was there.
-pub(crate) fn posed_truth(truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf)> {
-    let t = pganeus_io::read_truth(truth)?;
+/// The true mesh of the body captured in `capture`, posed as it was there (`truth`: the file `t` was read
+/// from, for the message and its folder).
+fn posed_truth(t: &pganeus_io::Truth, truth: &Path, capture: &str) -> Result<(geom::TriMesh, PathBuf)> {
     let (body, stat) = t
         .bodies
         .iter()

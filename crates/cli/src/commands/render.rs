@@ -85,16 +85,10 @@ pub fn zero_level_mesh(field: &NeusField, levels: usize, centre: Vec3<f64>, radi
     );
     let mut m = mesh::extract_zero_level(&grid);
     if field.background.is_some() {
-        let inside: Vec<usize> = (0..m.faces.len())
-            .filter(|&f| {
-                let c = m.faces[f].iter().fold([0.0f64; 3], |a, &i| {
-                    let v = m.vertices[i as usize];
-                    [a[0] + v[0], a[1] + v[1], a[2] + v[2]]
-                });
-                c.iter().map(|x| x * x).sum::<f64>() <= 9.0
-            })
-            .collect();
-        m = mesh::sub_mesh(&m, &inside);
+        // Centroid inside the unit sphere: |a + b + c| ≤ 3.
+        m = mesh::faces_where(&m, |[a, b, c]| {
+            (0..3).map(|k| (a[k] + b[k] + c[k]).powi(2)).sum::<f64>() <= 9.0
+        });
     }
     for v in &mut m.vertices {
         *v = (centre + Vec3::cst(*v) * radius).to_array();

@@ -49,17 +49,15 @@ fn parse_kind(s: &str) -> Result<CaptureSubject, String> {
 
 /// The subject of a capture: the user's choice, else capture.json's, else object with masks, scene without.
 /// Says which and why in the log.
-pub fn capture_kind(given: Option<CaptureSubject>, capture: &Path, data: &Dataset) -> Result<CaptureSubject> {
-    let (kind, why) = match given {
-        Some(k) => (k, "--kind".to_string()),
-        None => match pganeus_io::open_capture(capture)?.info.and_then(|i| i.subject) {
-            Some(k) => (k, "capture.json".to_string()),
-            None if data.has_masks() => (CaptureSubject::Object, "the capture has masks".to_string()),
-            None => (CaptureSubject::Scene, "the capture has no masks".to_string()),
-        },
+pub fn capture_kind(given: Option<CaptureSubject>, data: &Dataset) -> CaptureSubject {
+    let (kind, why) = match (given, data.subject) {
+        (Some(k), _) => (k, "--kind"),
+        (None, Some(k)) => (k, "capture.json"),
+        (None, None) if data.has_masks() => (CaptureSubject::Object, "the capture has masks"),
+        (None, None) => (CaptureSubject::Scene, "the capture has no masks"),
     };
     tracing::info!("training a {} field ({why})", kind.name());
-    Ok(kind)
+    kind
 }
 
 /// Lay `over` on `base` key by key: a nested table (`[field.grid]`) changes only the keys it names, so a
@@ -117,7 +115,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
                 ckpt.display()
             );
         }
-        let kind = capture_kind(a.kind, &a.capture, &data)?;
+        let kind = capture_kind(a.kind, &data);
         let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
         if let Some(n) = a.iterations {
             cfg.iterations = n;
