@@ -2,6 +2,7 @@
 
 use crate::background_field::BackgroundConfig;
 use crate::neus_field::{FieldConfig, FieldInit};
+use crate::stereo::StereoConfig;
 pub use pganeus_io::CaptureSubject;
 use serde::{Deserialize, Serialize};
 
@@ -37,6 +38,14 @@ pub struct TrainConfig {
     pub view_independent_steps: usize,
     /// Weight of the eikonal term. Default 0.1.
     pub eikonal_weight: f32,
+    /// Weight of the stereo-point term (mean |SDF| at multi-view stereo points, `neus::stereo`) at the start;
+    /// it falls linearly to 0 at `stereo_steps`. Default 0 (objects); 0.5 for scenes.
+    pub stereo_weight: f32,
+    /// The step where the stereo-point term ends (at the latest half-way through the run). Default 0; 1000 for
+    /// scenes.
+    pub stereo_steps: usize,
+    /// How the stereo points are found.
+    pub stereo: StereoConfig,
     /// Weight of the mask BCE term (when the capture has masks). Default 0.1.
     pub mask_weight: f32,
     /// Hash levels active at the start (progressive activation). Default 4.
@@ -68,6 +77,9 @@ impl Default for TrainConfig {
             anneal_end: 500,
             view_independent_steps: 0,
             eikonal_weight: 0.1,
+            stereo_weight: 0.0,
+            stereo_steps: 0,
+            stereo: StereoConfig::default(),
             mask_weight: 0.1,
             level_start: 4,
             level_every: 100,
@@ -88,6 +100,8 @@ impl TrainConfig {
             CaptureSubject::Scene => Self {
                 kind,
                 view_independent_steps: 1000,
+                stereo_weight: 0.5,
+                stereo_steps: 1000,
                 field: FieldConfig {
                     init: FieldInit::Board,
                     background: Some(BackgroundConfig::default()),
@@ -139,6 +153,7 @@ impl TrainConfig {
         }
         for (name, v) in [
             ("eikonal_weight", self.eikonal_weight),
+            ("stereo_weight", self.stereo_weight),
             ("mask_weight", self.mask_weight),
         ] {
             if !(v.is_finite() && v >= 0.0) {
@@ -157,7 +172,17 @@ impl TrainConfig {
         if let Some(b) = &self.field.background {
             b.validate()?;
         }
-        Ok(())
+        self.stereo.validate()
+    }
+
+    /// Weight of the stereo-point term at `step`: it ends at `stereo_steps` or half-way through the run,
+    /// whichever comes first (the points are coarser than what the images resolve by then).
+    pub fn stereo_weight_at(&self, step: usize) -> f32 {
+        let end = self.stereo_steps.min(self.iterations / 2);
+        if step >= end {
+            return 0.0;
+        }
+        self.stereo_weight * (1.0 - step as f32 / end as f32)
     }
 
     /// Learning rate at `step`: linear warm-up, then exponential decay.

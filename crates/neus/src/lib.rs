@@ -4,7 +4,8 @@
 //! colour, eikonal and mask losses, checkpoints that resume, and rendering,
 //! also of two fields of one object switched by the camera's side (Eq. 3–4).
 //! Objects start from a sphere; scenes start from the board plane and put
-//! what lies beyond the unit sphere in a background field (NeRF++).
+//! what lies beyond the unit sphere in a background field (NeRF++), with
+//! multi-view stereo points pulling the zero level onto obstacles early.
 
 pub mod background_field;
 pub mod checkpoint;
@@ -14,6 +15,7 @@ mod fd_samples;
 pub mod neus_field;
 pub mod occupancy;
 pub mod render_view;
+pub mod stereo;
 pub mod switching;
 pub mod trainer;
 pub mod volume;

@@ -14,6 +14,7 @@ use crate::dataset::Dataset;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
 use crate::neus_field::{NeusField, XYZ};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
+use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
 use field::{sh_encode, Adam, AdamConfig, GradMode, MlpScratch, Touched, SH_DIM};
 use geom::SplitMix64;
@@ -29,11 +30,18 @@ pub struct LossTerms {
     pub eikonal: f32,
     /// Mean BCE between the rendered opacity and the mask (0 without masks).
     pub mask: f32,
+    /// Mean |SDF| at a batch of stereo points (0 when the term is off).
+    #[serde(default)]
+    pub stereo: f32,
 }
 
 impl LossTerms {
-    pub fn total(&self, cfg: &TrainConfig) -> f32 {
-        self.rgb + cfg.eikonal_weight * self.eikonal + cfg.mask_weight * self.mask
+    /// The weighted sum at (0-based) `step`.
+    pub fn total(&self, cfg: &TrainConfig, step: usize) -> f32 {
+        self.rgb
+            + cfg.eikonal_weight * self.eikonal
+            + cfg.mask_weight * self.mask
+            + cfg.stereo_weight_at(step) * self.stereo
     }
 }
 
@@ -123,6 +131,22 @@ pub struct NeusTrainer {
     touched: Touched,
     grads: [Vec<f32>; 4],
     scratch: Scratch,
+    /// Multi-view stereo points (unit coordinates), found at the first step that uses them.
+    stereo_points: Option<Vec<[f32; 3]>>,
+    stereo_scratch: StereoScratch,
+}
+
+/// Buffers of the stereo-point term's SDF pass.
+#[derive(Default)]
+struct StereoScratch {
+    points: Vec<f32>,
+    unit01: Vec<f32>,
+    enc: Vec<f32>,
+    input: Vec<f32>,
+    mlp: MlpScratch,
+    d_out: Vec<f32>,
+    d_in: Vec<f32>,
+    d_enc: Vec<f32>,
 }
 
 /// Split `s` into consecutive pieces of the given lengths.
@@ -182,7 +206,72 @@ impl NeusTrainer {
             touched,
             grads,
             scratch: Scratch::default(),
+            stereo_points: None,
+            stereo_scratch: StereoScratch::default(),
         })
+    }
+
+    /// The stereo points the term pulls onto the zero level (found now if not yet).
+    pub fn stereo_points(&mut self) -> &[[f32; 3]] {
+        let (data, views, cfg) = (&self.data, &self.train_views, &self.config.stereo);
+        self.stereo_points
+            .get_or_insert_with(|| stereo_points(data, views, cfg))
+    }
+
+    /// The stereo-point term: mean |SDF| over a batch of stereo points, its gradient (times `weight`) added to
+    /// the SDF MLP's and the grid's. Returns the mean.
+    fn stereo_term(&mut self, weight: f32, levels: usize) -> f32 {
+        self.stereo_points();
+        let pts = self.stereo_points.as_deref().unwrap_or_default();
+        if pts.is_empty() {
+            return 0.0;
+        }
+        let k = self.config.batch_rays.min(pts.len());
+        let sc = &mut self.stereo_scratch;
+        sc.points.clear();
+        for _ in 0..k {
+            sc.points.extend(pts[(self.rng.next_u64() % pts.len() as u64) as usize]);
+        }
+        let width = 1 + self.config.field.feature_dim;
+        let out = self.field.sdf_forward(
+            &sc.points,
+            levels,
+            &mut sc.unit01,
+            &mut sc.enc,
+            &mut sc.input,
+            &mut sc.mlp,
+        );
+        sc.d_out.clear();
+        sc.d_out.resize(k * width, 0.0);
+        let mut sum = 0.0;
+        for i in 0..k {
+            let f = out[i * width];
+            sum += f.abs();
+            sc.d_out[i * width] = weight * f.signum() / k as f32;
+        }
+        let e = self.field.grid.output_dim();
+        sc.d_in.resize(k * (XYZ + e), 0.0);
+        self.field.sdf.backward(
+            &self.field.sdf_params,
+            &mut sc.mlp,
+            &sc.d_out,
+            &mut self.grads[1],
+            GradMode::Accumulate,
+            Some(&mut sc.d_in),
+        );
+        sc.d_enc.resize(k * e, 0.0);
+        for i in 0..k {
+            sc.d_enc[i * e..(i + 1) * e].copy_from_slice(&sc.d_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
+        }
+        self.field.grid.encode_backward(
+            &sc.unit01,
+            &sc.d_enc,
+            &mut self.grads[0],
+            &mut self.touched,
+            GradMode::Accumulate,
+            levels,
+        );
+        sum / k as f32
     }
 
     /// The finite-difference step at a level count: the finest active cell, in unit coordinates.
@@ -524,6 +613,10 @@ impl NeusTrainer {
             GradMode::Accumulate,
             levels,
         );
+        let stereo_w = cfg.stereo_weight_at(step);
+        if stereo_w > 0.0 {
+            loss.stereo = self.stereo_term(stereo_w, levels);
+        }
         // inv_s = exp(10 v): dv = 10 inv_s d(inv_s); the background is clamped to [0, 1].
         self.grads[3][0] = d_inv_s * 10.0 * inv_s;
         for k in 0..3 {

@@ -181,7 +181,10 @@ fn shade(scene: &RenderScene, ray: &Ray<f64>) -> ([f64; 3], Option<usize>) {
 }
 
 /// Sample offsets inside a pixel: an n×n stratified grid with a fixed jitter
-/// (deterministic: the same image every run).
+/// (deterministic: the same image every run), recentred so that their mean is
+/// the pixel's centre: an off-centre mean shifts every image by the same
+/// fraction of a pixel, which a real camera does not do and which biases
+/// stereo depth and NeuS alike.
 fn subpixel_offsets(spp: usize) -> Vec<(f64, f64)> {
     let n = (spp as f64).sqrt().ceil().max(1.0) as usize;
     let mut rng = geom::SplitMix64::new(0x5EED);
@@ -195,7 +198,9 @@ fn subpixel_offsets(spp: usize) -> Vec<(f64, f64)> {
         }
     }
     out.truncate(spp.max(1));
-    out
+    let k = out.len() as f64;
+    let (mx, my) = out.iter().fold((0.0, 0.0), |a, o| (a.0 + o.0 / k, a.1 + o.1 / k));
+    out.iter().map(|&(x, y)| (x + 0.5 - mx, y + 0.5 - my)).collect()
 }
 
 /// Render `scene` through `camera` with `spp` samples per pixel.

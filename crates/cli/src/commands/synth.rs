@@ -11,7 +11,7 @@ pub enum ScaleArg {
 
 #[derive(Args)]
 pub struct SynthArgs {
-    /// A built-in scene: tabletop or two-body.
+    /// A built-in scene: tabletop, two-body or backdrop.
     #[arg(long, conflicts_with = "scene")]
     pub preset: Option<String>,
     /// A scene description (TOML); see `--print-preset`.

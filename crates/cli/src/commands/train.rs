@@ -130,6 +130,15 @@ pub fn run(a: TrainArgs) -> Result<()> {
         .append(true)
         .open(a.out.join("log.jsonl"))?;
     let total = trainer.config.iterations;
+    if trainer.config.stereo_weight_at(trainer.step) > 0.0 {
+        let t0 = std::time::Instant::now();
+        let n = trainer.stereo_points().len();
+        tracing::info!(
+            "{n} multi-view stereo points in {:.1} s (pulled onto the zero level until step {})",
+            t0.elapsed().as_secs_f64(),
+            trainer.config.stereo_steps
+        );
+    }
     let pb = super::progress(total as u64, "train");
     pb.set_position(trainer.step as u64);
     let (mut rays, mut secs) = (0usize, 0.0f64);
@@ -140,7 +149,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
         pb.set_position(s.step as u64);
         pb.set_message(format!(
             "loss {:.4} psnr {:.1} {:.0} rays/s",
-            s.loss.total(&trainer.config),
+            s.loss.total(&trainer.config, s.step - 1),
             s.psnr,
             rays as f64 / secs
         ));

@@ -1,0 +1,118 @@
+//! Watch a tabletop scene form (a development probe; CI builds it, does not run it): trains a `synth --preset
+//! tabletop` (or `backdrop`) background capture with the scene preset and prints, every 50 steps, the height
+//! of the zero level on the wall (true top 70 mm) and on the board (true 0), after scoring the stereo points
+//! against the true surface.
+//!
+//! `cargo run --release -p neus --example scene_probe -- CAPTURE [CONFIG.toml|-] [STEPS] [LIFT_M]`
+//! (`LIFT_M` starts the plane that far above the board; env `SEED`, `STEREO_W` override the config,
+//! `STEREO_ONLY=1` stops after the stereo points).
+use geom::Vec3;
+use neus::{CaptureSubject, Dataset, NeusField, NeusTrainer, TrainConfig};
+use std::path::Path;
+
+fn surface_height(t: &NeusTrainer, x: f64, y: f64, lo: f64, hi: f64) -> f64 {
+    let (c, r) = (t.data.centre, t.data.radius);
+    let n = 400;
+    let zs: Vec<f64> = (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect();
+    let pts: Vec<f32> = zs
+        .iter()
+        .flat_map(|&z| ((Vec3::new(x, y, z) - c) * (1.0 / r)).to_array().map(|v| v as f32))
+        .collect();
+    let sdf = t.field.sdf_values(&pts, t.config.field.grid.levels);
+    (0..n)
+        .rev()
+        .find(|&k| sdf[k] <= 0.0 && sdf[k + 1] > 0.0)
+        .map(|k| zs[k] + (zs[k + 1] - zs[k]) * (sdf[k] as f64 / (sdf[k] - sdf[k + 1]) as f64))
+        .unwrap_or(f64::NAN)
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let data = Dataset::load(Path::new(&a[1])).unwrap();
+    let mut cfg = TrainConfig::preset("fast", CaptureSubject::Scene).unwrap();
+    if a.len() > 2 && a[2] != "-" {
+        let text = std::fs::read_to_string(&a[2]).unwrap();
+        cfg = toml::from_str(&text).unwrap();
+    }
+    if let Ok(seed) = std::env::var("SEED") {
+        cfg.seed = seed.parse().unwrap();
+    }
+    if let Ok(w) = std::env::var("STEREO_W") {
+        cfg.stereo_weight = w.parse().unwrap();
+    }
+    let steps: usize = a.get(3).map_or(600, |s| s.parse().unwrap());
+    let lift: f64 = a.get(4).map_or(0.0, |s| s.parse().unwrap());
+    let mut t = NeusTrainer::new(cfg.clone(), data).unwrap();
+    if lift != 0.0 {
+        let bh = ((lift - t.data.centre.z) / t.data.radius) as f32;
+        t.field = NeusField::new(&cfg.field, cfg.seed, bh);
+    }
+    eprintln!("centre {:?} radius {}", t.data.centre, t.data.radius);
+    let ts = std::time::Instant::now();
+    let (centre, radius) = (t.data.centre, t.data.radius);
+    let pts: Vec<[f64; 3]> = t
+        .stereo_points()
+        .iter()
+        .map(|p| {
+            let w = centre + Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * radius;
+            [w.x, w.y, w.z]
+        })
+        .collect();
+    // Distance to the tabletop truth: the board's top (z = 0) or the wall box.
+    let wall = |p: [f64; 3]| {
+        let q = [
+            (p[0] - 0.22).abs() - 0.02,
+            p[1].abs() - 0.12,
+            (p[2] - 0.035).abs() - 0.035,
+        ];
+        let out = (q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>()).sqrt();
+        out + q[0].max(q[1]).max(q[2]).min(0.0)
+    };
+    let ground = |p: [f64; 3]| {
+        if p[0].abs() < 0.3 && p[1].abs() < 0.3 {
+            p[2].abs()
+        } else {
+            (p[2] + 0.01).abs().min(p[2].abs())
+        }
+    };
+    let d: Vec<f64> = pts.iter().map(|&p| ground(p).min(wall(p).abs())).collect();
+    let on_wall = pts.iter().filter(|&&p| p[2] > 0.005 && wall(p).abs() < 0.005).count();
+    let good = d.iter().filter(|&&v| v < 0.003).count();
+    let far = d.iter().filter(|&&v| v > 0.01).count();
+    eprintln!(
+        "stereo: {} points in {:.1}s, within 3 mm {:.3}, beyond 1 cm {:.3}, on the wall {}",
+        pts.len(),
+        ts.elapsed().as_secs_f64(),
+        good as f64 / pts.len().max(1) as f64,
+        far as f64 / pts.len().max(1) as f64,
+        on_wall
+    );
+    if std::env::var("STEREO_ONLY").is_ok() {
+        return;
+    }
+    let t0 = std::time::Instant::now();
+    for _ in 0..steps {
+        let s = t.step();
+        if s.step.is_multiple_of(50) {
+            let wall: Vec<f64> = [(0.22, 0.0), (0.22, 0.08), (0.22, -0.08), (0.21, 0.04)]
+                .iter()
+                .map(|&(x, y)| (surface_height(&t, x, y, -0.05, 0.3) * 1e3).round())
+                .collect();
+            let board: Vec<f64> = [(-0.15, -0.05), (0.05, 0.1), (-0.2, -0.15)]
+                .iter()
+                .map(|&(x, y)| (surface_height(&t, x, y, -0.05, 0.3) * 1e4).round() / 10.0)
+                .collect();
+            println!(
+                "step {} psnr {:.1} inv_s {:.0} occ {:.3} samples {} wall(mm) {:?} board(mm) {:?} {:.0}s",
+                s.step,
+                s.psnr,
+                s.inv_s,
+                s.occupied,
+                s.samples,
+                wall,
+                board,
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
