@@ -189,3 +189,12 @@ impl NeusField {
         out
     }
 }
+
+/// Keep only the constant spherical harmonic of each row (colour from the point alone): a scene's first steps,
+/// where a view-dependent colour could paint an unformed obstacle onto the surface behind it, differently for
+/// each view, instead of growing it.
+pub(crate) fn drop_view_dependence(sh: &mut [f32]) {
+    for row in sh.chunks_exact_mut(SH_DIM) {
+        row[1..].fill(0.0);
+    }
+}

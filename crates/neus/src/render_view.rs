@@ -3,7 +3,7 @@
 
 use crate::background_field::BackgroundScratch;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
-use crate::neus_field::NeusField;
+use crate::neus_field::{drop_view_dependence, NeusField};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::volume::{render_ray, RayInputs};
 use field::{sh_encode, MlpScratch, SH_DIM};
@@ -29,6 +29,8 @@ pub struct RenderSettings {
     pub active_levels: usize,
     /// Finite-difference step for normals, unit coordinates.
     pub fd_eps: f32,
+    /// Colour from the point alone (the field is still in its view-independent first steps).
+    pub view_independent: bool,
 }
 
 /// Buffers of [`render_rays`], reused across calls (a view is rendered in
@@ -97,6 +99,9 @@ pub fn render_rays(
     let cin = SH_DIM + 3 + field.config.feature_dim;
     sc.sh.resize(m * SH_DIM, 0.0);
     sh_encode(&sc.sdirs, &mut sc.sh);
+    if set.view_independent {
+        drop_view_dependence(&mut sc.sh);
+    }
     sc.grad.resize(m, [0.0; 3]);
     sc.sdf0.resize(m, 0.0);
     sc.cos.resize(m, 0.0);

@@ -12,7 +12,7 @@ use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratc
 use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
-use crate::neus_field::{NeusField, XYZ};
+use crate::neus_field::{drop_view_dependence, NeusField, XYZ};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
@@ -401,11 +401,7 @@ impl NeusTrainer {
         sc.sh.resize(m * SH_DIM, 0.0);
         sh_encode(&sc.dirs, &mut sc.sh);
         if step < cfg.view_independent_steps {
-            // Colour from the point alone: a view-dependent colour could paint an unformed obstacle onto the
-            // surface behind it, differently for each view, instead of growing it.
-            for row in sc.sh.chunks_exact_mut(SH_DIM) {
-                row[1..].fill(0.0);
-            }
+            drop_view_dependence(&mut sc.sh);
         }
         let eik = fd_gradients(
             out,

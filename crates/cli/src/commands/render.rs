@@ -42,6 +42,7 @@ pub fn settings(l: &LoadedField) -> RenderSettings {
         max_samples_per_ray: c.max_samples_per_ray * 2,
         active_levels: g.levels,
         fd_eps: 2.0 / g.max_resolution as f32,
+        view_independent: l.step < c.view_independent_steps,
     }
 }
 
@@ -55,6 +56,7 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
         fd_eps: t
             .fd_eps(t.config.active_levels(t.step))
             .min(2.0 / g.max_resolution as f32 * 4.0),
+        view_independent: t.step < t.config.view_independent_steps,
     };
     let views = &t.holdout_views;
     let sum: f32 = views
