@@ -10,22 +10,6 @@ use geom::Vec3;
 use neus::{CaptureSubject, Dataset, NeusField, NeusTrainer, TrainConfig};
 use std::path::Path;
 
-fn surface_height(t: &NeusTrainer, x: f64, y: f64, lo: f64, hi: f64) -> f64 {
-    let (c, r) = (t.data.centre, t.data.radius);
-    let n = 400;
-    let zs: Vec<f64> = (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect();
-    let pts: Vec<f32> = zs
-        .iter()
-        .flat_map(|&z| ((Vec3::new(x, y, z) - c) * (1.0 / r)).to_array().map(|v| v as f32))
-        .collect();
-    let sdf = t.field.sdf_values(&pts, t.config.field.grid.levels);
-    (0..n)
-        .rev()
-        .find(|&k| sdf[k] <= 0.0 && sdf[k + 1] > 0.0)
-        .map(|k| zs[k] + (zs[k + 1] - zs[k]) * (sdf[k] as f64 / (sdf[k] - sdf[k + 1]) as f64))
-        .unwrap_or(f64::NAN)
-}
-
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let data = Dataset::load(Path::new(&a[1])).unwrap();
@@ -94,13 +78,18 @@ fn main() {
     for _ in 0..steps {
         let s = t.step();
         if s.step.is_multiple_of(50) {
+            let height = |x, y| {
+                t.field
+                    .surface_height(t.data.centre, t.data.radius, x, y, -0.05, 0.3)
+                    .unwrap_or(f64::NAN)
+            };
             let wall: Vec<f64> = [(0.22, 0.0), (0.22, 0.08), (0.22, -0.08), (0.21, 0.04)]
                 .iter()
-                .map(|&(x, y)| (surface_height(&t, x, y, -0.05, 0.3) * 1e3).round())
+                .map(|&(x, y)| (height(x, y) * 1e3).round())
                 .collect();
             let board: Vec<f64> = [(-0.15, -0.05), (0.05, 0.1), (-0.2, -0.15)]
                 .iter()
-                .map(|&(x, y)| (surface_height(&t, x, y, -0.05, 0.3) * 1e4).round() / 10.0)
+                .map(|&(x, y)| (height(x, y) * 1e4).round() / 10.0)
                 .collect();
             println!(
                 "step {} psnr {:.1} inv_s {:.0} occ {:.3} samples {} wall(mm) {:?} board(mm) {:?} {:.0}s",

@@ -3,7 +3,7 @@
 //! view direction (spherical harmonics), the normal and the feature.
 
 use crate::background_field::{BackgroundConfig, BackgroundField, BackgroundScratch};
-use field::{Activation, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, SH_DIM};
+use field::{Activation, GradMode, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, Touched, SH_DIM};
 use geom::SplitMix64;
 use serde::{Deserialize, Serialize};
 
@@ -69,6 +69,13 @@ pub struct NeusField {
     /// `[variance, background r, g, b]`: the colour behind everything (behind the background field, if any).
     pub extra: Vec<f32>,
     pub background: Option<BackgroundField>,
+}
+
+/// Where [`NeusField::sdf_backward`] puts its gradients.
+pub struct SdfGrads<'a> {
+    pub grid: &'a mut [f32],
+    pub sdf: &'a mut [f32],
+    pub touched: &'a mut Touched,
 }
 
 /// Input width of the SDF MLP: xyz then the encoding.
@@ -174,6 +181,69 @@ impl NeusField {
             row[XYZ..].copy_from_slice(&enc[i * e..(i + 1) * e]);
         }
         self.sdf.forward(&self.sdf_params, input, n, scratch)
+    }
+
+    /// Backward of [`Self::sdf_forward`]: from the outputs' gradient (N × (1 + feature_dim)) to the SDF
+    /// MLP's parameters (`mode`) and, through the encoding, to the hash grid's (accumulated; the touched
+    /// entries recorded). `d_in` and `d_enc` are scratch.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sdf_backward(
+        &self,
+        unit01: &[f32],
+        mlp: &mut MlpScratch,
+        d_out: &[f32],
+        mode: GradMode,
+        d_in: &mut Vec<f32>,
+        d_enc: &mut Vec<f32>,
+        grads: SdfGrads<'_>,
+        active_levels: usize,
+    ) {
+        let n = unit01.len() / 3;
+        let e = self.grid.output_dim();
+        d_in.resize(n * (XYZ + e), 0.0);
+        self.sdf
+            .backward(&self.sdf_params, mlp, d_out, grads.sdf, mode, Some(d_in));
+        d_enc.resize(n * e, 0.0);
+        for i in 0..n {
+            d_enc[i * e..(i + 1) * e].copy_from_slice(&d_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
+        }
+        self.grid.encode_backward(
+            unit01,
+            d_enc,
+            grads.grid,
+            grads.touched,
+            GradMode::Accumulate,
+            active_levels,
+        );
+    }
+
+    /// The world height where the zero level last crosses (from inside below to outside above) the vertical
+    /// line at world `(x, y)` between heights `lo` and `hi` (400 samples, linear interpolation), for a field
+    /// whose unit sphere is `p_world = centre + radius · p_unit`: the top of the board or of an obstacle.
+    pub fn surface_height(
+        &self,
+        centre: geom::Vec3<f64>,
+        radius: f64,
+        x: f64,
+        y: f64,
+        lo: f64,
+        hi: f64,
+    ) -> Option<f64> {
+        let n = 400;
+        let zs: Vec<f64> = (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect();
+        let pts: Vec<f32> = zs
+            .iter()
+            .flat_map(|&z| {
+                ((geom::Vec3::new(x, y, z) - centre) * (1.0 / radius))
+                    .to_array()
+                    .map(|v| v as f32)
+            })
+            .collect();
+        let sdf = self.sdf_values(&pts, self.config.grid.levels);
+        (0..n)
+            .rev()
+            .find(|&k| sdf[k] <= 0.0 && sdf[k + 1] > 0.0)
+            .map(|k| zs[k] + (zs[k + 1] - zs[k]) * (sdf[k] as f64 / (sdf[k] - sdf[k + 1]) as f64))
     }
 
     /// SDF values only, in batches (for meshing and occupancy updates).

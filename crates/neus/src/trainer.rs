@@ -12,7 +12,7 @@ use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratc
 use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
 use crate::fd_samples::{fd_gradients, fd_points, FdOut};
-use crate::neus_field::{drop_view_dependence, NeusField, XYZ};
+use crate::neus_field::{drop_view_dependence, NeusField, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
@@ -249,26 +249,19 @@ impl NeusTrainer {
             sum += f.abs();
             sc.d_out[i * width] = weight * f.signum() / k as f32;
         }
-        let e = self.field.grid.output_dim();
-        sc.d_in.resize(k * (XYZ + e), 0.0);
-        self.field.sdf.backward(
-            &self.field.sdf_params,
+        let [grid, sdf, ..] = &mut self.grads;
+        self.field.sdf_backward(
+            &sc.unit01,
             &mut sc.mlp,
             &sc.d_out,
-            &mut self.grads[1],
             GradMode::Accumulate,
-            Some(&mut sc.d_in),
-        );
-        sc.d_enc.resize(k * e, 0.0);
-        for i in 0..k {
-            sc.d_enc[i * e..(i + 1) * e].copy_from_slice(&sc.d_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
-        }
-        self.field.grid.encode_backward(
-            &sc.unit01,
-            &sc.d_enc,
-            &mut self.grads[0],
-            &mut self.touched,
-            GradMode::Accumulate,
+            &mut sc.d_in,
+            &mut sc.d_enc,
+            SdfGrads {
+                grid,
+                sdf,
+                touched: &mut self.touched,
+            },
             levels,
         );
         sum / k as f32
@@ -376,7 +369,6 @@ impl NeusTrainer {
             &mut sc.dirs,
         );
         let width = 1 + cfg.field.feature_dim;
-        let e = self.field.grid.output_dim();
         let n4 = 4 * m;
         let out = {
             let o = self.field.sdf_forward(
@@ -588,25 +580,19 @@ impl NeusTrainer {
                 sc.d_sdf_out[s * width + 1 + f] = sc.d_color_in[s * cin + SH_DIM + 3 + f];
             }
         }
-        sc.d_sdf_in.resize(n4 * (XYZ + e), 0.0);
-        self.field.sdf.backward(
-            &self.field.sdf_params,
+        let [grid, sdf, ..] = &mut self.grads;
+        self.field.sdf_backward(
+            &sc.unit01,
             &mut sc.sdf_mlp,
             &sc.d_sdf_out,
-            &mut self.grads[1],
             GradMode::Overwrite,
-            Some(&mut sc.d_sdf_in),
-        );
-        sc.d_enc.resize(n4 * e, 0.0);
-        for i in 0..n4 {
-            sc.d_enc[i * e..(i + 1) * e].copy_from_slice(&sc.d_sdf_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
-        }
-        self.field.grid.encode_backward(
-            &sc.unit01,
-            &sc.d_enc,
-            &mut self.grads[0],
-            &mut self.touched,
-            GradMode::Accumulate,
+            &mut sc.d_sdf_in,
+            &mut sc.d_enc,
+            SdfGrads {
+                grid,
+                sdf,
+                touched: &mut self.touched,
+            },
             levels,
         );
         let stereo_w = cfg.stereo_weight_at(step);

@@ -1,8 +1,8 @@
 //! A scene capture (no masks; a table beyond the board, or a plain backdrop)
-//! trains into a clean surface: the board where it is, sparse occupancy, no
-//! fog above it, and the obstacles standing. Before the scene kind (a sphere start and a constant colour
-//! behind the sphere), such a capture gave a fog filling most of the sphere.
-use geom::Vec3;
+//! trains into a clean surface: the board where it is, the obstacles standing,
+//! sparse occupancy, no fog above it. Before the scene kind (a sphere start and
+//! a constant colour behind the sphere), such a capture gave a fog filling most
+//! of the sphere.
 use neus::{CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
@@ -44,24 +44,6 @@ fn tiny_scene_config() -> TrainConfig {
     c
 }
 
-/// The height (world z, m) where the field's zero level crosses the vertical line at `(x, y)`, searched
-/// between `lo` and `hi`.
-fn surface_height(t: &NeusTrainer, x: f64, y: f64, lo: f64, hi: f64) -> Option<f64> {
-    let (c, r) = (t.data.centre, t.data.radius);
-    let n = 400;
-    let zs: Vec<f64> = (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect();
-    let pts: Vec<f32> = zs
-        .iter()
-        .flat_map(|&z| ((Vec3::new(x, y, z) - c) * (1.0 / r)).to_array().map(|v| v as f32))
-        .collect();
-    let sdf = t.field.sdf_values(&pts, t.config.field.grid.levels);
-    // The highest crossing from outside (above) to inside (below).
-    (0..n)
-        .rev()
-        .find(|&k| sdf[k] <= 0.0 && sdf[k + 1] > 0.0)
-        .map(|k| zs[k] + (zs[k + 1] - zs[k]) * (sdf[k] as f64 / (sdf[k] - sdf[k + 1]) as f64))
-}
-
 fn check_scene(preset: &str) {
     let dir = testkit::scratch_dir("neus", &format!("scene_{preset}"));
     let capture = scene_capture(preset, &dir);
@@ -75,7 +57,11 @@ fn check_scene(preset: &str) {
     let spots = [(-0.15, -0.05), (-0.05, 0.05), (0.1, -0.05), (0.05, 0.1), (-0.2, -0.15)];
     let heights: Vec<f64> = spots
         .iter()
-        .map(|&(x, y)| surface_height(&t, x, y, -0.05, 0.2).unwrap_or(f64::INFINITY))
+        .map(|&(x, y)| {
+            t.field
+                .surface_height(t.data.centre, t.data.radius, x, y, -0.05, 0.2)
+                .unwrap_or(f64::INFINITY)
+        })
         .collect();
     let mut abs: Vec<f64> = heights.iter().map(|h| h.abs()).collect();
     abs.sort_by(f64::total_cmp);
@@ -83,7 +69,11 @@ fn check_scene(preset: &str) {
     // The wall (7 cm high, at x = 0.22 m in both presets) stands: a flat start alone paints it onto the board.
     let wall: Vec<f64> = [-0.06, 0.0, 0.06]
         .iter()
-        .map(|&y| surface_height(&t, 0.22, y, -0.05, 0.2).unwrap_or(f64::NAN))
+        .map(|&y| {
+            t.field
+                .surface_height(t.data.centre, t.data.radius, 0.22, y, -0.05, 0.2)
+                .unwrap_or(f64::NAN)
+        })
         .collect();
     eprintln!(
         "{preset}: occupied {:.3}, inv_s {:.0}, batch PSNR {psnr:.1} dB, board heights (mm) {:?}, wall top (mm) {:?}",
