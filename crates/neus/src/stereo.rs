@@ -7,7 +7,7 @@
 //! SfM), make it grow. Textureless pixels give no point, which is right: they
 //! carry no parallax either.
 
-use crate::Dataset;
+use crate::{CaptureSubject, Dataset};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -222,9 +222,9 @@ fn neighbours(cams: &[Cam], k: usize) -> Vec<Vec<usize>> {
         .collect()
 }
 
-/// Stereo points (unit coordinates) from the given views of a capture. Masked pixels (a scene's "not scene")
-/// are not used as reference pixels.
-pub fn stereo_points(data: &Dataset, views: &[usize], cfg: &StereoConfig) -> Vec<[f32; 3]> {
+/// Stereo points (unit coordinates) from the given views of a capture. With masks, reference pixels are those
+/// of the subject: outside a scene's masks (they mark what is not scene), inside an object's.
+pub fn stereo_points(data: &Dataset, views: &[usize], subject: CaptureSubject, cfg: &StereoConfig) -> Vec<[f32; 3]> {
     let (w, h) = (data.width as usize, data.height as usize);
     if views.len() < 3 || w < 8 || h < 8 {
         return Vec::new();
@@ -242,7 +242,7 @@ pub fn stereo_points(data: &Dataset, views: &[usize], cfg: &StereoConfig) -> Vec
     };
     let maps: Vec<DepthMap> = (0..views.len())
         .into_par_iter()
-        .map(|i| sweep(i, &cams, &greys, masks[i], &nbrs[i], stride, cfg))
+        .map(|i| sweep(i, &cams, &greys, masks[i], subject, &nbrs[i], stride, cfg))
         .collect();
     // Keep points that a neighbour's own depth map confirms.
     let mut out = Vec::new();
@@ -289,15 +289,18 @@ fn voxel_means(points: &[[f32; 3]], voxel: f32) -> Vec<[f32; 3]> {
 
 /// The plane sweep of one reference view: for each grid pixel, fronto-parallel patches at depths across the
 /// unit sphere, scored by the mean NCC of the two best neighbours; the best depth refined by a parabola.
+#[allow(clippy::too_many_arguments)]
 fn sweep(
     i: usize,
     cams: &[Cam],
     greys: &[Grey],
     mask: Option<&Vec<f32>>,
+    subject: CaptureSubject,
     nbrs: &[usize],
     stride: usize,
     cfg: &StereoConfig,
 ) -> DepthMap {
+    let keep_masked = subject == CaptureSubject::Object;
     let g = &greys[i];
     let cam = cams[i];
     let (cols, rows) = (g.w / stride, g.h / stride);
@@ -317,7 +320,7 @@ fn sweep(
     for gy in 0..rows {
         for gx in 0..cols {
             let (px, py) = (gx * stride + stride / 2, gy * stride + stride / 2);
-            if mask.is_some_and(|m| m[py * g.w + px] > 0.5) {
+            if mask.is_some_and(|m| (m[py * g.w + px] > 0.5) != keep_masked) {
                 continue;
             }
             let (u, v) = (px as f32 + 0.5, py as f32 + 0.5);

@@ -213,9 +213,9 @@ impl NeusTrainer {
 
     /// The stereo points the term pulls onto the zero level (found now if not yet).
     pub fn stereo_points(&mut self) -> &[[f32; 3]] {
-        let (data, views, cfg) = (&self.data, &self.train_views, &self.config.stereo);
+        let (data, views, kind, cfg) = (&self.data, &self.train_views, self.config.kind, &self.config.stereo);
         self.stereo_points
-            .get_or_insert_with(|| stereo_points(data, views, cfg))
+            .get_or_insert_with(|| stereo_points(data, views, kind, cfg))
     }
 
     /// The stereo-point term: mean |SDF| over a batch of stereo points, its gradient (times `weight`) added to

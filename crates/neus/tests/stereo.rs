@@ -2,7 +2,7 @@
 //! board and the tabletop's wall (whose faces a flat start cannot grow).
 use geom::Vec3;
 use neus::stereo::{stereo_points, StereoConfig};
-use neus::Dataset;
+use neus::{CaptureSubject, Dataset};
 use std::path::Path;
 
 /// Distance from a world point to the tabletop's true surface: the board's top (z = 0 over ±0.3 m), the table
@@ -31,7 +31,7 @@ fn stereo_points_lie_on_the_board_and_the_wall() {
     synth::generate(&scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
     let data = Dataset::load(&dir.join("background")).unwrap();
     let views: Vec<usize> = (0..data.views.len()).collect();
-    let pts = stereo_points(&data, &views, &StereoConfig::default());
+    let pts = stereo_points(&data, &views, CaptureSubject::Scene, &StereoConfig::default());
     let world: Vec<Vec3<f64>> = pts
         .iter()
         .map(|p| data.centre + Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * data.radius)
@@ -66,6 +66,52 @@ fn stereo_points_lie_on_the_board_and_the_wall() {
         board_median.abs() < 0.0015,
         "board points {:.2} mm off",
         board_median * 1e3
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Masks choose the reference pixels: an object's stereo points lie on the object (inside its masks), a scene's
+/// leave out what the masks mark.
+#[test]
+fn masks_choose_the_subject_of_the_stereo_points() {
+    let dir = testkit::scratch_dir("neus", "stereo_masks");
+    let mut scene = synth::preset("tabletop", synth::Scale::Small).unwrap();
+    scene.cameras.width = 96;
+    scene.cameras.height = 72;
+    scene.cameras.views = 16;
+    scene.videos.truncate(1);
+    scene.videos[0].frames = 1;
+    synth::generate(&scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
+    // toy_a: the toy (half-extents 0.03 × 0.022 × 0.018 m) upright at the origin, its centre 0.018 m up.
+    let data = Dataset::load(&dir.join("toy_a")).unwrap();
+    assert!(data.has_masks());
+    let views: Vec<usize> = (0..data.views.len()).collect();
+    let on_toy = |pts: &[[f32; 3]], pad: f64| {
+        let inside = pts
+            .iter()
+            .map(|p| data.centre + Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * data.radius)
+            .filter(|p| p.x.abs() < 0.03 + pad && p.y.abs() < 0.022 + pad && p.z > -pad && p.z < 0.036 + pad)
+            .count();
+        inside as f64 / pts.len().max(1) as f64
+    };
+    let object = stereo_points(&data, &views, CaptureSubject::Object, &StereoConfig::default());
+    let scene = stereo_points(&data, &views, CaptureSubject::Scene, &StereoConfig::default());
+    let (a, b) = (on_toy(&object, 0.01), on_toy(&scene, -0.005));
+    eprintln!(
+        "object: {} points, {a:.3} on the toy; scene: {} points, {b:.3} on the toy",
+        object.len(),
+        scene.len()
+    );
+    // Measured: 1657 object points, all on the toy; 616 scene points, none on it.
+    assert!(
+        object.len() > 50 && a > 0.9,
+        "object points on the toy: {a:.3} of {}",
+        object.len()
+    );
+    assert!(
+        scene.len() > 200 && b < 0.02,
+        "scene points on the toy: {b:.3} of {}",
+        scene.len()
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
