@@ -831,9 +831,9 @@ fn scene_train_bake_and_simulate_on_the_reconstruction() {
         "toy on the baked scene: height off by at most {:.1} mm (frame {frame})",
         worst * 1e3
     );
-    // At 96×72 a pixel spans 13 mm of the board and the reconstructed board is within ~4 mm of z = 0.
+    // Measured 3.2 mm; at 96×72 a pixel spans 13 mm of the board and the reconstructed board is within ~4 mm of z = 0.
     assert!(
-        worst < 0.006,
+        worst < 0.005,
         "frame {frame}: the toy's centre {:.1} mm off its resting height",
         worst * 1e3
     );

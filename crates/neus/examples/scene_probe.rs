@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p neus --example scene_probe -- CAPTURE [CONFIG.toml|-] [STEPS] [LIFT_M]`
 //! (`LIFT_M` starts the plane that far above the board; env `SEED`, `STEREO_W` override the config,
-//! `STEREO_ONLY=1` stops after the stereo points).
+//! `STEREO_ONLY=1` stops after the stereo points, `STEREO_PLY=points.ply` writes them, world coordinates).
 use geom::Vec3;
 use neus::{CaptureSubject, Dataset, NeusField, NeusTrainer, TrainConfig};
 use std::path::Path;
@@ -71,6 +71,16 @@ fn main() {
         far as f64 / pts.len().max(1) as f64,
         on_wall
     );
+    if let Ok(path) = std::env::var("STEREO_PLY") {
+        let mut text = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+            pts.len()
+        );
+        for p in &pts {
+            text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+        }
+        std::fs::write(path, text).unwrap();
+    }
     if std::env::var("STEREO_ONLY").is_ok() {
         return;
     }

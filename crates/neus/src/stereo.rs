@@ -7,6 +7,7 @@
 //! SfM), make it grow. Textureless pixels give no point, which is right: they
 //! carry no parallax either.
 
+use crate::occupancy::sphere_span;
 use crate::{CaptureSubject, Dataset};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -177,19 +178,6 @@ impl Grey {
     }
 }
 
-/// Where a ray enters and leaves the unit sphere.
-fn chord(o: [f32; 3], d: [f32; 3]) -> Option<(f32, f32)> {
-    let b = dot(o, d);
-    let c = dot(o, o) - 1.0;
-    let disc = b * b - c;
-    if disc <= 0.0 {
-        return None;
-    }
-    let s = disc.sqrt();
-    let (near, far) = ((-b - s).max(0.0), -b + s);
-    (far > near).then_some((near, far))
-}
-
 /// One view's depth map on its stride grid: depth along the optical axis (NaN where no match) and the point.
 struct DepthMap {
     cols: usize,
@@ -336,16 +324,15 @@ fn sweep(
                 continue;
             }
             let mean = reference.iter().sum::<f32>() / n;
-            let var = reference.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n;
-            if var.sqrt() < cfg.min_contrast {
+            let sd = (reference.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n).sqrt();
+            if sd < cfg.min_contrast {
                 continue;
             }
-            let sd = var.sqrt();
             for r in reference.iter_mut() {
                 *r = (*r - mean) / sd;
             }
             let dir = cam.ray_dir(u, v);
-            let Some((near, far)) = chord(cam.centre, dir) else {
+            let Some((near, far)) = sphere_span(cam.centre, dir) else {
                 continue;
             };
             let step = (far - near) / d as f32;

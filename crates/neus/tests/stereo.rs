@@ -3,7 +3,7 @@
 use geom::Vec3;
 use neus::stereo::{stereo_points, StereoConfig};
 use neus::{CaptureSubject, Dataset};
-use std::path::Path;
+mod common;
 
 /// Distance from a world point to the tabletop's true surface: the board's top (z = 0 over ±0.3 m), the table
 /// 1 cm below it, and the wall (a box of half-extents 0.02 × 0.12 × 0.035 m at (0.22, 0, 0.035)).
@@ -22,13 +22,7 @@ fn distance_to_tabletop(p: Vec3<f64>) -> f64 {
 #[test]
 fn stereo_points_lie_on_the_board_and_the_wall() {
     let dir = testkit::scratch_dir("neus", "stereo_tabletop");
-    let mut scene = synth::preset("tabletop", synth::Scale::Small).unwrap();
-    scene.cameras.width = 96;
-    scene.cameras.height = 72;
-    scene.cameras.views = 16;
-    scene.videos.truncate(1);
-    scene.videos[0].frames = 1;
-    synth::generate(&scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
+    common::tiny_synth("tabletop", &dir);
     let data = Dataset::load(&dir.join("background")).unwrap();
     let views: Vec<usize> = (0..data.views.len()).collect();
     let pts = stereo_points(&data, &views, CaptureSubject::Scene, &StereoConfig::default());
@@ -75,13 +69,7 @@ fn stereo_points_lie_on_the_board_and_the_wall() {
 #[test]
 fn masks_choose_the_subject_of_the_stereo_points() {
     let dir = testkit::scratch_dir("neus", "stereo_masks");
-    let mut scene = synth::preset("tabletop", synth::Scale::Small).unwrap();
-    scene.cameras.width = 96;
-    scene.cameras.height = 72;
-    scene.cameras.views = 16;
-    scene.videos.truncate(1);
-    scene.videos[0].frames = 1;
-    synth::generate(&scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
+    common::tiny_synth("tabletop", &dir);
     // toy_a: the toy (half-extents 0.03 × 0.022 × 0.018 m) upright at the origin, its centre 0.018 m up.
     let data = Dataset::load(&dir.join("toy_a")).unwrap();
     assert!(data.has_masks());

@@ -6,15 +6,11 @@
 use neus::{CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 /// The background capture of a preset at 96×72, 16 views.
 fn scene_capture(preset: &str, dir: &Path) -> PathBuf {
-    let mut scene = synth::preset(preset, synth::Scale::Small).unwrap();
-    scene.cameras.width = 96;
-    scene.cameras.height = 72;
-    scene.cameras.views = 16;
-    scene.videos.truncate(1);
-    scene.videos[0].frames = 1;
-    synth::generate(&scene, Path::new("."), dir, &mut |_, _, _| {}).unwrap();
+    common::tiny_synth(preset, dir);
     dir.join("background")
 }
 
@@ -98,7 +94,7 @@ fn check_scene(preset: &str) {
         median * 1e3
     );
     assert!(
-        worst < 0.006,
+        worst < 0.005,
         "{preset}: board height off by {:.1} mm (worst)",
         worst * 1e3
     );
