@@ -414,6 +414,57 @@ fn train_render_and_resume_end_to_end() {
         std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(),
         std::fs::read(out.join("rgb").join("001.png")).unwrap()
     );
+    // The run as an object moved along a trajectory: a video capture in the NeuS layout.
+    let pose = |x: f64| serde_json::json!({"t": [x, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0]});
+    let traj = serde_json::json!({
+        "capture": "moved", "fps": 10.0,
+        "bodies": [{"name": "toy", "initial": {"t": [0.0, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0], "v": [0.0, 0.0, 0.0], "omega": [0.0, 0.0, 0.0]},
+                    "poses": [pose(0.0), pose(0.004), pose(0.008)]}],
+        "contact": {"restitution": 0.5, "friction": 0.3, "model": "pganeus"}
+    });
+    std::fs::write(d.join("traj.json"), traj.to_string()).unwrap();
+    let moved = d.join("moved");
+    let o = bin()
+        .arg("render")
+        .arg("--trajectory")
+        .arg(d.join("traj.json"))
+        .arg("--object")
+        .arg(format!("toy={}", run.display()))
+        .arg("--camera")
+        .arg(d.join("cams.json"))
+        .arg("--out")
+        .arg(&moved)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let c = pganeus_io::open_capture(&moved).unwrap();
+    assert_eq!(c.len(), 3);
+    assert!(c.masks.is_some() && c.extra_masks.iter().any(|(n, _)| n == "toy"));
+    assert_eq!(c.info.as_ref().and_then(|i| i.fps), Some(10.0));
+    assert!(moved.join("animation.png").exists());
+    // The object moves between frames, so the frames differ.
+    assert_ne!(
+        std::fs::read(&c.images[0]).unwrap(),
+        std::fs::read(&c.images[2]).unwrap()
+    );
+    // A body of the trajectory named wrongly is refused, naming the bodies.
+    let o = bin()
+        .arg("render")
+        .arg("--trajectory")
+        .arg(d.join("traj.json"))
+        .arg("--object")
+        .arg(format!("cup={}", run.display()))
+        .arg("--camera")
+        .arg(d.join("cams.json"))
+        .arg("--out")
+        .arg(d.join("moved2"))
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && text(&o).contains("no body named \"cup\""),
+        "{}",
+        text(&o)
+    );
     // The zero level as a mesh, simplified, and as points with the field's normals.
     let o = bin()
         .arg("mesh")

@@ -459,6 +459,52 @@ pub fn sh_encode_rows(dirs: &[f32], out: &mut [f32]) {
     }
 }
 
+/// Backward of [`sh_encode_rows`]: `d_dirs` (n×3) += `Σ_k d_out[k] ∂Y_k/∂d`, the derivative of each polynomial with
+/// respect to the components as given (no projection onto the sphere: callers move directions by rotations).
+pub fn sh_backward_rows(dirs: &[f32], d_out: &[f32], d_dirs: &mut [f32]) {
+    const A: f32 = 0.488_602_5;
+    const B: f32 = 1.092_548_4;
+    const C: f32 = 0.946_174_7;
+    const E: f32 = 0.546_274_2;
+    const F: f32 = 0.590_043_6;
+    const G: f32 = 2.890_611_4;
+    const H: f32 = 0.457_045_8;
+    const I: f32 = 0.373_176_33;
+    const J: f32 = 1.445_305_7;
+    for ((d, g), dd) in dirs
+        .chunks_exact(3)
+        .zip(d_out.chunks_exact(16))
+        .zip(d_dirs.chunks_exact_mut(3))
+    {
+        let (x, y, z) = (d[0], d[1], d[2]);
+        let (xx, yy, zz) = (x * x, y * y, z * z);
+        // One row per coefficient: (∂/∂x, ∂/∂y, ∂/∂z).
+        let rows: [[f32; 3]; 15] = [
+            [0.0, -A, 0.0],
+            [0.0, 0.0, A],
+            [-A, 0.0, 0.0],
+            [B * y, B * x, 0.0],
+            [0.0, -B * z, -B * y],
+            [0.0, 0.0, 2.0 * C * z],
+            [-B * z, 0.0, -B * x],
+            [2.0 * E * x, -2.0 * E * y, 0.0],
+            [-6.0 * F * x * y, 3.0 * F * (yy - xx), 0.0],
+            [G * y * z, G * x * z, G * x * y],
+            [0.0, H * (1.0 - 5.0 * zz), -10.0 * H * y * z],
+            [0.0, 0.0, I * (15.0 * zz - 3.0)],
+            [H * (1.0 - 5.0 * zz), 0.0, -10.0 * H * x * z],
+            [2.0 * J * x * z, -2.0 * J * y * z, J * (xx - yy)],
+            [3.0 * F * (yy - xx), 6.0 * F * x * y, 0.0],
+        ];
+        for (k, r) in rows.iter().enumerate() {
+            let gk = g[k + 1];
+            dd[0] += gk * r[0];
+            dd[1] += gk * r[1];
+            dd[2] += gk * r[2];
+        }
+    }
+}
+
 /// Naive scalar versions of the kernels, written independently of the fast paths (different loop order, 64-bit
 /// index arithmetic, `%` instead of masks, plain triple loops instead of GEMM). Used by the tests only, but public
 /// so that other crates' tests can use them too.

@@ -26,7 +26,7 @@ pub use adam::{Adam, AdamConfig};
 pub use hash_grid::{HashGrid, HashGridConfig, Touched};
 pub use kernels::LevelGeom;
 pub use mlp::{Mlp, MlpConfig, MlpScratch};
-pub use sh::{sh_encode, SH_DIM};
+pub use sh::{sh_encode, sh_encode_backward, SH_DIM};
 
 /// What a backward pass does with a gradient buffer (as tiny-cuda-nn's `GradientMode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

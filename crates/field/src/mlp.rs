@@ -313,7 +313,7 @@ impl Mlp {
     }
 
     /// Backward after `forward` on the same `scratch` and `params`: the parameter gradient into `grad`
-    /// (param_count) per `mode`, and, if given, dL/dinput into `d_input` (n×in), which is overwritten. `d_out` is
+    /// (param_count; any length, e.g. empty, with `GradMode::Ignore`) per `mode`, and, if given, dL/dinput into `d_input` (n×in), which is overwritten. `d_out` is
     /// n×out. Per-chunk partial gradients are summed in chunk order, so 1 and 2 threads give identical results.
     pub fn backward(
         &self,
@@ -335,7 +335,9 @@ impl Mlp {
         );
         let n = scratch.n;
         assert_eq!(d_out.len(), n * self.output_dim(), "Mlp::backward: d_out length");
-        assert_eq!(grad.len(), self.param_count, "Mlp::backward: grad length");
+        if want_params {
+            assert_eq!(grad.len(), self.param_count, "Mlp::backward: grad length");
+        }
         let lay = &scratch.layout;
         let nc = n.div_ceil(lay.rows);
         let storage = &mut scratch.storage[..nc * lay.stride];

@@ -18,3 +18,15 @@ pub fn sh_encode(dirs: &[f32], out: &mut [f32]) {
         .zip(out.par_chunks_mut(SH_CHUNK * SH_DIM))
         .for_each(|(d, o)| kernels::sh_encode_rows(d, o));
 }
+
+/// Backward of [`sh_encode`]: `d_dirs` (N×3) += the gradient with respect to the directions' components, from
+/// `d_out` (N×16).
+pub fn sh_encode_backward(dirs: &[f32], d_out: &[f32], d_dirs: &mut [f32]) {
+    assert_eq!(dirs.len() % 3, 0, "sh_encode_backward: dirs length not a multiple of 3");
+    assert_eq!(d_out.len(), dirs.len() / 3 * SH_DIM, "sh_encode_backward: d_out length");
+    assert_eq!(d_dirs.len(), dirs.len(), "sh_encode_backward: d_dirs length");
+    dirs.par_chunks(SH_CHUNK * 3)
+        .zip(d_out.par_chunks(SH_CHUNK * SH_DIM))
+        .zip(d_dirs.par_chunks_mut(SH_CHUNK * 3))
+        .for_each(|((d, g), dd)| kernels::sh_backward_rows(d, g, dd));
+}

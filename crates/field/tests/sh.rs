@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use field::kernels::reference;
-use field::{sh_encode, SH_DIM};
+use field::{sh_encode, sh_encode_backward, SH_DIM};
 use geom::SplitMix64;
 use std::f64::consts::PI;
 
@@ -117,6 +117,36 @@ fn orthonormal_on_the_sphere() {
                 / n as f64;
             let expect = if a == b { 1.0 } else { 0.0 };
             assert!((g - expect).abs() < 1e-3, "<Y{a}, Y{b}> = {g}");
+        }
+    }
+}
+
+#[test]
+fn backward_matches_finite_differences() {
+    // Any directions (not only unit ones): the backward is the polynomials' derivative.
+    let mut rng = SplitMix64::new(9);
+    let n = 300;
+    let dirs: Vec<[f64; 3]> = (0..n).map(|_| (rng.dir() * rng.range(0.5, 1.5)).to_array()).collect();
+    let weights: Vec<f32> = (0..n * SH_DIM).map(|_| rng.range(-1.0, 1.0) as f32).collect();
+    let flat: Vec<f32> = dirs.iter().flat_map(|d| d.map(|x| x as f32)).collect();
+    let mut grad = vec![0.25f32; n * 3];
+    sh_encode_backward(&flat, &weights, &mut grad);
+    let h = 1e-3;
+    for (i, d) in dirs.iter().enumerate() {
+        for k in 0..3 {
+            let (mut up, mut down) = (*d, *d);
+            up[k] += h;
+            down[k] -= h;
+            let (a, b) = (encode(up), encode(down));
+            let fd: f64 = (0..16)
+                .map(|c| weights[i * 16 + c] as f64 * (a[c] as f64 - b[c] as f64) / (2.0 * h))
+                .sum();
+            // The buffer is added to (it started at 0.25).
+            let got = grad[i * 3 + k] as f64 - 0.25;
+            assert!(
+                (got - fd).abs() < 2e-3 * (1.0 + fd.abs()),
+                "dir {i} axis {k}: {got} vs {fd}"
+            );
         }
     }
 }

@@ -9,13 +9,17 @@
 
 pub mod background_field;
 pub mod checkpoint;
+pub mod compose;
 pub mod config;
 pub mod dataset;
 mod fd_samples;
+pub mod field_pass;
 pub mod neus_field;
+pub mod object_model;
 pub mod occupancy;
 pub mod render_view;
 pub mod stereo;
+pub mod surface;
 pub mod switching;
 pub mod trainer;
 pub mod volume;
@@ -23,4 +27,5 @@ pub mod volume;
 pub use config::{CaptureSubject, TrainConfig};
 pub use dataset::{Dataset, DatasetError};
 pub use neus_field::{FieldConfig, FieldInit, NeusField};
+pub use object_model::{ObjectError, ObjectModel};
 pub use trainer::{LossTerms, NeusTrainer, StepStats};

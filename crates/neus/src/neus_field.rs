@@ -31,6 +31,8 @@ pub struct FieldConfig {
     /// Hidden activation of the SDF MLP. Default softplus with β = 100 (as
     /// NeuS): smooth, so finite-difference normals are well behaved.
     pub sdf_activation: Activation,
+    /// Hidden activation of the colour MLP. Default ReLU (as NeuS).
+    pub color_activation: Activation,
     /// How the SDF starts. Default `sphere`.
     pub init: FieldInit,
     /// Radius of the initial sphere, unit coordinates. Default 0.5.
@@ -49,6 +51,7 @@ impl Default for FieldConfig {
             feature_dim: 15,
             color_hidden: vec![64, 64],
             sdf_activation: Activation::Softplus { beta: 100.0 },
+            color_activation: Activation::Relu,
             init: FieldInit::Sphere,
             init_radius: 0.5,
             init_variance: 0.3,
@@ -78,6 +81,14 @@ pub struct SdfGrads<'a> {
     pub touched: &'a mut Touched,
 }
 
+/// Buffers of [`NeusField::sdf_backward`].
+#[derive(Default)]
+pub struct SdfBackwardScratch {
+    d_in: Vec<f32>,
+    d_enc: Vec<f32>,
+    d_unit01: Vec<f32>,
+}
+
 /// Input width of the SDF MLP: xyz then the encoding.
 pub const XYZ: usize = 3;
 
@@ -100,7 +111,7 @@ impl NeusField {
         cdims.push(3);
         let color = Mlp::new(&MlpConfig {
             dims: cdims,
-            hidden: Activation::Relu,
+            hidden: config.color_activation,
             output: Activation::Sigmoid,
         });
         let mut rng = SplitMix64::new(seed);
@@ -185,7 +196,8 @@ impl NeusField {
 
     /// Backward of [`Self::sdf_forward`]: from the outputs' gradient (N × (1 + feature_dim)) to the SDF
     /// MLP's parameters (`mode`) and, through the encoding, to the hash grid's (accumulated; the touched
-    /// entries recorded). `d_in` and `d_enc` are scratch.
+    /// entries recorded), when `grads` is given; and to the input points (`d_points`, N × 3, unit coordinates,
+    /// overwritten) when given. `d_in`, `d_enc` and `d_unit01` are scratch.
     #[allow(clippy::too_many_arguments)]
     pub fn sdf_backward(
         &self,
@@ -193,28 +205,51 @@ impl NeusField {
         mlp: &mut MlpScratch,
         d_out: &[f32],
         mode: GradMode,
-        d_in: &mut Vec<f32>,
-        d_enc: &mut Vec<f32>,
-        grads: SdfGrads<'_>,
+        scratch: &mut SdfBackwardScratch,
+        grads: Option<SdfGrads<'_>>,
+        d_points: Option<&mut [f32]>,
         active_levels: usize,
     ) {
         let n = unit01.len() / 3;
         let e = self.grid.output_dim();
-        d_in.resize(n * (XYZ + e), 0.0);
+        let sc = scratch;
+        sc.d_in.resize(n * (XYZ + e), 0.0);
+        let mut none = [];
+        let (param_grads, mode) = match grads {
+            Some(g) => (Some(g), mode),
+            None => (None, GradMode::Ignore),
+        };
+        let (sdf_grad, grid_grads) = match param_grads {
+            Some(g) => (g.sdf, Some((g.grid, g.touched))),
+            None => (&mut none[..], None),
+        };
         self.sdf
-            .backward(&self.sdf_params, mlp, d_out, grads.sdf, mode, Some(d_in));
-        d_enc.resize(n * e, 0.0);
+            .backward(&self.sdf_params, mlp, d_out, sdf_grad, mode, Some(&mut sc.d_in));
+        sc.d_enc.resize(n * e, 0.0);
         for i in 0..n {
-            d_enc[i * e..(i + 1) * e].copy_from_slice(&d_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
+            sc.d_enc[i * e..(i + 1) * e].copy_from_slice(&sc.d_in[i * (XYZ + e) + XYZ..(i + 1) * (XYZ + e)]);
         }
-        self.grid.encode_backward(
-            unit01,
-            d_enc,
-            grads.grid,
-            grads.touched,
-            GradMode::Accumulate,
-            active_levels,
-        );
+        if let Some((grid, touched)) = grid_grads {
+            self.grid
+                .encode_backward(unit01, &sc.d_enc, grid, touched, GradMode::Accumulate, active_levels);
+        }
+        if let Some(dp) = d_points {
+            // The MLP sees the point itself and its encoding of (p + 1) / 2.
+            sc.d_unit01.resize(n * 3, 0.0);
+            self.grid.encode_backward_input(
+                &self.grid_params,
+                unit01,
+                &sc.d_enc,
+                &mut sc.d_unit01,
+                GradMode::Overwrite,
+                active_levels,
+            );
+            for i in 0..n {
+                for k in 0..3 {
+                    dp[i * 3 + k] = sc.d_in[i * (XYZ + e) + k] + 0.5 * sc.d_unit01[i * 3 + k];
+                }
+            }
+        }
     }
 
     /// The world height where the zero level last crosses (from inside below to outside above) the vertical

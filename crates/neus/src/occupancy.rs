@@ -81,6 +81,10 @@ pub struct Marching {
     pub steps: usize,
     /// At most this many samples per ray.
     pub cap: usize,
+    /// Count the steps from the ray's origin (t = 0) instead of from where it enters the sphere: the
+    /// samples stay where they are along the ray when the field moves (a posed object), so a rendering
+    /// changes smoothly with the pose.
+    pub anchored: bool,
 }
 
 /// Samples along one ray, appended to `out_t` (section midpoints) and
@@ -99,10 +103,12 @@ pub fn sample_ray(
     let (steps, cap) = (march.steps, march.cap);
     let Some((near, far)) = sphere_span(o, d) else { return };
     let dt = 2.0 / steps as f32;
-    let n = ((far - near) / dt).ceil() as usize;
-    let at = |k: usize| near + (k as f32 + jitter) * dt;
+    let base = if march.anchored { (near / dt).floor() * dt } else { near };
+    let n = ((far - base) / dt).ceil() as usize;
+    let at = |k: usize| base + (k as f32 + jitter) * dt;
     let occupied = |t: f32| grid.occupied([o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]]);
-    let count = (0..n).filter(|&k| at(k) < far && occupied(at(k))).count();
+    let inside = |t: f32| t >= near && t < far;
+    let count = (0..n).filter(|&k| inside(at(k)) && occupied(at(k))).count();
     if count == 0 {
         return;
     }
@@ -111,7 +117,7 @@ pub fn sample_ray(
     let mut seen = 0usize;
     for k in 0..n {
         let t = at(k);
-        if t >= far || !occupied(t) {
+        if !inside(t) || !occupied(t) {
             continue;
         }
         if seen % stride == start {

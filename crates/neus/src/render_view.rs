@@ -2,11 +2,10 @@
 //! and PSNR against a capture's images.
 
 use crate::background_field::BackgroundScratch;
-use crate::fd_samples::{fd_gradients, fd_points, FdOut};
-use crate::neus_field::{drop_view_dependence, NeusField};
+use crate::field_pass::{FieldPass, PassSettings};
+use crate::neus_field::NeusField;
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::volume::{render_ray, RayInputs};
-use field::{sh_encode, MlpScratch, SH_DIM};
 use geom::Camera;
 
 /// A rendered view.
@@ -41,23 +40,44 @@ pub struct RenderScratch {
     t: Vec<f32>,
     dt: Vec<f32>,
     offsets: Vec<usize>,
-    pts: Vec<f32>,
-    sdirs: Vec<f32>,
-    unit01: Vec<f32>,
-    enc: Vec<f32>,
-    input: Vec<f32>,
-    sdf_mlp: MlpScratch,
-    sdf_out: Vec<f32>,
-    sh: Vec<f32>,
-    grad: Vec<[f32; 3]>,
-    sdf0: Vec<f32>,
-    cos: Vec<f32>,
-    color_in: Vec<f32>,
-    color_mlp: MlpScratch,
-    rgb: Vec<[f32; 3]>,
+    pass: FieldPass,
     alpha: Vec<f32>,
     w: Vec<f32>,
     bg: BackgroundScratch,
+}
+
+impl RenderSettings {
+    /// A trained field's settings for rendering: twice its training's steps and sample cap, every level,
+    /// the finest cell as the finite-difference step.
+    pub fn of(l: &crate::checkpoint::LoadedField) -> Self {
+        let c = &l.config;
+        let g = &c.field.grid;
+        Self {
+            steps_per_ray: c.steps_per_ray * 2,
+            max_samples_per_ray: c.max_samples_per_ray * 2,
+            active_levels: g.levels,
+            fd_eps: 2.0 / g.max_resolution as f32,
+            view_independent: l.step < c.view_independent_steps,
+        }
+    }
+
+    /// What the field pass needs of these settings.
+    pub fn pass(&self) -> PassSettings {
+        PassSettings {
+            active_levels: self.active_levels,
+            fd_eps: self.fd_eps,
+            view_independent: self.view_independent,
+        }
+    }
+
+    /// How rays are marched: equal steps counted from the ray's origin (see [`Marching::anchored`]).
+    pub fn marching(&self) -> Marching {
+        Marching {
+            steps: self.steps_per_ray,
+            cap: self.max_samples_per_ray,
+            anchored: true,
+        }
+    }
 }
 
 /// Render rays (origins and directions in unit coordinates): each ray's
@@ -74,56 +94,13 @@ pub fn render_rays(
     sc.dt.clear();
     sc.offsets.clear();
     sc.offsets.push(0);
-    let march = Marching {
-        steps: set.steps_per_ray,
-        cap: set.max_samples_per_ray,
-    };
+    let march = set.marching();
     for (o, d) in origins.iter().zip(dirs) {
         sample_ray(occupancy, *o, *d, march, 0.5, &mut sc.t, &mut sc.dt);
         sc.offsets.push(sc.t.len());
     }
-    let m = sc.t.len();
-    let eps = set.fd_eps;
-    fd_points(origins, dirs, &sc.offsets, &sc.t, eps, &mut sc.pts, &mut sc.sdirs);
-    let width = 1 + field.config.feature_dim;
-    let out = field.sdf_forward(
-        &sc.pts,
-        set.active_levels,
-        &mut sc.unit01,
-        &mut sc.enc,
-        &mut sc.input,
-        &mut sc.sdf_mlp,
-    );
-    sc.sdf_out.clear();
-    sc.sdf_out.extend_from_slice(out);
-    let cin = SH_DIM + 3 + field.config.feature_dim;
-    sc.sh.resize(m * SH_DIM, 0.0);
-    sh_encode(&sc.sdirs, &mut sc.sh);
-    if set.view_independent {
-        drop_view_dependence(&mut sc.sh);
-    }
-    sc.grad.resize(m, [0.0; 3]);
-    sc.sdf0.resize(m, 0.0);
-    sc.cos.resize(m, 0.0);
-    sc.color_in.resize(m * cin, 0.0);
-    fd_gradients(
-        &sc.sdf_out,
-        width,
-        eps,
-        &sc.sdirs,
-        &sc.sh,
-        FdOut {
-            grad: &mut sc.grad,
-            sdf0: &mut sc.sdf0,
-            cos: &mut sc.cos,
-            color_in: &mut sc.color_in,
-        },
-    );
-    let rgb = field
-        .color
-        .forward(&field.color_params, &sc.color_in, m, &mut sc.color_mlp);
-    sc.rgb.clear();
-    sc.rgb.extend(rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+    sc.pass.forward(field, origins, dirs, &sc.offsets, &sc.t, set.pass());
+    let p = &sc.pass;
     let inv_s = field.inv_s();
     field.colour_behind(origins, dirs, |_| 0.5, &mut sc.bg);
     (0..origins.len())
@@ -132,11 +109,11 @@ pub fn render_rays(
             sc.alpha.resize(b - a, 0.0);
             sc.w.resize(b - a, 0.0);
             let x = RayInputs {
-                sdf: &sc.sdf0[a..b],
-                cos: &sc.cos[a..b],
+                sdf: &p.sdf[a..b],
+                cos: &p.cos[a..b],
                 dt: &sc.dt[a..b],
                 t: &sc.t[a..b],
-                rgb: &sc.rgb[a..b],
+                rgb: &p.rgb[a..b],
                 inv_s,
                 anneal: 1.0,
                 background: sc.bg.out[i],
@@ -144,7 +121,7 @@ pub fn render_rays(
             let o = render_ray(&x, &mut sc.alpha, &mut sc.w);
             let mut n = [0.0f32; 3];
             for (s, wi) in (a..b).zip(&sc.w) {
-                let g = sc.grad[s];
+                let g = p.grad[s];
                 let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
                 for k in 0..3 {
                     n[k] += wi * g[k] / len;

@@ -11,12 +11,12 @@
 use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratch};
 use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
-use crate::fd_samples::{fd_gradients, fd_points, FdOut};
-use crate::neus_field::{drop_view_dependence, NeusField, SdfGrads};
+use crate::field_pass::{FieldPass, ParamGrads, PassSettings, SampleGrads};
+use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
-use field::{sh_encode, Adam, AdamConfig, GradMode, MlpScratch, Touched, SH_DIM};
+use field::{Adam, AdamConfig, GradMode, MlpScratch, Touched};
 use geom::SplitMix64;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -71,28 +71,9 @@ struct Scratch {
     offsets: Vec<usize>,
     t: Vec<f32>,
     dt: Vec<f32>,
-    points: Vec<f32>,
-    enc: Vec<f32>,
-    sdf_in: Vec<f32>,
-    sdf_mlp: MlpScratch,
-    color_in: Vec<f32>,
-    color_mlp: MlpScratch,
-    grad_fd: Vec<[f32; 3]>,
-    sdf0: Vec<f32>,
-    cos: Vec<f32>,
-    rgb: Vec<[f32; 3]>,
     d_sdf0: Vec<f32>,
     d_cos: Vec<f32>,
     d_rgb: Vec<[f32; 3]>,
-    d_color_out: Vec<f32>,
-    d_color_in: Vec<f32>,
-    d_sdf_out: Vec<f32>,
-    d_sdf_in: Vec<f32>,
-    d_enc: Vec<f32>,
-    unit01: Vec<f32>,
-    dirs: Vec<f32>,
-    sh: Vec<f32>,
-    sdf_out: Vec<f32>,
     /// The gradient of the colour behind each ray (which `bg.out` holds).
     d_behind: Vec<[f32; 3]>,
     bg_jitter: Vec<f32>,
@@ -131,6 +112,8 @@ pub struct NeusTrainer {
     touched: Touched,
     grads: [Vec<f32>; 4],
     scratch: Scratch,
+    /// The field at the step's samples, forward and backward.
+    pass: FieldPass,
     /// Multi-view stereo points (unit coordinates), found at the first step that uses them.
     stereo_points: Option<Vec<[f32; 3]>>,
     stereo_scratch: StereoScratch,
@@ -145,8 +128,7 @@ struct StereoScratch {
     input: Vec<f32>,
     mlp: MlpScratch,
     d_out: Vec<f32>,
-    d_in: Vec<f32>,
-    d_enc: Vec<f32>,
+    back: SdfBackwardScratch,
 }
 
 /// Split `s` into consecutive pieces of the given lengths.
@@ -206,6 +188,7 @@ impl NeusTrainer {
             touched,
             grads,
             scratch: Scratch::default(),
+            pass: FieldPass::default(),
             stereo_points: None,
             stereo_scratch: StereoScratch::default(),
         })
@@ -255,13 +238,13 @@ impl NeusTrainer {
             &mut sc.mlp,
             &sc.d_out,
             GradMode::Accumulate,
-            &mut sc.d_in,
-            &mut sc.d_enc,
-            SdfGrads {
+            &mut sc.back,
+            Some(SdfGrads {
                 grid,
                 sdf,
                 touched: &mut self.touched,
-            },
+            }),
+            None,
             levels,
         );
         sum / k as f32
@@ -334,6 +317,7 @@ impl NeusTrainer {
         let march = Marching {
             steps: cfg.steps_per_ray,
             cap: cfg.max_samples_per_ray,
+            anchored: false,
         };
         for i in 0..r {
             let jitter = self.rng.next_f64() as f32;
@@ -358,63 +342,15 @@ impl NeusTrainer {
             };
         }
 
-        // The SDF at each sample and a step away along x, y, z (4 blocks of m points).
-        fd_points(
-            &sc.rays_o,
-            &sc.rays_d,
-            &sc.offsets,
-            &sc.t,
-            eps,
-            &mut sc.points,
-            &mut sc.dirs,
-        );
-        let width = 1 + cfg.field.feature_dim;
-        let n4 = 4 * m;
-        let out = {
-            let o = self.field.sdf_forward(
-                &sc.points,
-                levels,
-                &mut sc.unit01,
-                &mut sc.enc,
-                &mut sc.sdf_in,
-                &mut sc.sdf_mlp,
-            );
-            sc.sdf_out.clear();
-            sc.sdf_out.extend_from_slice(o);
-            &sc.sdf_out
+        // The SDF at each sample and a step away along x, y, z; gradients, cosines, normals, colours.
+        let pass_settings = PassSettings {
+            active_levels: levels,
+            fd_eps: eps,
+            view_independent: step < cfg.view_independent_steps,
         };
-
-        // Gradients, cosines, normals; the colour MLP's input.
-        let cin = SH_DIM + 3 + cfg.field.feature_dim;
-        sc.grad_fd.resize(m, [0.0; 3]);
-        sc.sdf0.resize(m, 0.0);
-        sc.cos.resize(m, 0.0);
-        sc.color_in.resize(m * cin, 0.0);
-        sc.sh.resize(m * SH_DIM, 0.0);
-        sh_encode(&sc.dirs, &mut sc.sh);
-        if step < cfg.view_independent_steps {
-            drop_view_dependence(&mut sc.sh);
-        }
-        let eik = fd_gradients(
-            out,
-            width,
-            eps,
-            &sc.dirs,
-            &sc.sh,
-            FdOut {
-                grad: &mut sc.grad_fd,
-                sdf0: &mut sc.sdf0,
-                cos: &mut sc.cos,
-                color_in: &mut sc.color_in,
-            },
-        );
-        let dirs = &sc.dirs;
-        let rgb_out = self
-            .field
-            .color
-            .forward(&self.field.color_params, &sc.color_in, m, &mut sc.color_mlp);
-        sc.rgb.clear();
-        sc.rgb.extend(rgb_out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        self.pass
+            .forward(&self.field, &sc.rays_o, &sc.rays_d, &sc.offsets, &sc.t, pass_settings);
+        let eik = self.pass.eikonal_sum;
 
         // What lies behind each ray's samples.
         let jit = &sc.bg_jitter;
@@ -435,11 +371,11 @@ impl NeusTrainer {
         let dr = split_by(&mut sc.d_rgb, &sc.offsets);
         let (offsets, sdf0, cos, dt, tt, rgb, gt, mask, behind) = (
             &sc.offsets,
-            &sc.sdf0,
-            &sc.cos,
+            &self.pass.sdf,
+            &self.pass.cos,
             &sc.dt,
             &sc.t,
-            &sc.rgb,
+            &self.pass.rgb,
             &sc.gt,
             &sc.mask,
             &sc.bg.out,
@@ -542,58 +478,23 @@ impl NeusTrainer {
         loss.eikonal = (eik / m.max(1) as f64) as f32;
         let psnr = -10.0 * (sq / count).max(1e-10).log10();
 
-        // Colour MLP backward: to its parameters, the normal and the feature.
-        sc.d_color_out.clear();
-        sc.d_color_out.extend(sc.d_rgb.iter().flatten());
-        sc.d_color_in.resize(m * cin, 0.0);
-        self.field.color.backward(
-            &self.field.color_params,
-            &mut sc.color_mlp,
-            &sc.d_color_out,
-            &mut self.grads[2],
-            GradMode::Overwrite,
-            Some(&mut sc.d_color_in),
-        );
-
-        // Back to the SDF outputs of the 4 blocks.
-        sc.d_sdf_out.clear();
-        sc.d_sdf_out.resize(n4 * width, 0.0);
-        let eik_w = cfg.eikonal_weight / m.max(1) as f32;
-        for s in 0..m {
-            let g = sc.grad_fd[s];
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
-            let n = g.map(|v| v / len);
-            let dn: [f32; 3] = std::array::from_fn(|k| sc.d_color_in[s * cin + SH_DIM + k]);
-            let ndn = n[0] * dn[0] + n[1] * dn[1] + n[2] * dn[2];
-            let d = &dirs[s * 3..s * 3 + 3];
-            let mut dg = [0.0f32; 3];
-            for k in 0..3 {
-                dg[k] = (dn[k] - n[k] * ndn) / len + sc.d_cos[s] * d[k] + eik_w * 2.0 * (len - 1.0) * n[k];
-            }
-            let mut d0 = sc.d_sdf0[s];
-            for k in 0..3 {
-                sc.d_sdf_out[((k + 1) * m + s) * width] = dg[k] / eps;
-                d0 -= dg[k] / eps;
-            }
-            sc.d_sdf_out[s * width] = d0;
-            for f in 0..cfg.field.feature_dim {
-                sc.d_sdf_out[s * width + 1 + f] = sc.d_color_in[s * cin + SH_DIM + 3 + f];
-            }
-        }
-        let [grid, sdf, ..] = &mut self.grads;
-        self.field.sdf_backward(
-            &sc.unit01,
-            &mut sc.sdf_mlp,
-            &sc.d_sdf_out,
-            GradMode::Overwrite,
-            &mut sc.d_sdf_in,
-            &mut sc.d_enc,
-            SdfGrads {
+        // Back through the colour and SDF networks and the grid to the parameters.
+        let [grid, sdf, color, _] = &mut self.grads;
+        self.pass.backward(
+            &self.field,
+            SampleGrads {
+                sdf: &sc.d_sdf0,
+                cos: &sc.d_cos,
+                rgb: &sc.d_rgb,
+                eikonal: cfg.eikonal_weight / m.max(1) as f32,
+            },
+            Some(ParamGrads {
                 grid,
                 sdf,
+                color,
                 touched: &mut self.touched,
-            },
-            levels,
+            }),
+            None,
         );
         let stereo_w = cfg.stereo_weight_at(step);
         if stereo_w > 0.0 {

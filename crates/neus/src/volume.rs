@@ -62,14 +62,43 @@ fn iter_cos(c: f32, anneal: f32) -> (f32, f32) {
     (v, dv)
 }
 
+/// The opacity of one section: SDF `sdf` and `cos = dir · ∇s` at its midpoint, length `dt`.
+#[inline]
+pub fn section_alpha(sdf: f32, cos: f32, dt: f32, inv_s: f32, anneal: f32) -> f32 {
+    let (ic, _) = iter_cos(cos, anneal);
+    let half = ic * dt * 0.5;
+    let p = sigmoid((sdf - half) * inv_s);
+    let n = sigmoid((sdf + half) * inv_s);
+    ((p - n + EPS) / (p + EPS)).clamp(0.0, 1.0)
+}
+
+/// Gradients of one section's opacity, from `d_alpha`: `(d_sdf, d_cos, d_inv_s)` (zero where the opacity is
+/// clamped).
+#[inline]
+pub fn section_alpha_backward(sdf: f32, cos: f32, dt: f32, inv_s: f32, anneal: f32, d_alpha: f32) -> (f32, f32, f32) {
+    let (ic, dic) = iter_cos(cos, anneal);
+    let half = ic * dt * 0.5;
+    let (ep, en) = (sdf - half, sdf + half);
+    let p = sigmoid(ep * inv_s);
+    let q = sigmoid(en * inv_s);
+    let raw = (p - q + EPS) / (p + EPS);
+    if !(0.0..=1.0).contains(&raw) {
+        return (0.0, 0.0, 0.0);
+    }
+    // α = 1 − Φ(next) / (Φ(prev) + ε)
+    let d_p = d_alpha * q / ((p + EPS) * (p + EPS));
+    let d_q = -d_alpha / (p + EPS);
+    let d_ep = d_p * p * (1.0 - p);
+    let d_en = d_q * q * (1.0 - q);
+    let d_inv_s = d_ep * ep + d_en * en;
+    let (d_ep, d_en) = (d_ep * inv_s, d_en * inv_s);
+    (d_ep + d_en, (d_en - d_ep) * dt * 0.5 * dic, d_inv_s)
+}
+
 /// Opacity of each section; `alpha` has the samples' length.
 pub fn alphas(x: &RayInputs, alpha: &mut [f32]) {
     for i in 0..x.sdf.len() {
-        let (ic, _) = iter_cos(x.cos[i], x.anneal);
-        let half = ic * x.dt[i] * 0.5;
-        let p = sigmoid((x.sdf[i] - half) * x.inv_s);
-        let n = sigmoid((x.sdf[i] + half) * x.inv_s);
-        alpha[i] = ((p - n + EPS) / (p + EPS)).clamp(0.0, 1.0);
+        alpha[i] = section_alpha(x.sdf[i], x.cos[i], x.dt[i], x.inv_s, x.anneal);
     }
 }
 
@@ -101,6 +130,32 @@ pub fn render_ray(x: &RayInputs, alpha: &mut [f32], w: &mut [f32]) -> RayOutput 
     out
 }
 
+/// Backward of alpha compositing `Σ T_i α_i v_i + T_n v_end` (`T_i = Π_{j<i} (1 − α_j)`), where `v(i)` is
+/// what a unit of sample i's weight adds to the loss (its colour dotted with the colour's gradient, plus the
+/// opacity's and depth's) and `v_end` what the light that passes every sample adds. Writes `trans` (T_i) and
+/// `d_alpha`; returns `T_n`.
+pub fn composite_alpha_backward(
+    alpha: &[f32],
+    v: impl Fn(usize) -> f32,
+    v_end: f32,
+    trans: &mut [f32],
+    d_alpha: &mut [f32],
+) -> f32 {
+    let n = alpha.len();
+    let mut t = 1.0f32;
+    for i in 0..n {
+        trans[i] = t;
+        t *= 1.0 - alpha[i];
+    }
+    let mut after = t * v_end; // Σ_{j>i} w_j v_j + T_n v_end
+    for i in (0..n).rev() {
+        let vi = v(i);
+        d_alpha[i] = trans[i] * vi - after / (1.0 - alpha[i]).max(1e-6);
+        after += trans[i] * alpha[i] * vi;
+    }
+    t
+}
+
 /// Backward of [`render_ray`] for `d_rgb`, `d_opacity`, `d_depth`: writes the
 /// per-sample gradients and adds to the scalar ones. `alpha` and `trans` are
 /// scratch of the samples' length.
@@ -114,50 +169,23 @@ pub fn render_ray_backward(
     g: RayGrads,
 ) {
     alphas(x, alpha);
-    let n = x.sdf.len();
-    let mut t = 1.0f32;
-    for i in 0..n {
-        trans[i] = t;
-        t *= 1.0 - alpha[i];
-    }
-    // L = Σ w_i v_i + T_n v_bg, linearised at this point.
     let v = |i: usize| {
         x.rgb[i][0] * d_rgb[0] + x.rgb[i][1] * d_rgb[1] + x.rgb[i][2] * d_rgb[2] + d_opacity + x.t[i] * d_depth
     };
     let v_bg = x.background[0] * d_rgb[0] + x.background[1] * d_rgb[1] + x.background[2] * d_rgb[2];
+    // g.sdf holds dL/dα until each sample's section backward replaces it.
+    let t_end = composite_alpha_backward(alpha, v, v_bg, trans, g.sdf);
     for k in 0..3 {
-        g.background[k] += t * d_rgb[k];
+        g.background[k] += t_end * d_rgb[k];
     }
-    let mut after = t * v_bg; // Σ_{j>i} w_j v_j + T_n v_bg
-    for i in (0..n).rev() {
+    for i in 0..x.sdf.len() {
         let w = trans[i] * alpha[i];
-        for k in 0..3 {
-            g.rgb[i][k] = w * d_rgb[k];
-        }
-        let vi = v(i);
-        let d_alpha = trans[i] * vi - after / (1.0 - alpha[i]).max(1e-6);
-        after += w * vi;
+        g.rgb[i] = d_rgb.map(|d| w * d);
         // Through the clamp, the sigmoids and the end-point estimates.
-        let (ic, dic) = iter_cos(x.cos[i], x.anneal);
-        let half = ic * x.dt[i] * 0.5;
-        let (ep, en) = (x.sdf[i] - half, x.sdf[i] + half);
-        let p = sigmoid(ep * x.inv_s);
-        let q = sigmoid(en * x.inv_s);
-        let raw = (p - q + EPS) / (p + EPS);
-        if !(0.0..=1.0).contains(&raw) {
-            g.sdf[i] = 0.0;
-            g.cos[i] = 0.0;
-            continue;
-        }
-        // α = 1 − Φ(next) / (Φ(prev) + ε)
-        let d_p = d_alpha * q / ((p + EPS) * (p + EPS));
-        let d_q = -d_alpha / (p + EPS);
-        let d_ep = d_p * p * (1.0 - p);
-        let d_en = d_q * q * (1.0 - q);
-        *g.inv_s += d_ep * ep + d_en * en;
-        let (d_ep, d_en) = (d_ep * x.inv_s, d_en * x.inv_s);
-        g.sdf[i] = d_ep + d_en;
-        g.cos[i] = (d_en - d_ep) * x.dt[i] * 0.5 * dic;
+        let (ds, dc, dis) = section_alpha_backward(x.sdf[i], x.cos[i], x.dt[i], x.inv_s, x.anneal, g.sdf[i]);
+        g.sdf[i] = ds;
+        g.cos[i] = dc;
+        *g.inv_s += dis;
     }
 }
 

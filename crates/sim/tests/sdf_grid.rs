@@ -527,3 +527,41 @@ fn save_and_load_through_a_temp_dir() {
     drop(dir);
     assert!(!kept.exists(), "temp dir cleaned up");
 }
+
+#[test]
+fn smoothing_keeps_planes_and_removes_roughness() {
+    let dims = [12, 10, 9];
+    let (origin, h) = ([-0.1, -0.2, -0.05], 0.01);
+    let plane = |i: usize, j: usize, k: usize| {
+        let p = [0, 1, 2].map(|a| origin[a] + [i, j, k][a] as f64 * h);
+        // A tilted plane's signed distance: linear in the position.
+        (0.3 * p[0] - 0.2 * p[1] + 0.93 * p[2] - 0.004) / (0.3f64 * 0.3 + 0.2 * 0.2 + 0.93 * 0.93).sqrt()
+    };
+    let mut rng = geom::SplitMix64::new(4);
+    let (mut clean, mut rough) = (Vec::new(), Vec::new());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let d = plane(i, j, k);
+                clean.push(d as f32);
+                rough.push((d + rng.range(-5e-4, 5e-4)) as f32);
+            }
+        }
+    }
+    let g = SdfGrid::from_values(origin, h, dims, clean.clone())
+        .unwrap()
+        .smoothed(1.5);
+    for (a, b) in g.values.iter().zip(&clean) {
+        assert!(
+            (a - b).abs() < 1e-6,
+            "a plane must stay where it is, borders included: {a} vs {b}"
+        );
+    }
+    let err =
+        |v: &[f32]| (v.iter().zip(&clean).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
+    let rough_grid = SdfGrid::from_values(origin, h, dims, rough.clone()).unwrap();
+    let before = err(&rough_grid.values);
+    let after = err(&rough_grid.smoothed(1.5).values);
+    assert!(after < 0.35 * before, "roughness {before:.2e} → {after:.2e}");
+    assert_eq!(rough_grid.smoothed(0.0), rough_grid);
+}

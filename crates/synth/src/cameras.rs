@@ -38,6 +38,48 @@ pub fn framing_distance(radius: f64, k: &Intrinsics, w: u32, h: u32, margin: f64
     radius * margin / half_v.min(half_h).sin()
 }
 
+/// A camera on an orbit about `centre` (as [`orbit`]) at the distance where
+/// every point of `content` projects inside the image with `border` (a
+/// fraction of each side) to spare: a scene capture fills the frame with its
+/// board and obstacles, as a person walking round a table does, instead of
+/// framing the whole region's ball from every side.
+#[allow(clippy::too_many_arguments)]
+pub fn framed_orbit(
+    centre: Vec3<f64>,
+    content: &[Vec3<f64>],
+    elevation_deg: f64,
+    azimuth_deg: f64,
+    border: f64,
+    k: Intrinsics,
+    w: u32,
+    h: u32,
+) -> Camera<f64> {
+    let reach = content.iter().map(|p| (*p - centre).norm()).fold(1e-6, f64::max);
+    let fits = |d: f64| {
+        let cam = orbit(centre, d, elevation_deg, azimuth_deg, k, w, h);
+        let (bw, bh) = (border * w as f64, border * h as f64);
+        content.iter().all(|p| {
+            let (u, v, z) = cam.project(*p);
+            z > 0.0 && u >= bw && u <= w as f64 - bw && v >= bh && v <= h as f64 - bh
+        })
+    };
+    // Far enough always fits (the content shrinks to the image centre);
+    // bisect down to the nearest distance that does.
+    let (mut near, mut far) = (reach, 2.0 * reach);
+    while !fits(far) {
+        far *= 2.0;
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (near + far);
+        if fits(mid) {
+            far = mid;
+        } else {
+            near = mid;
+        }
+    }
+    orbit(centre, far, elevation_deg, azimuth_deg, k, w, h)
+}
+
 /// `n` views spread over azimuth (golden angle) and elevation `[lo, hi]` degrees.
 pub fn hemisphere_views(n: usize, elevation: [f64; 2]) -> Vec<(f64, f64)> {
     let golden = 180.0 * (3.0 - 5f64.sqrt());

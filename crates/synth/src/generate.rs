@@ -4,7 +4,7 @@
 use crate::build::{
     body_object, build_bodies, build_static, field, resting_pose, unit_quat, Bodies, StaticScene, SynthError,
 };
-use crate::cameras::{framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
+use crate::cameras::{framed_orbit, framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
 use crate::desc::SynthScene;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
 use geom::{Camera, Pose, TriMesh, Vec3};
@@ -14,6 +14,10 @@ use pganeus_io::{
 };
 use sim::{BodyState, ContactParams, SimConfig, World};
 use std::path::{Path, PathBuf};
+
+/// The share of each image side left free around a scene's board and
+/// obstacles in its background views.
+const SCENE_BORDER: f64 = 0.06;
 
 /// One capture to render: its cameras and what they see.
 struct CapturePlan {
@@ -204,11 +208,22 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         objects: stat.objects.clone(),
         light: light.clone(),
     };
-    let (centre, radius) = stat.region;
-    let dist = framing_distance(radius, &k, w, h, 1.05);
+    let (centre, _) = stat.region;
+    // What the views keep in frame: the obstacles and the disc inscribed in
+    // the board (its corners may leave some views, as they do when a person
+    // films a table from close by; other views see them).
+    let half = scene.board.half;
+    let disc = (0..64).map(|i| {
+        let a = i as f64 * std::f64::consts::TAU / 64.0;
+        Vec3::new(half[0] * a.cos(), half[1] * a.sin(), 0.0)
+    });
+    let obstacles = stat.meshes[1..]
+        .iter()
+        .flat_map(|m| m.vertices.iter().map(|v| Vec3::cst(*v)));
+    let content: Vec<Vec3<f64>> = disc.chain(obstacles).collect();
     let cams: Vec<_> = hemisphere_views(rig.views, rig.background_elevation)
         .iter()
-        .map(|&(e, a)| orbit(centre, dist, e, a, k, w, h))
+        .map(|&(e, a)| framed_orbit(centre, &content, e, a, SCENE_BORDER, k, w, h))
         .collect();
     for (i, c) in cams.iter().enumerate() {
         check_camera(c, &bg_scene, &format!("background view {i}"))?;

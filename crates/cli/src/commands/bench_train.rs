@@ -34,6 +34,10 @@ pub struct BenchTrainArgs {
     /// Grid resolution of the zero level for the Chamfer distance.
     #[arg(long, default_value_t = 192)]
     pub mesh_res: usize,
+    /// Also keep the trained run here (checkpoint.safetensors and config.toml,
+    /// as `train` writes them), for `bake`, `mesh` or `render`.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 }
 
 /// The faces whose vertices are all at least `z` above the board.
@@ -110,6 +114,11 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
         if done {
             break;
         }
+    }
+    if let Some(out) = &a.out {
+        std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+        pganeus_io::write_atomic(&out.join("config.toml"), toml::to_string(&t.config)?.as_bytes())?;
+        neus::checkpoint::save(&t, &out.join("checkpoint.safetensors"))?;
     }
     println!(
         "{}",

@@ -119,6 +119,11 @@ pub struct BakeArgs {
     /// No floor, also for a scene field.
     #[arg(long)]
     pub no_floor: bool,
+    /// Blur the grid by a Gaussian of this many node spacings (planes stay exact; detail finer than
+    /// this, such as a reconstruction's sub-pixel roughness that tilts contact normals, is averaged away).
+    /// Default 1.5 for scene fields, 0 for objects and meshes.
+    #[arg(long)]
+    pub smooth: Option<f64>,
 }
 
 /// The board region of a scene field: the unit sphere's square in x and y; in z, from 10 % of its radius below
@@ -149,6 +154,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             Some(b) => bail!("--bounds: give six numbers with min < max, got {b:?}"),
         }
     };
+    let mut scene_field = false;
     let grid = if is_mesh {
         let m = read_mesh(&a.source)?;
         sim::check_closed_mesh(&m).map_err(|e| anyhow!("{}: {e}", a.source.display()))?;
@@ -162,6 +168,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
         let l = load_field(&checkpoint_of(&a.source))?;
         let (c, r) = (l.centre.to_array(), l.radius);
         let scene = l.config.kind == neus::CaptureSubject::Scene;
+        scene_field = scene;
         let (lo, hi) = if scene {
             let (lo, hi) = scene_box(&l);
             bounds(lo, hi)?
@@ -202,11 +209,21 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             .collect();
         SdfGrid::from_values(lo, h, dims, values)?
     };
+    let smooth = a.smooth.unwrap_or(if scene_field { 1.5 } else { 0.0 });
+    if !(smooth.is_finite() && smooth >= 0.0) {
+        bail!("--smooth must be a non-negative number of node spacings, got {smooth}");
+    }
+    let grid = grid.smoothed(smooth);
     grid.save(&a.out)?;
     println!(
-        "baked {:?} nodes, spacing {:.3} mm, in {:.2} s; wrote {}",
+        "baked {:?} nodes, spacing {:.3} mm{}, in {:.2} s; wrote {}",
         grid.dims,
         grid.spacing * 1e3,
+        if smooth > 0.0 {
+            format!(", smoothed over {smooth} spacings")
+        } else {
+            String::new()
+        },
         t0.elapsed().as_secs_f64(),
         a.out.display()
     );

@@ -3,6 +3,7 @@ pub mod bench_train;
 pub mod fit_physics;
 pub mod mesh_cmds;
 pub mod render;
+pub mod render_trajectory;
 pub mod simulate;
 pub mod synth;
 pub mod target;

@@ -2,19 +2,37 @@ use super::checkpoint_of;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::Camera;
-use geom::{Pose, Quat, TriMesh, Vec3};
-use neus::checkpoint::{load_field, LoadedField};
+use geom::{Pose, Quat, Vec3};
+use neus::checkpoint::load_field;
 use neus::render_view::{psnr, render_view, RenderSettings};
 use neus::switching::{route, Route};
-use neus::{Dataset, NeusField, NeusTrainer};
+use neus::{Dataset, NeusTrainer};
 use pganeus_io::Image;
 use serde::Deserialize;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct RenderArgs {
-    /// A run folder (from `pganeus train`) or its checkpoint file.
-    pub run: PathBuf,
+    /// A run folder (from `pganeus train`) or its checkpoint file (not with --trajectory).
+    #[arg(required_unless_present = "trajectory", conflicts_with = "trajectory")]
+    pub run: Option<PathBuf>,
+    /// Render every frame of a motion: a trajectory.json (from simulate, target, fit-physics) or a
+    /// truth.json (pick the video with --video), with each body's reconstructed object (--object) at its
+    /// poses inside the reconstructed scene (--scene); writes a video capture in the NeuS layout.
+    #[arg(long, requires = "object")]
+    pub trajectory: Option<PathBuf>,
+    /// With a truth.json trajectory: the video whose poses to render.
+    #[arg(long, requires = "trajectory")]
+    pub video: Option<String>,
+    /// The scene's run folder (train --kind scene); without it, objects over white.
+    #[arg(long, requires = "trajectory")]
+    pub scene: Option<PathBuf>,
+    /// NAME=DIR: the body NAME of the trajectory is the object in DIR (a merge output or a run folder).
+    #[arg(long, requires = "trajectory")]
+    pub object: Vec<String>,
+    /// With --trajectory: the animation shows this capture's images beside the rendering.
+    #[arg(long, requires = "trajectory")]
+    pub side_by_side: Option<PathBuf>,
     /// Render every view of this capture and print PSNR against its images.
     #[arg(long, conflicts_with = "camera")]
     pub views: Option<PathBuf>,
@@ -32,18 +50,6 @@ pub struct RenderArgs {
     /// The `transform.json` written by `pganeus merge OTHER RUN`: `p_run = R_1to2 · p_other + T_1to2`.
     #[arg(long, requires = "other")]
     pub transform: Option<PathBuf>,
-}
-
-pub fn settings(l: &LoadedField) -> RenderSettings {
-    let c = &l.config;
-    let g = &c.field.grid;
-    RenderSettings {
-        steps_per_ray: c.steps_per_ray * 2,
-        max_samples_per_ray: c.max_samples_per_ray * 2,
-        active_levels: g.levels,
-        fd_eps: 2.0 / g.max_resolution as f32,
-        view_independent: l.step < c.view_independent_steps,
-    }
 }
 
 /// Mean PSNR of a trainer's held-out views (inside the masks when there are masks).
@@ -70,33 +76,7 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
     sum / views.len().max(1) as f32
 }
 
-/// The zero level of a field inside the unit sphere's cube, in world
-/// coordinates (`p_world = centre + radius · p_unit`). A field with a
-/// background field (a scene) keeps only the faces inside the unit sphere:
-/// beyond it the background field holds the content, and the SDF there was
-/// never trained (an open mesh, cut at the sphere).
-pub fn zero_level_mesh(field: &NeusField, levels: usize, centre: Vec3<f64>, radius: f64, res: usize) -> TriMesh {
-    let grid = mesh::sample_sdf_grid(
-        &|pts: &[[f64; 3]]| {
-            let flat: Vec<f32> = pts.iter().flatten().map(|v| *v as f32).collect();
-            field.sdf_values(&flat, levels)
-        },
-        [-1.0; 3],
-        [1.0; 3],
-        res,
-    );
-    let mut m = mesh::extract_zero_level(&grid);
-    if field.background.is_some() {
-        // Centroid inside the unit sphere: |a + b + c| ≤ 3.
-        m = mesh::faces_where(&m, |[a, b, c]| {
-            (0..3).map(|k| (a[k] + b[k] + c[k]).powi(2)).sum::<f64>() <= 9.0
-        });
-    }
-    for v in &mut m.vertices {
-        *v = (centre + Vec3::cst(*v) * radius).to_array();
-    }
-    m
-}
+pub use neus::surface::zero_level_mesh;
 
 fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
@@ -114,7 +94,7 @@ struct CameraJson {
     world_to_cam: Option<[[f64; 4]; 4]>,
 }
 
-fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
+pub(crate) fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let list = if value.is_array() {
@@ -187,7 +167,20 @@ struct Job<'a> {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let l = load_field(&checkpoint_of(&a.run))?;
+    if let Some(trajectory) = &a.trajectory {
+        return super::render_trajectory::run(super::render_trajectory::TrajectoryJob {
+            trajectory,
+            video: a.video.as_deref(),
+            scene: a.scene.as_deref(),
+            objects: &a.object,
+            views: a.views.as_deref(),
+            camera: a.camera.as_deref(),
+            side_by_side: a.side_by_side.as_deref(),
+            out: &a.out,
+        });
+    }
+    let run = a.run.as_deref().expect("clap: RUN is required without --trajectory");
+    let l = load_field(&checkpoint_of(run))?;
     let data = match &a.views {
         Some(capture) => Some(Dataset::load(capture)?),
         None => None,
@@ -236,7 +229,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let mut img = render_view(
             &field.field,
             &field.occupancy,
-            &settings(field),
+            &RenderSettings::of(field),
             &to_unit(&camera, field.centre, field.radius),
         );
         if let Some(q) = to_primary {

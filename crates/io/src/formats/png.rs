@@ -273,6 +273,52 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// Writes `frames` (all of one size and channel count) as an animated PNG
+/// (APNG, played in a loop) at `fps` frames per second, atomically. Viewers
+/// without APNG support show the first frame.
+pub fn write_apng(path: &Path, frames: &[Image], fps: f64) -> Result<()> {
+    let bytes = try_encode_apng(frames, fps).map_err(|msg| IoError::Png {
+        path: path.to_path_buf(),
+        msg: format!("cannot encode the animation: {msg}"),
+    })?;
+    write_atomic(path, &bytes)
+}
+
+fn try_encode_apng(frames: &[Image], fps: f64) -> std::result::Result<Vec<u8>, String> {
+    let first = frames.first().ok_or("no frames")?;
+    for (i, f) in frames.iter().enumerate() {
+        f.check().map_err(|e| format!("frame {i}: {e}"))?;
+        if (f.width, f.height, f.channels) != (first.width, first.height, first.channels) {
+            return Err(format!("frame {i} differs in size or channels from frame 0"));
+        }
+    }
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(format!("fps must be positive, got {fps}"));
+    }
+    let color = match first.channels {
+        1 => png::ColorType::Grayscale,
+        3 => png::ColorType::Rgb,
+        _ => png::ColorType::Rgba,
+    };
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, first.width, first.height);
+    encoder.set_color(color);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    encoder
+        .set_animated(frames.len() as u32, 0)
+        .map_err(|e| e.to_string())?;
+    // The delay as a fraction: 1000 / (fps · 1000) s.
+    let den = (fps * 100.0).round().clamp(1.0, u16::MAX as f64) as u16;
+    encoder.set_frame_delay(100, den).map_err(|e| e.to_string())?;
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    for f in frames {
+        writer.write_image_data(&f.data).map_err(|e| e.to_string())?;
+    }
+    writer.finish().map_err(|e| e.to_string())?;
+    Ok(bytes)
+}
+
 fn try_encode(image: &Image) -> std::result::Result<Vec<u8>, String> {
     image.check()?;
     if image.width == 0 || image.height == 0 {

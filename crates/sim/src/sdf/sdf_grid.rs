@@ -91,6 +91,69 @@ impl SdfGrid {
         })
     }
 
+    /// The grid blurred by a Gaussian of `sigma` node spacings along each axis (separable). Beyond the
+    /// border, values continue linearly (odd reflection about the border node), so a plane's distance, a
+    /// linear function, is kept exactly everywhere; detail finer than `sigma` (a reconstruction's
+    /// sub-pixel roughness, which tilts contact normals by degrees) is averaged away, and edges round off
+    /// over about `sigma`.
+    pub fn smoothed(&self, sigma: f64) -> Self {
+        if !(sigma > 0.0) {
+            return self.clone();
+        }
+        let radius = (3.0 * sigma).ceil() as isize;
+        let kernel: Vec<f64> = (-radius..=radius)
+            .map(|k| (-0.5 * (k as f64 / sigma).powi(2)).exp())
+            .collect();
+        let total: f64 = kernel.iter().sum();
+        let kernel: Vec<f64> = kernel.iter().map(|w| w / total).collect();
+        let mut values: Vec<f64> = self.values.iter().map(|&v| v as f64).collect();
+        let [nx, ny, nz] = self.dims;
+        let strides = [1, nx, nx * ny];
+        for axis in 0..3 {
+            let n = self.dims[axis] as isize;
+            let stride = strides[axis];
+            let lines: Vec<usize> = (0..nx * ny * nz)
+                .filter(|&idx| (idx / stride) % self.dims[axis] == 0)
+                .collect();
+            let src = values.clone();
+            let out: Vec<(usize, Vec<f64>)> = lines
+                .par_iter()
+                .map(|&start| {
+                    let at = |i: isize| src[start + i as usize * stride];
+                    // Odd reflection: v(−i) = 2 v(0) − v(i), v(n − 1 + i) = 2 v(n − 1) − v(n − 1 − i).
+                    let ext = |i: isize| {
+                        if i < 0 {
+                            2.0 * at(0) - at((-i).min(n - 1))
+                        } else if i >= n {
+                            2.0 * at(n - 1) - at((2 * (n - 1) - i).max(0))
+                        } else {
+                            at(i)
+                        }
+                    };
+                    let line = (0..n)
+                        .map(|i| {
+                            kernel
+                                .iter()
+                                .enumerate()
+                                .map(|(k, w)| w * ext(i + k as isize - radius))
+                                .sum()
+                        })
+                        .collect();
+                    (start, line)
+                })
+                .collect();
+            for (start, line) in out {
+                for (i, v) in line.into_iter().enumerate() {
+                    values[start + i * stride] = v;
+                }
+            }
+        }
+        Self {
+            values: values.into_iter().map(|v| v as f32).collect(),
+            ..self.clone()
+        }
+    }
+
     /// The far corner.
     pub fn max_corner(&self) -> [f64; 3] {
         std::array::from_fn(|a| self.origin[a] + (self.dims[a] - 1) as f64 * self.spacing)

@@ -1,0 +1,241 @@
+//! One field at a batch of ray samples, forward and backward: the SDF there and
+//! a step away along x, y, z (finite-difference gradient), cosines, normals,
+//! colours; and back from the samples' gradients to the field's parameters
+//! (training) and/or to each sample's point and ray direction (a posed
+//! object's pose gradient). Training, rendering and the composed renderer all
+//! run this one pipeline.
+
+use crate::fd_samples::{fd_gradients, fd_points, FdOut};
+use crate::neus_field::{drop_view_dependence, NeusField, SdfBackwardScratch, SdfGrads};
+use field::{sh_encode, sh_encode_backward, GradMode, MlpScratch, Touched, SH_DIM};
+
+/// How a pass evaluates the field.
+#[derive(Clone, Copy, Debug)]
+pub struct PassSettings {
+    pub active_levels: usize,
+    /// Finite-difference step for gradients, unit coordinates.
+    pub fd_eps: f32,
+    /// Colour from the point alone (a scene's first steps).
+    pub view_independent: bool,
+}
+
+/// The field's parameter gradients (overwritten; the grid's touched entries recorded).
+pub struct ParamGrads<'a> {
+    pub grid: &'a mut [f32],
+    pub sdf: &'a mut [f32],
+    pub color: &'a mut [f32],
+    pub touched: &'a mut Touched,
+}
+
+/// Gradients of each sample's point and ray direction (unit coordinates; overwritten).
+pub struct InputGrads<'a> {
+    pub point: &'a mut [[f32; 3]],
+    pub dir: &'a mut [[f32; 3]],
+}
+
+/// What [`FieldPass::backward`] starts from, one entry per sample.
+pub struct SampleGrads<'a> {
+    pub sdf: &'a [f32],
+    pub cos: &'a [f32],
+    pub rgb: &'a [[f32; 3]],
+    /// Weight of the eikonal term per sample (the loss's weight over the sample count); 0 for none.
+    pub eikonal: f32,
+}
+
+/// The buffers of one pass; after [`FieldPass::forward`], the per-sample results are public.
+#[derive(Default)]
+pub struct FieldPass {
+    points: Vec<f32>,
+    /// Each sample's ray direction (m × 3).
+    pub dirs: Vec<f32>,
+    unit01: Vec<f32>,
+    enc: Vec<f32>,
+    sdf_in: Vec<f32>,
+    sdf_mlp: MlpScratch,
+    sdf_out: Vec<f32>,
+    sh: Vec<f32>,
+    color_in: Vec<f32>,
+    color_mlp: MlpScratch,
+    /// Finite-difference SDF gradient at each sample.
+    pub grad: Vec<[f32; 3]>,
+    /// SDF at each sample.
+    pub sdf: Vec<f32>,
+    /// `dir · ∇s` at each sample.
+    pub cos: Vec<f32>,
+    pub rgb: Vec<[f32; 3]>,
+    /// Σ (|∇s| − 1)² over the samples.
+    pub eikonal_sum: f64,
+    settings: Option<PassSettings>,
+    d_color_out: Vec<f32>,
+    d_color_in: Vec<f32>,
+    d_sdf_out: Vec<f32>,
+    d_points4: Vec<f32>,
+    d_sh: Vec<f32>,
+    d_dirs: Vec<f32>,
+    sdf_back: SdfBackwardScratch,
+}
+
+impl FieldPass {
+    /// Samples count of the last forward pass.
+    pub fn len(&self) -> usize {
+        self.sdf.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.sdf.is_empty()
+    }
+
+    /// Evaluate `field` at the samples `t[offsets[i]..offsets[i + 1]]` of rays `(origins[i], dirs[i])`.
+    pub fn forward(
+        &mut self,
+        field: &NeusField,
+        origins: &[[f32; 3]],
+        dirs: &[[f32; 3]],
+        offsets: &[usize],
+        t: &[f32],
+        set: PassSettings,
+    ) {
+        let m = t.len();
+        self.settings = Some(set);
+        fd_points(origins, dirs, offsets, t, set.fd_eps, &mut self.points, &mut self.dirs);
+        let width = 1 + field.config.feature_dim;
+        let out = field.sdf_forward(
+            &self.points,
+            set.active_levels,
+            &mut self.unit01,
+            &mut self.enc,
+            &mut self.sdf_in,
+            &mut self.sdf_mlp,
+        );
+        self.sdf_out.clear();
+        self.sdf_out.extend_from_slice(out);
+        let cin = SH_DIM + 3 + field.config.feature_dim;
+        self.sh.resize(m * SH_DIM, 0.0);
+        sh_encode(&self.dirs, &mut self.sh);
+        if set.view_independent {
+            drop_view_dependence(&mut self.sh);
+        }
+        self.grad.resize(m, [0.0; 3]);
+        self.sdf.resize(m, 0.0);
+        self.cos.resize(m, 0.0);
+        self.color_in.resize(m * cin, 0.0);
+        self.eikonal_sum = fd_gradients(
+            &self.sdf_out,
+            width,
+            set.fd_eps,
+            &self.dirs,
+            &self.sh,
+            FdOut {
+                grad: &mut self.grad,
+                sdf0: &mut self.sdf,
+                cos: &mut self.cos,
+                color_in: &mut self.color_in,
+            },
+        );
+        let rgb = field
+            .color
+            .forward(&field.color_params, &self.color_in, m, &mut self.color_mlp);
+        self.rgb.clear();
+        self.rgb.extend(rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+    }
+
+    /// Back from the samples' gradients (after [`Self::forward`] with the same field) to the parameters
+    /// and/or to each sample's point and direction.
+    pub fn backward(
+        &mut self,
+        field: &NeusField,
+        g: SampleGrads<'_>,
+        params: Option<ParamGrads<'_>>,
+        inputs: Option<InputGrads<'_>>,
+    ) {
+        let set = self.settings.expect("FieldPass::backward before forward");
+        let m = self.len();
+        let (eps, fdim) = (set.fd_eps, field.config.feature_dim);
+        let width = 1 + fdim;
+        let cin = SH_DIM + 3 + fdim;
+
+        // Colour MLP: to its parameters, the direction's encoding, the normal and the feature.
+        self.d_color_out.clear();
+        self.d_color_out.extend(g.rgb.iter().flatten());
+        self.d_color_in.resize(m * cin, 0.0);
+        let mut no_grad: [f32; 0] = [];
+        let (mode, color_buf, sdf_grads) = match params {
+            Some(p) => (
+                GradMode::Overwrite,
+                p.color,
+                Some(SdfGrads {
+                    grid: p.grid,
+                    sdf: p.sdf,
+                    touched: p.touched,
+                }),
+            ),
+            None => (GradMode::Ignore, &mut no_grad[..], None),
+        };
+        field.color.backward(
+            &field.color_params,
+            &mut self.color_mlp,
+            &self.d_color_out,
+            color_buf,
+            mode,
+            Some(&mut self.d_color_in),
+        );
+
+        // Back to the SDF outputs of the 4 blocks.
+        self.d_sdf_out.clear();
+        self.d_sdf_out.resize(4 * m * width, 0.0);
+        for s in 0..m {
+            let gr = self.grad[s];
+            let len = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt().max(1e-8);
+            let n = gr.map(|v| v / len);
+            let dn: [f32; 3] = std::array::from_fn(|k| self.d_color_in[s * cin + SH_DIM + k]);
+            let ndn = n[0] * dn[0] + n[1] * dn[1] + n[2] * dn[2];
+            let d = &self.dirs[s * 3..s * 3 + 3];
+            let mut dg = [0.0f32; 3];
+            for k in 0..3 {
+                dg[k] = (dn[k] - n[k] * ndn) / len + g.cos[s] * d[k] + g.eikonal * 2.0 * (len - 1.0) * n[k];
+            }
+            let mut d0 = g.sdf[s];
+            for k in 0..3 {
+                self.d_sdf_out[((k + 1) * m + s) * width] = dg[k] / eps;
+                d0 -= dg[k] / eps;
+            }
+            self.d_sdf_out[s * width] = d0;
+            for f in 0..fdim {
+                self.d_sdf_out[s * width + 1 + f] = self.d_color_in[s * cin + SH_DIM + 3 + f];
+            }
+        }
+        let want_inputs = inputs.is_some();
+        if want_inputs {
+            self.d_points4.resize(4 * m * 3, 0.0);
+        }
+        field.sdf_backward(
+            &self.unit01,
+            &mut self.sdf_mlp,
+            &self.d_sdf_out,
+            GradMode::Overwrite,
+            &mut self.sdf_back,
+            sdf_grads,
+            want_inputs.then_some(&mut self.d_points4[..]),
+            set.active_levels,
+        );
+        let Some(inputs) = inputs else { return };
+
+        // Each sample's point moves its three neighbours with it.
+        for s in 0..m {
+            inputs.point[s] = std::array::from_fn(|k| (0..4).map(|b| self.d_points4[(b * m + s) * 3 + k]).sum::<f32>());
+        }
+        // The direction: through the cosine and, unless the colour ignores it, its encoding.
+        self.d_dirs.clear();
+        self.d_dirs.resize(m * 3, 0.0);
+        if !set.view_independent {
+            self.d_sh.resize(m * SH_DIM, 0.0);
+            for s in 0..m {
+                self.d_sh[s * SH_DIM..(s + 1) * SH_DIM].copy_from_slice(&self.d_color_in[s * cin..s * cin + SH_DIM]);
+            }
+            sh_encode_backward(&self.dirs, &self.d_sh, &mut self.d_dirs);
+        }
+        for s in 0..m {
+            inputs.dir[s] = std::array::from_fn(|k| self.d_dirs[s * 3 + k] + g.cos[s] * self.grad[s][k]);
+        }
+    }
+}

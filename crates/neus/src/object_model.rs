@@ -1,0 +1,234 @@
+//! A reconstructed object as every later stage sees it (render, fit,
+//! simulate, eval): its field(s), its closed mesh and mass properties, and
+//! the body frame they share (FORMATS.md: origin at the centre of mass of the
+//! closed mesh, axes of the reference capture; `p_world = R(q) p_body + t`).
+//!
+//! Loaded from a `merge` output folder (two fields and their `transform.json`:
+//! the two-pose switching of Eq. 3–4) or from a single `train` run (one field;
+//! its zero level is the mesh).
+
+use crate::checkpoint::{load_field, CheckpointError, LoadedField};
+use crate::switching::{route, Route};
+use geom::{Camera, Pose, Quat, TriMesh, Vec3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// One field of the object and where the body frame sits in its capture.
+pub struct ObjectField {
+    pub field: LoadedField,
+    /// `p_capture = capture_from_body · p_body`.
+    pub capture_from_body: Pose<f64>,
+}
+
+/// Which of the object's fields renders a camera.
+pub struct Routed<'a> {
+    pub field: &'a ObjectField,
+    /// True when the other field renders (the camera is below the primary's board).
+    pub switched: bool,
+}
+
+/// A reconstructed object.
+pub struct ObjectModel {
+    /// Where it was loaded from.
+    pub source: PathBuf,
+    /// The field of the reference capture (B for a merge).
+    pub primary: ObjectField,
+    /// The field of the other pose (A for a merge), seen by cameras below the primary's board.
+    pub other: Option<ObjectField>,
+    /// The closed mesh, body frame.
+    pub mesh: TriMesh,
+    /// Volume (m³) of the closed mesh.
+    pub volume: f64,
+    /// The reference capture's name (its folder's) and where the body frame sat in it.
+    pub reference_capture: String,
+    pub reference_pose: Pose<f64>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ObjectError {
+    #[error("{path}: {msg}")]
+    Invalid { path: PathBuf, msg: String },
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error(transparent)]
+    Io(#[from] pganeus_io::IoError),
+}
+
+fn invalid(path: &Path, msg: impl Into<String>) -> ObjectError {
+    ObjectError::Invalid {
+        path: path.to_path_buf(),
+        msg: msg.into(),
+    }
+}
+
+#[derive(Deserialize)]
+struct TransformJson {
+    q_1to2: [f64; 4],
+    #[serde(rename = "T_1to2")]
+    t_1to2: [f64; 3],
+    a: PathBuf,
+    b: PathBuf,
+}
+
+/// The checkpoint of a run folder (or the file itself).
+fn checkpoint_in(p: &Path) -> PathBuf {
+    if p.is_dir() {
+        p.join("checkpoint.safetensors")
+    } else {
+        p.to_path_buf()
+    }
+}
+
+/// A path written in `transform.json`: as written if it exists (absolute, or relative to the working
+/// directory of `merge`), else relative to the folder that holds the file.
+fn resolve(folder: &Path, p: &Path) -> PathBuf {
+    if p.exists() || p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        folder.join(p)
+    }
+}
+
+/// The capture's folder name, as truth.json names captures.
+fn capture_name(field: &LoadedField) -> String {
+    field
+        .capture
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+impl ObjectModel {
+    /// Load a `merge` output folder (`transform.json`, `merged.ply`) or a `train` run folder.
+    pub fn load(path: &Path) -> Result<Self, ObjectError> {
+        if path.join("transform.json").exists() {
+            Self::load_merge(path)
+        } else if checkpoint_in(path).exists() {
+            Self::load_run(path)
+        } else {
+            Err(invalid(
+                path,
+                "neither a merge output (transform.json, merged.ply) nor a run (checkpoint.safetensors)",
+            ))
+        }
+    }
+
+    fn load_merge(dir: &Path) -> Result<Self, ObjectError> {
+        let tpath = dir.join("transform.json");
+        let text = std::fs::read_to_string(&tpath).map_err(|e| invalid(&tpath, e.to_string()))?;
+        let t: TransformJson = serde_json::from_str(&text).map_err(|e| invalid(&tpath, e.to_string()))?;
+        let q = Quat::<f64>::cst(t.q_1to2);
+        if !((q.norm() - 1.0).abs() < 1e-6 && t.t_1to2.iter().all(|v| v.is_finite())) {
+            return Err(invalid(&tpath, "q_1to2 must be a unit quaternion and T_1to2 finite"));
+        }
+        let a_to_b = Pose::new(q.normalize_or_identity(), Vec3::cst(t.t_1to2));
+        let (a, b) = (resolve(dir, &t.a), resolve(dir, &t.b));
+        for p in [&a, &b] {
+            if !checkpoint_in(p).exists() {
+                return Err(invalid(
+                    &tpath,
+                    format!(
+                        "{} is not a run folder with a checkpoint (an object made from meshes has no field to render)",
+                        p.display()
+                    ),
+                ));
+            }
+        }
+        let mpath = dir.join("merged.ply");
+        let merged = pganeus_io::read_mesh(&mpath)?;
+        let props = closed_volume(&mpath, &merged)?;
+        let com = props.1;
+        // The body frame: origin at the centre of mass, axes of B's capture.
+        let b_from_body = Pose::from_translation(com);
+        let a_from_body = a_to_b.inverse().compose(&b_from_body);
+        let mesh = to_body(&merged, com);
+        let primary = ObjectField {
+            field: load_field(&checkpoint_in(&b))?,
+            capture_from_body: b_from_body,
+        };
+        let other = ObjectField {
+            field: load_field(&checkpoint_in(&a))?,
+            capture_from_body: a_from_body,
+        };
+        Ok(Self {
+            source: dir.to_path_buf(),
+            reference_capture: capture_name(&primary.field),
+            reference_pose: b_from_body,
+            primary,
+            other: Some(other),
+            mesh,
+            volume: props.0,
+        })
+    }
+
+    fn load_run(run: &Path) -> Result<Self, ObjectError> {
+        let field = load_field(&checkpoint_in(run))?;
+        let levels = field.config.field.grid.levels;
+        let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, 192);
+        let (volume, com) = closed_volume(run, &zero)?;
+        let capture_from_body = Pose::from_translation(com);
+        Ok(Self {
+            source: run.to_path_buf(),
+            reference_capture: capture_name(&field),
+            reference_pose: capture_from_body,
+            mesh: to_body(&zero, com),
+            volume,
+            primary: ObjectField {
+                field,
+                capture_from_body,
+            },
+            other: None,
+        })
+    }
+
+    /// The field that renders `camera` (world) when the body stands at `pose` (Eq. 4: the primary field
+    /// when the camera is above its board in the primary capture's frame, else the other).
+    pub fn route(&self, pose: &Pose<f64>, camera: &Camera<f64>) -> Routed<'_> {
+        let Some(other) = &self.other else {
+            return Routed {
+                field: &self.primary,
+                switched: false,
+            };
+        };
+        // The camera seen from the primary capture's frame.
+        let mut cam = *camera;
+        let capture_from_world = self.primary.capture_from_body.compose(&pose.inverse());
+        cam.world_to_cam = camera.world_to_cam.compose(&capture_from_world.inverse());
+        let primary_to_other = other
+            .capture_from_body
+            .compose(&self.primary.capture_from_body.inverse());
+        match route(&cam, &primary_to_other) {
+            Route::Primary => Routed {
+                field: &self.primary,
+                switched: false,
+            },
+            Route::Other(_) => Routed {
+                field: other,
+                switched: true,
+            },
+        }
+    }
+}
+
+/// Volume and centre of mass of a closed mesh, or an error naming `path`.
+fn closed_volume(path: &Path, m: &TriMesh) -> Result<(f64, Vec3<f64>), ObjectError> {
+    if m.faces.is_empty() {
+        return Err(invalid(path, "the object's mesh is empty"));
+    }
+    let p = sim::mass_properties(m, 1.0);
+    if !(p.volume.is_finite() && p.volume > 0.0) {
+        return Err(invalid(
+            path,
+            format!("the object's mesh is not closed (volume {:.3e} m³)", p.volume),
+        ));
+    }
+    Ok((p.volume, p.center_of_mass))
+}
+
+fn to_body(m: &TriMesh, com: Vec3<f64>) -> TriMesh {
+    let mut out = m.clone();
+    for v in &mut out.vertices {
+        *v = (Vec3::cst(*v) - com).to_array();
+    }
+    out
+}
