@@ -392,13 +392,17 @@ pub struct MergeArgs {
 
 /// The cameras of a capture, in its world frame.
 fn capture_cameras(dir: &Path) -> Result<Vec<geom::Camera<f64>>> {
-    let c = pganeus_io::open_capture(dir)?;
+    world_cameras(&pganeus_io::open_capture(dir)?)
+}
+
+/// An opened capture's cameras, one per image, in its world frame.
+pub(crate) fn world_cameras(c: &pganeus_io::CaptureIndex) -> Result<Vec<geom::Camera<f64>>> {
     c.cameras
         .iter()
         .enumerate()
         .map(|(i, m)| {
             geom::Camera::from_world_mat(&m.world_mat, c.width, c.height)
-                .map_err(|e| anyhow!("{}: camera {i}: {e}", dir.join("cameras_sphere.npz").display()))
+                .map_err(|e| anyhow!("{}: camera {i}: {e}", c.dir.join("cameras_sphere.npz").display()))
         })
         .collect()
 }

@@ -4,9 +4,10 @@
 //! plus an animation.
 
 use super::checkpoint_of;
+use super::mesh_cmds::world_cameras;
 use super::render::read_cameras;
 use anyhow::{anyhow, bail, Context, Result};
-use geom::{Camera, Pose, Quat, Vec3};
+use geom::{Pose, Quat, Vec3};
 use neus::checkpoint::{load_field, LoadedField};
 use neus::compose::{render_composed, ComposedImage, Composer, Layer};
 use neus::render_view::psnr;
@@ -132,21 +133,6 @@ fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
         .collect()
 }
 
-/// A capture's world cameras, one per image, and its images and masks for comparison.
-fn capture_cameras(dir: &Path) -> Result<(pganeus_io::CaptureIndex, Vec<Camera<f64>>)> {
-    let c = pganeus_io::open_capture(dir)?;
-    let cams = c
-        .cameras
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            Camera::from_world_mat(&m.world_mat, c.width, c.height)
-                .map_err(|e| anyhow!("{}: camera {i}: {e}", dir.join("cameras_sphere.npz").display()))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok((c, cams))
-}
-
 fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
@@ -243,7 +229,8 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     }
     let (reference, cameras) = match (job.views, job.camera) {
         (Some(dir), None) => {
-            let (c, cams) = capture_cameras(dir)?;
+            let c = pganeus_io::open_capture(dir)?;
+            let cams = world_cameras(&c)?;
             (Some((dir.to_path_buf(), c)), cams)
         }
         (None, Some(path)) => (None, read_cameras(path)?),
