@@ -20,13 +20,6 @@ pub struct ObjectField {
     pub capture_from_body: Pose<f64>,
 }
 
-/// Which of the object's fields renders a camera.
-pub struct Routed<'a> {
-    pub field: &'a ObjectField,
-    /// True when the other field renders (the camera is below the primary's board).
-    pub switched: bool,
-}
-
 /// A reconstructed object.
 pub struct ObjectModel {
     /// Where it was loaded from.
@@ -66,8 +59,29 @@ struct TransformJson {
     q_1to2: [f64; 4],
     #[serde(rename = "T_1to2")]
     t_1to2: [f64; 3],
+}
+
+/// The runs a `merge` output was made from.
+#[derive(Deserialize)]
+struct MergeSources {
     a: PathBuf,
     b: PathBuf,
+}
+
+/// `p_b = a_to_b · p_a` from a `transform.json` (as `merge` writes it, or given by hand with `q_1to2` and
+/// `T_1to2`).
+pub fn read_transform(path: &Path) -> Result<Pose<f64>, ObjectError> {
+    let text = std::fs::read_to_string(path).map_err(|e| invalid(path, e.to_string()))?;
+    transform_of(path, &text)
+}
+
+fn transform_of(path: &Path, text: &str) -> Result<Pose<f64>, ObjectError> {
+    let t: TransformJson = serde_json::from_str(text).map_err(|e| invalid(path, e.to_string()))?;
+    let q = Quat::<f64>::cst(t.q_1to2);
+    if !((q.norm() - 1.0).abs() < 1e-6 && t.t_1to2.iter().all(|v| v.is_finite())) {
+        return Err(invalid(path, "q_1to2 must be a unit quaternion and T_1to2 finite"));
+    }
+    Ok(Pose::new(q.normalize_or_identity(), Vec3::cst(t.t_1to2)))
 }
 
 /// The checkpoint of a run folder (or the file itself).
@@ -116,12 +130,8 @@ impl ObjectModel {
     fn load_merge(dir: &Path) -> Result<Self, ObjectError> {
         let tpath = dir.join("transform.json");
         let text = std::fs::read_to_string(&tpath).map_err(|e| invalid(&tpath, e.to_string()))?;
-        let t: TransformJson = serde_json::from_str(&text).map_err(|e| invalid(&tpath, e.to_string()))?;
-        let q = Quat::<f64>::cst(t.q_1to2);
-        if !((q.norm() - 1.0).abs() < 1e-6 && t.t_1to2.iter().all(|v| v.is_finite())) {
-            return Err(invalid(&tpath, "q_1to2 must be a unit quaternion and T_1to2 finite"));
-        }
-        let a_to_b = Pose::new(q.normalize_or_identity(), Vec3::cst(t.t_1to2));
+        let a_to_b = transform_of(&tpath, &text)?;
+        let t: MergeSources = serde_json::from_str(&text).map_err(|e| invalid(&tpath, e.to_string()))?;
         let (a, b) = (resolve(dir, &t.a), resolve(dir, &t.b));
         for p in [&a, &b] {
             if !checkpoint_in(p).exists() {
@@ -183,12 +193,9 @@ impl ObjectModel {
 
     /// The field that renders `camera` (world) when the body stands at `pose` (Eq. 4: the primary field
     /// when the camera is above its board in the primary capture's frame, else the other).
-    pub fn route(&self, pose: &Pose<f64>, camera: &Camera<f64>) -> Routed<'_> {
+    pub fn route(&self, pose: &Pose<f64>, camera: &Camera<f64>) -> &ObjectField {
         let Some(other) = &self.other else {
-            return Routed {
-                field: &self.primary,
-                switched: false,
-            };
+            return &self.primary;
         };
         // The camera seen from the primary capture's frame.
         let mut cam = *camera;
@@ -198,14 +205,8 @@ impl ObjectModel {
             .capture_from_body
             .compose(&self.primary.capture_from_body.inverse());
         match route(&cam, &primary_to_other) {
-            Route::Primary => Routed {
-                field: &self.primary,
-                switched: false,
-            },
-            Route::Other(_) => Routed {
-                field: other,
-                switched: true,
-            },
+            Route::Primary => &self.primary,
+            Route::Other(_) => other,
         }
     }
 }

@@ -2,7 +2,7 @@ use super::checkpoint_of;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::Camera;
-use geom::{Pose, Quat, Vec3};
+use geom::{Pose, Vec3};
 use neus::checkpoint::load_field;
 use neus::render_view::{psnr, render_view, RenderSettings};
 use neus::switching::{route, Route};
@@ -128,22 +128,9 @@ pub(crate) fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
         .collect()
 }
 
-/// `p_b = a_to_b · p_a` from a `transform.json` written by `pganeus merge`.
+/// `p_b = a_to_b · p_a` from a `transform.json` written by `pganeus merge` (or by hand).
 pub fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
-    #[derive(Deserialize)]
-    struct TransformJson {
-        q_1to2: [f64; 4],
-        #[serde(rename = "T_1to2")]
-        t_1to2: [f64; 3],
-    }
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let t: TransformJson = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let q = Quat::<f64>::cst(t.q_1to2);
-    let n = q.norm();
-    if !(n.is_finite() && (n - 1.0).abs() < 1e-6 && t.t_1to2.iter().all(|v| v.is_finite())) {
-        bail!("{}: q_1to2 must be a unit quaternion and T_1to2 finite", path.display());
-    }
-    Ok(Pose::new(q.normalize_or_identity(), Vec3::cst(t.t_1to2)))
+    neus::object_model::read_transform(path).map_err(|e| anyhow!("{e}"))
 }
 
 /// A world camera seen from the field's unit frame (`p_world = centre + radius · p_unit`).

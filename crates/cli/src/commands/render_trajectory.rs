@@ -271,12 +271,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         let mut layers: Vec<Layer<'_>> = scene.iter().map(Layer::scene).collect();
         for (i, (m, model)) in bodies.iter().enumerate() {
             let routed = model.route(&m.poses[k], &cam);
-            layers.push(Layer::object(
-                &routed.field.field,
-                &routed.field.capture_from_body,
-                &m.poses[k],
-                i,
-            ));
+            layers.push(Layer::object(&routed.field, &routed.capture_from_body, &m.poses[k], i));
         }
         let img: ComposedImage = render_composed(&layers, bodies.len(), background, &cam, &mut composer);
         let file = format!("{k:03}.png");
