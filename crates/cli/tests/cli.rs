@@ -447,6 +447,63 @@ fn train_render_and_resume_end_to_end() {
         std::fs::read(&c.images[0]).unwrap(),
         std::fs::read(&c.images[2]).unwrap()
     );
+    // With a scene and a fixed camera, the scene is rendered once and the object composited over it;
+    // --reference-compositing traces both in every frame; --orbit turns the camera to a new view.
+    let with_scene = |out: &str, extra: &[&str]| {
+        bin()
+            .arg("render")
+            .arg("--trajectory")
+            .arg(d.join("traj.json"))
+            .arg("--scene")
+            .arg(&run)
+            .arg("--object")
+            .arg(format!("toy={}", run.display()))
+            .arg("--camera")
+            .arg(d.join("cams.json"))
+            .arg("--out")
+            .arg(d.join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = with_scene("fast", &[]);
+    assert!(o.status.success() && text(&o).contains("rendered once"), "{}", text(&o));
+    let o = with_scene("reference", &["--reference-compositing"]);
+    assert!(
+        o.status.success() && !text(&o).contains("rendered once"),
+        "{}",
+        text(&o)
+    );
+    let o = with_scene("orbit", &["--orbit", "-40"]);
+    assert!(o.status.success(), "{}", text(&o));
+    for out in ["fast", "reference", "orbit"] {
+        assert_eq!(pganeus_io::open_capture(&d.join(out)).unwrap().len(), 3, "{out}");
+    }
+    let cam =
+        |out: &str| pganeus_io::read_cameras_npz(&d.join(out).join("cameras_sphere.npz"), 3).unwrap()[0].world_mat;
+    assert_eq!(cam("fast"), cam("reference"));
+    assert_ne!(cam("fast"), cam("orbit"));
+    // The composed renderer's timings, one JSON line per figure.
+    let o = bin()
+        .arg("bench-compose")
+        .arg("--scene")
+        .arg(&run)
+        .arg("--object")
+        .arg(format!("toy={}", run.display()))
+        .arg("--trajectory")
+        .arg(d.join("traj.json"))
+        .arg("--views")
+        .arg(&capture)
+        .arg("--window-only")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 9, "{}", text(&o));
+    assert!(lines.iter().all(|l| l["rays_per_s"].as_f64().unwrap() > 0.0));
     // A body of the trajectory named wrongly is refused, naming the bodies.
     let o = bin()
         .arg("render")

@@ -9,6 +9,14 @@
 //! gradient with respect to its pose through the fields' input-point
 //! gradients, the finite-difference normals and the view direction.
 //!
+//! A fixed camera's fast path: the scene rendered once per pixel
+//! ([`prerender_scene`]) stands behind the objects ([`Behind::Scene`]): each
+//! object's samples in front of the scene's surface (where the scene's
+//! transmittance falls below ½) are composited over the scene's colour and
+//! depth, those behind it are occluded, and only pixels whose rays meet an
+//! object's occupied cells are traced. Exact where the scene's surface is
+//! sharp (a trained scene's is); tested against the reference.
+//!
 //! Pose tangent: `δ = (δt, δω)`, world axes, perturbing a pose `(R, t)` to
 //! `(exp(δω) R, t + δt)` (a rotation about the body's origin, the centre of
 //! mass). Gradients are `[dL/dδt, dL/dδω]`.
@@ -16,7 +24,7 @@
 use crate::background_field::BackgroundScratch;
 use crate::checkpoint::LoadedField;
 use crate::field_pass::{FieldPass, InputGrads, SampleGrads};
-use crate::occupancy::sample_ray;
+use crate::occupancy::{sample_ray, sphere_span};
 use crate::render_view::RenderSettings;
 use crate::volume::{composite_alpha_backward, section_alpha, section_alpha_backward};
 use geom::{Camera, Pose, Vec3};
@@ -31,6 +39,8 @@ pub struct Layer<'a> {
     /// The object's origin in the world (the centre of rotations of its pose tangent).
     pub pivot: Vec3<f64>,
     pub settings: RenderSettings,
+    /// A sphere (unit frame) around every occupied cell: rays that miss it have no samples.
+    bound: Option<([f32; 3], f32)>,
 }
 
 impl<'a> Layer<'a> {
@@ -42,6 +52,7 @@ impl<'a> Layer<'a> {
             object: None,
             pivot: Vec3::new(0.0, 0.0, 0.0),
             settings: RenderSettings::of(field),
+            bound: field.occupancy.bounding_sphere(),
         }
     }
 
@@ -53,6 +64,7 @@ impl<'a> Layer<'a> {
             object: Some(index),
             pivot: pose.t,
             settings: RenderSettings::of(field),
+            bound: field.occupancy.bounding_sphere(),
         }
     }
 
@@ -64,6 +76,29 @@ impl<'a> Layer<'a> {
         let du = a.transform_vector(d);
         (ou.to_array().map(|v| v as f32), du.to_array().map(|v| v as f32))
     }
+
+    /// Whether a ray (unit frame) can meet an occupied cell of this layer's field.
+    fn meets_unit(&self, o: [f32; 3], d: [f32; 3]) -> bool {
+        let Some((c, r)) = self.bound else { return false };
+        let oc = [0, 1, 2].map(|k| (o[k] - c[k]) / r);
+        sphere_span(oc, d).is_some()
+    }
+
+    /// Whether a world ray can meet an occupied cell of this layer's field.
+    pub fn meets(&self, o: Vec3<f64>, d: Vec3<f64>) -> bool {
+        let (ou, du) = self.ray_to_unit(o, d);
+        self.meets_unit(ou, du)
+    }
+}
+
+/// What stands behind the layers along each ray.
+#[derive(Clone, Copy, Debug)]
+pub enum Behind<'a> {
+    /// A constant colour (depth and opacity 0). Ignored when a layer is the scene: its background is behind.
+    Colour([f32; 3]),
+    /// The scene, pre-rendered along the same rays ([`prerender_scene`]; one per ray): objects' samples
+    /// beyond its surface are occluded, the rest composited over its colour, depth and opacity.
+    Scene(&'a [ComposedRay]),
 }
 
 /// What one ray renders to.
@@ -74,6 +109,9 @@ pub struct ComposedRay {
     pub depth: f32,
     /// Σ w over every field's samples.
     pub opacity: f32,
+    /// Metres along the ray to the first sample after which the transmittance is below ½ (the surface
+    /// seen; infinite where the ray stays mostly clear).
+    pub surface: f32,
 }
 
 /// What the loss says of one ray: the gradients of its outputs.
@@ -119,6 +157,10 @@ pub struct Composer {
     merged: Vec<Merged>,
     merged_offsets: Vec<usize>,
     background: Vec<[f32; 3]>,
+    /// What stands behind, per ray: its depth (weighted by the transmittance left) and opacity.
+    behind_depth: Vec<f32>,
+    behind_opacity: Vec<f32>,
+    behind_surface: Vec<f32>,
     world_o: Vec<Vec3<f64>>,
     world_d: Vec<Vec3<f64>>,
     objects: usize,
@@ -134,17 +176,25 @@ pub struct Composer {
 
 impl Composer {
     /// Render world rays (`dirs` of unit length) through `layers`; `objects` is the number of objects the
-    /// layers' indices refer to. Behind everything: the scene's background (its background field or colour),
-    /// or `background` when no layer is the scene.
+    /// layers' indices refer to. Behind everything: the scene's background (its background field or colour)
+    /// when a layer is the scene, else `behind`.
     pub fn forward(
         &mut self,
         layers: &[Layer<'_>],
         objects: usize,
-        background: [f32; 3],
+        behind: Behind<'_>,
         origins: &[Vec3<f64>],
         dirs: &[Vec3<f64>],
     ) {
         let n = origins.len();
+        let scene_layer = layers.iter().position(|l| l.object.is_none());
+        if let Behind::Scene(s) = behind {
+            assert!(
+                scene_layer.is_none(),
+                "Composer::forward: a scene layer and a pre-rendered scene"
+            );
+            assert_eq!(s.len(), n, "Composer::forward: one pre-rendered scene pixel per ray");
+        }
         self.objects = objects;
         self.world_o.clear();
         self.world_o.extend_from_slice(origins);
@@ -163,7 +213,9 @@ impl Composer {
                 let (ou, du) = layer.ray_to_unit(*o, *d);
                 st.origins.push(ou);
                 st.dirs.push(du);
-                sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut st.t, &mut st.dt);
+                if layer.meets_unit(ou, du) {
+                    sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut st.t, &mut st.dt);
+                }
                 st.offsets.push(st.t.len());
             }
             let f = &layer.field.field;
@@ -177,8 +229,11 @@ impl Composer {
         }
         // Behind everything.
         self.background.clear();
-        match layers.iter().position(|l| l.object.is_none()) {
-            Some(i) => {
+        self.behind_depth.clear();
+        self.behind_opacity.clear();
+        self.behind_surface.clear();
+        match (scene_layer, behind) {
+            (Some(i), _) => {
                 let st = &self.layers[i];
                 layers[i]
                     .field
@@ -186,17 +241,31 @@ impl Composer {
                     .colour_behind(&st.origins, &st.dirs, |_| 0.5, &mut self.bg);
                 self.background.extend_from_slice(&self.bg.out);
             }
-            None => self.background.resize(n, background),
+            (None, Behind::Colour(c)) => self.background.resize(n, c),
+            (None, Behind::Scene(s)) => {
+                self.background.extend(s.iter().map(|p| p.rgb));
+                self.behind_depth.extend(s.iter().map(|p| p.depth));
+                self.behind_opacity.extend(s.iter().map(|p| p.opacity));
+                self.behind_surface.extend(s.iter().map(|p| p.surface));
+            }
         }
+        self.behind_depth.resize(n, 0.0);
+        self.behind_opacity.resize(n, 0.0);
+        self.behind_surface.resize(n, f32::INFINITY);
         // Every field's samples in one depth order (metres along the world ray).
         self.merged.clear();
         self.merged_offsets.clear();
         self.merged_offsets.push(0);
         for i in 0..n {
             let start = self.merged.len();
+            // Samples behind a pre-rendered scene's surface are hidden by it.
+            let cut = self.behind_surface[i];
             for (li, (layer, st)) in layers.iter().zip(&self.layers).enumerate() {
                 let r = layer.field.radius as f32;
                 for s in st.offsets[i]..st.offsets[i + 1] {
+                    if st.t[s] * r > cut {
+                        continue;
+                    }
                     self.merged.push(Merged {
                         t: st.t[s] * r,
                         layer: li as u32,
@@ -217,6 +286,7 @@ impl Composer {
             let (mut rgb, mut depth, mut opacity) = ([0.0f64; 3], 0.0f64, 0.0f64);
             per_object.iter_mut().for_each(|v| *v = 0.0);
             let mut trans = 1.0f64;
+            let mut surface = f32::INFINITY;
             for m in &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]] {
                 let st = &self.layers[m.layer as usize];
                 let s = m.sample as usize;
@@ -232,9 +302,17 @@ impl Composer {
                     per_object[obj] += w;
                 }
                 trans *= 1.0 - a;
+                if trans < 0.5 && surface.is_infinite() {
+                    surface = m.t;
+                }
             }
             for k in 0..3 {
                 rgb[k] += trans * self.background[i][k] as f64;
+            }
+            depth += trans * self.behind_depth[i] as f64;
+            opacity += trans * self.behind_opacity[i] as f64;
+            if surface.is_infinite() {
+                surface = self.behind_surface[i];
             }
             for (obj, v) in per_object.iter().enumerate() {
                 self.object_opacity[i * objects + obj] = *v as f32;
@@ -243,6 +321,7 @@ impl Composer {
                 rgb: rgb.map(|v| v as f32),
                 depth: depth as f32,
                 opacity: opacity as f32,
+                surface,
             });
         }
     }
@@ -288,7 +367,7 @@ impl Composer {
             composite_alpha_backward(
                 &self.alpha,
                 v,
-                dot(self.background[i]),
+                dot(self.background[i]) + self.behind_depth[i] * g.depth,
                 &mut self.trans,
                 &mut self.d_alpha,
             );
@@ -362,49 +441,120 @@ pub struct ComposedImage {
     pub rgb: Vec<[f32; 3]>,
     pub depth: Vec<f32>,
     pub opacity: Vec<f32>,
+    /// Metres to the surface seen ([`ComposedRay::surface`]).
+    pub surface: Vec<f32>,
     /// `pixels × objects`.
     pub object_opacity: Vec<f32>,
     pub objects: usize,
+    /// Pixels whose rays went through the fields (the others meet no object and show what is behind).
+    pub traced: usize,
 }
 
-/// Render a whole view of `camera` (world) through `layers`, in chunks of rows.
+impl ComposedImage {
+    /// Pixel `p` as a ray's output.
+    pub fn pixel(&self, p: usize) -> ComposedRay {
+        ComposedRay {
+            rgb: self.rgb[p],
+            depth: self.depth[p],
+            opacity: self.opacity[p],
+            surface: self.surface[p],
+        }
+    }
+}
+
+/// Render a whole view of `camera` (world) through `layers`, in chunks. With a scene layer every pixel is
+/// traced; without one, only pixels whose rays meet an object's occupied cells, the others showing `behind`.
 pub fn render_composed(
     layers: &[Layer<'_>],
     objects: usize,
-    background: [f32; 3],
+    behind: Behind<'_>,
     camera: &Camera<f64>,
     composer: &mut Composer,
 ) -> ComposedImage {
+    const CHUNK: usize = 2048;
     let (w, h) = (camera.width, camera.height);
     let n = (w * h) as usize;
+    let behind_at = |p: usize| match behind {
+        Behind::Colour(c) => ComposedRay {
+            rgb: c,
+            depth: 0.0,
+            opacity: 0.0,
+            surface: f32::INFINITY,
+        },
+        Behind::Scene(s) => s[p].clone(),
+    };
+    if let Behind::Scene(s) = behind {
+        assert_eq!(s.len(), n, "render_composed: one pre-rendered scene pixel per pixel");
+    }
     let mut img = ComposedImage {
         width: w,
         height: h,
         rgb: Vec::with_capacity(n),
         depth: Vec::with_capacity(n),
         opacity: Vec::with_capacity(n),
-        object_opacity: Vec::with_capacity(n * objects),
+        surface: Vec::with_capacity(n),
+        object_opacity: vec![0.0; n * objects],
         objects,
+        traced: 0,
     };
-    let rows = (2048 / w.max(1)).max(1);
-    let (mut o, mut d) = (Vec::new(), Vec::new());
-    for y0 in (0..h).step_by(rows as usize) {
-        o.clear();
-        d.clear();
-        for y in y0..(y0 + rows).min(h) {
-            for x in 0..w {
-                let r = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
-                o.push(r.origin);
-                d.push(r.dir);
+    for p in 0..n {
+        let b = behind_at(p);
+        img.rgb.push(b.rgb);
+        img.depth.push(b.depth);
+        img.opacity.push(b.opacity);
+        img.surface.push(b.surface);
+    }
+    let trace_all = layers.iter().any(|l| l.object.is_none());
+    let (mut o, mut d, mut pix, mut under) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut flush =
+        |o: &mut Vec<Vec3<f64>>, d: &mut Vec<Vec3<f64>>, pix: &mut Vec<usize>, under: &mut Vec<ComposedRay>| {
+            if pix.is_empty() {
+                return;
+            }
+            let b = match behind {
+                Behind::Scene(_) => Behind::Scene(under),
+                c => c,
+            };
+            composer.forward(layers, objects, b, o, d);
+            for (j, &p) in pix.iter().enumerate() {
+                let r = &composer.out[j];
+                img.rgb[p] = r.rgb;
+                img.depth[p] = r.depth;
+                img.opacity[p] = r.opacity;
+                img.surface[p] = r.surface;
+                img.object_opacity[p * objects..(p + 1) * objects]
+                    .copy_from_slice(&composer.object_opacity[j * objects..(j + 1) * objects]);
+            }
+            img.traced += pix.len();
+            o.clear();
+            d.clear();
+            pix.clear();
+            under.clear();
+        };
+    for y in 0..h {
+        for x in 0..w {
+            let r = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
+            if !trace_all && !layers.iter().any(|l| l.meets(r.origin, r.dir)) {
+                continue;
+            }
+            let p = (y * w + x) as usize;
+            o.push(r.origin);
+            d.push(r.dir);
+            pix.push(p);
+            if let Behind::Scene(s) = behind {
+                under.push(s[p].clone());
+            }
+            if pix.len() == CHUNK {
+                flush(&mut o, &mut d, &mut pix, &mut under);
             }
         }
-        composer.forward(layers, objects, background, &o, &d);
-        for r in &composer.out {
-            img.rgb.push(r.rgb);
-            img.depth.push(r.depth);
-            img.opacity.push(r.opacity);
-        }
-        img.object_opacity.extend_from_slice(&composer.object_opacity);
     }
+    flush(&mut o, &mut d, &mut pix, &mut under);
     img
+}
+
+/// The scene alone through a fixed camera, per pixel: what objects are composited over ([`Behind::Scene`]).
+pub fn prerender_scene(scene: &LoadedField, camera: &Camera<f64>, composer: &mut Composer) -> Vec<ComposedRay> {
+    let img = render_composed(&[Layer::scene(scene)], 0, Behind::Colour([0.0; 3]), camera, composer);
+    (0..img.rgb.len()).map(|p| img.pixel(p)).collect()
 }

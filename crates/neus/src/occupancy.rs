@@ -54,6 +54,36 @@ impl OccupancyGrid {
         }
     }
 
+    /// A sphere (unit coordinates) holding every occupied cell whole, `None` when none is occupied.
+    pub fn bounding_sphere(&self) -> Option<([f32; 3], f32)> {
+        let r = self.res;
+        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+        for (idx, _) in self.cells.iter().enumerate().filter(|(_, &c)| c != 0) {
+            let ijk = [idx % r, (idx / r) % r, idx / (r * r)];
+            for k in 0..3 {
+                lo[k] = lo[k].min(ijk[k]);
+                hi[k] = hi[k].max(ijk[k]);
+            }
+        }
+        if lo[0] == usize::MAX {
+            return None;
+        }
+        let h = self.cell_size();
+        let centre = [0, 1, 2].map(|k| -1.0 + 0.5 * (lo[k] + hi[k] + 1) as f32 * h);
+        // The farthest occupied cell's centre plus half a cell's diagonal, a hair wider: f32 rounding must
+        // not drop a ray that grazes a corner cell.
+        let far = (0..self.cells.len())
+            .filter(|&i| self.cells[i] != 0)
+            .map(|i| {
+                let c = self.centre(i);
+                (0..3).map(|k| (c[k] - centre[k]).powi(2)).sum::<f32>()
+            })
+            .fold(0.0f32, f32::max)
+            .sqrt();
+        let radius = (far + 0.5 * h * 3f32.sqrt()) * (1.0 + 1e-4) + 1e-5;
+        Some((centre, radius))
+    }
+
     /// Fraction of occupied cells.
     pub fn occupied_fraction(&self) -> f32 {
         self.cells.iter().filter(|&&c| c != 0).count() as f32 / self.cells.len() as f32

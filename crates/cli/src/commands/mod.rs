@@ -1,3 +1,4 @@
+pub mod bench_compose;
 pub mod bench_sim;
 pub mod bench_train;
 pub mod fit_physics;

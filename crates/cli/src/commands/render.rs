@@ -33,6 +33,14 @@ pub struct RenderArgs {
     /// With --trajectory: the animation shows this capture's images beside the rendering.
     #[arg(long, requires = "trajectory")]
     pub side_by_side: Option<PathBuf>,
+    /// With --trajectory: a novel view, the cameras turned by DEG degrees about the world's vertical axis
+    /// (through the board's origin), at the same height and distance.
+    #[arg(long, requires = "trajectory", allow_hyphen_values = true)]
+    pub orbit: Option<f64>,
+    /// With --trajectory and a fixed camera: trace every field along every ray in every frame (the
+    /// reference), instead of compositing the objects over the scene rendered once.
+    #[arg(long, requires = "trajectory")]
+    pub reference_compositing: bool,
     /// Render every view of this capture and print PSNR against its images.
     #[arg(long, conflicts_with = "camera")]
     pub views: Option<PathBuf>,
@@ -163,6 +171,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
             views: a.views.as_deref(),
             camera: a.camera.as_deref(),
             side_by_side: a.side_by_side.as_deref(),
+            orbit_deg: a.orbit,
+            reference_compositing: a.reference_compositing,
             out: &a.out,
         });
     }

@@ -9,7 +9,7 @@ use super::render::read_cameras;
 use anyhow::{anyhow, bail, Context, Result};
 use geom::{Pose, Quat, Vec3};
 use neus::checkpoint::{load_field, LoadedField};
-use neus::compose::{render_composed, ComposedImage, Composer, Layer};
+use neus::compose::{prerender_scene, render_composed, Behind, ComposedImage, Composer, Layer};
 use neus::render_view::psnr;
 use neus::ObjectModel;
 use pganeus_io::{CameraMats, CaptureInfo, CaptureKind, Image};
@@ -24,13 +24,15 @@ pub struct TrajectoryJob<'a> {
     pub views: Option<&'a Path>,
     pub camera: Option<&'a Path>,
     pub side_by_side: Option<&'a Path>,
+    pub orbit_deg: Option<f64>,
+    pub reference_compositing: bool,
     pub out: &'a Path,
 }
 
 /// One body's poses, in its object folder's body frame.
-struct BodyMotion {
-    name: String,
-    poses: Vec<Pose<f64>>,
+pub(crate) struct BodyMotion {
+    pub name: String,
+    pub poses: Vec<Pose<f64>>,
 }
 
 fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
@@ -40,7 +42,7 @@ fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
 /// The motion to render: a `trajectory.json` (poses of each object's own body frame) or a `videos[]` entry
 /// of a `truth.json` (poses of the true meshes' frames, carried onto each object's body frame through the
 /// static capture the object's reference was taken in).
-fn read_motion(
+pub(crate) fn read_motion(
     path: &Path,
     video: Option<&str>,
     objects: &[(String, ObjectModel)],
@@ -227,7 +229,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
             job.trajectory.display()
         );
     }
-    let (reference, cameras) = match (job.views, job.camera) {
+    let (mut reference, mut cameras) = match (job.views, job.camera) {
         (Some(dir), None) => {
             let c = pganeus_io::open_capture(dir)?;
             let cams = world_cameras(&c)?;
@@ -236,6 +238,17 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         (None, Some(path)) => (None, read_cameras(path)?),
         _ => bail!("give --views VIDEO_CAPTURE or --camera cams.json"),
     };
+    if let Some(deg) = job.orbit_deg {
+        // A new viewpoint: nothing to compare with.
+        reference = None;
+        let turn = Pose::new(
+            Quat::exp(Vec3::new(0.0, 0.0, deg.to_radians())),
+            Vec3::new(0.0, 0.0, 0.0),
+        );
+        for c in &mut cameras {
+            c.world_to_cam = c.world_to_cam.compose(&turn.inverse());
+        }
+    }
     if cameras.len() != 1 && cameras.len() != frames {
         bail!(
             "{} cameras for {frames} frames: give one camera, or one per frame",
@@ -244,13 +257,27 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     }
     let scene: Option<LoadedField> = job.scene.map(|p| load_field(&checkpoint_of(p))).transpose()?;
     let background = [1.0f32; 3];
+    // A fixed camera sees the same scene in every frame: render it once and composite the objects over it.
+    let fixed = cameras.iter().all(|c| c.world_mat() == cameras[0].world_mat());
+    let mut composer = Composer::default();
+    let prerendered = match &scene {
+        Some(s) if fixed && !job.reference_compositing => {
+            let t = std::time::Instant::now();
+            let pre = prerender_scene(s, &cameras[0], &mut composer);
+            tracing::info!(
+                "fixed camera: the scene rendered once ({:.1} s), objects composited over it",
+                t.elapsed().as_secs_f64()
+            );
+            Some(pre)
+        }
+        _ => None,
+    };
 
     let out = job.out;
     let images = out.join("image");
     std::fs::create_dir_all(&images).with_context(|| format!("cannot create {}", images.display()))?;
     let (w, h) = (cameras[0].width, cameras[0].height);
     let pb = super::progress(frames as u64, "render");
-    let mut composer = Composer::default();
     let mut anim = Vec::with_capacity(frames);
     let mut mats = Vec::with_capacity(frames);
     let mut rows = Vec::new();
@@ -268,12 +295,15 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         if (cam.width, cam.height) != (w, h) {
             bail!("camera {k} is {}×{}, camera 0 {w}×{h}", cam.width, cam.height);
         }
-        let mut layers: Vec<Layer<'_>> = scene.iter().map(Layer::scene).collect();
+        let (mut layers, behind): (Vec<Layer<'_>>, _) = match &prerendered {
+            Some(pre) => (Vec::new(), Behind::Scene(pre)),
+            None => (scene.iter().map(Layer::scene).collect(), Behind::Colour(background)),
+        };
         for (i, (m, model)) in bodies.iter().enumerate() {
             let routed = model.route(&m.poses[k], &cam);
             layers.push(Layer::object(&routed.field, &routed.capture_from_body, &m.poses[k], i));
         }
-        let img: ComposedImage = render_composed(&layers, bodies.len(), background, &cam, &mut composer);
+        let img: ComposedImage = render_composed(&layers, bodies.len(), behind, &cam, &mut composer);
         let file = format!("{k:03}.png");
         let mut rgb = Image::new(w, h, 3);
         for (p, c) in img.rgb.iter().enumerate() {

@@ -1,0 +1,173 @@
+//! Composed-rendering timings (issue "Objects in their scene"): rays per second
+//! of the composed forward and of forward + pose backward, for the window of
+//! pixels whose rays meet the object and for the whole frame; the reference
+//! (every field along every ray) and the fixed camera's fast path (the object
+//! over the scene rendered once); buffers reused across chunks or fresh per
+//! chunk (what rendering did before the composer kept them). One JSON line per
+//! figure, the best of `--runs`.
+
+use super::checkpoint_of;
+use super::mesh_cmds::world_cameras;
+use super::render_trajectory::read_motion;
+use anyhow::{anyhow, bail, Result};
+use clap::Args;
+use geom::Vec3;
+use neus::checkpoint::load_field;
+use neus::compose::{prerender_scene, Behind, ComposedRay, Composer, Layer, RayGradient};
+use neus::ObjectModel;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct BenchComposeArgs {
+    /// The scene's run folder.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// NAME=DIR: the object (a merge output or a run folder) and its body's name in the trajectory.
+    #[arg(long)]
+    pub object: String,
+    /// A trajectory.json or truth.json giving the object's pose (pick a truth.json's video with --video).
+    #[arg(long)]
+    pub trajectory: PathBuf,
+    #[arg(long)]
+    pub video: Option<String>,
+    /// The frame whose pose to use.
+    #[arg(long, default_value_t = 0)]
+    pub frame: usize,
+    /// The capture whose first camera looks (e.g. the video's).
+    #[arg(long)]
+    pub views: PathBuf,
+    /// Runs per figure (the best is printed).
+    #[arg(long, default_value_t = 1)]
+    pub runs: usize,
+    /// Only the window around the object (skip the whole-frame figures).
+    #[arg(long)]
+    pub window_only: bool,
+}
+
+/// Rays through the composer in chunks of 2,048; the seconds it took.
+fn time_rays(
+    layers: &[Layer<'_>],
+    behind: Option<&[ComposedRay]>,
+    o: &[Vec3<f64>],
+    d: &[Vec3<f64>],
+    backward: bool,
+    reuse: bool,
+) -> f64 {
+    const CHUNK: usize = 2048;
+    let t = Instant::now();
+    let mut composer = Composer::default();
+    let mut under = Vec::new();
+    for start in (0..o.len()).step_by(CHUNK) {
+        let end = (start + CHUNK).min(o.len());
+        if !reuse {
+            composer = Composer::default();
+        }
+        let b = match behind {
+            Some(s) => {
+                under.clear();
+                under.extend_from_slice(&s[start..end]);
+                Behind::Scene(&under)
+            }
+            None => Behind::Colour([1.0; 3]),
+        };
+        composer.forward(layers, 1, b, &o[start..end], &d[start..end]);
+        if backward {
+            let g = RayGradient {
+                rgb: [1.0; 3],
+                depth: 1.0,
+                object_opacity: vec![1.0],
+            };
+            let grads = vec![g; end - start];
+            std::hint::black_box(composer.backward(layers, &grads));
+        }
+        std::hint::black_box(&composer.out);
+    }
+    t.elapsed().as_secs_f64()
+}
+
+pub fn run(a: BenchComposeArgs) -> Result<()> {
+    let (name, dir) = a
+        .object
+        .split_once('=')
+        .ok_or_else(|| anyhow!("--object {:?}: expected NAME=DIR", a.object))?;
+    let model = ObjectModel::load(std::path::Path::new(dir)).map_err(|e| anyhow!("--object {name}: {e}"))?;
+    let objects = vec![(name.to_string(), model)];
+    let (_, _, motion) = read_motion(&a.trajectory, a.video.as_deref(), &objects)?;
+    let body = motion
+        .iter()
+        .find(|m| m.name == name)
+        .ok_or_else(|| anyhow!("{}: no body named {name:?}", a.trajectory.display()))?;
+    let Some(pose) = body.poses.get(a.frame) else {
+        bail!(
+            "{}: no frame {} (it has {})",
+            a.trajectory.display(),
+            a.frame,
+            body.poses.len()
+        );
+    };
+    let capture = pganeus_io::open_capture(&a.views)?;
+    let cam = world_cameras(&capture)?[0];
+    let scene = load_field(&checkpoint_of(&a.scene))?;
+    let model = &objects[0].1;
+    let routed = model.route(pose, &cam);
+    let object = || Layer::object(&routed.field, &routed.capture_from_body, pose, 0);
+
+    let (mut all_o, mut all_d, mut win_o, mut win_d, mut win_px) = (vec![], vec![], vec![], vec![], vec![]);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let r = cam.ray(x as f64 + 0.5, y as f64 + 0.5);
+            all_o.push(r.origin);
+            all_d.push(r.dir);
+            if object().meets(r.origin, r.dir) {
+                win_o.push(r.origin);
+                win_d.push(r.dir);
+                win_px.push((y * cam.width + x) as usize);
+            }
+        }
+    }
+    if win_o.is_empty() {
+        bail!(
+            "the object is not in view of {}'s camera at frame {}",
+            a.views.display(),
+            a.frame
+        );
+    }
+    let t = Instant::now();
+    let pre = prerender_scene(&scene, &cam, &mut Composer::default());
+    let prerender_s = t.elapsed().as_secs_f64();
+    println!(
+        "{}",
+        serde_json::json!({"bench": "compose", "case": "prerender scene", "rays": pre.len(),
+            "seconds": prerender_s, "rays_per_s": pre.len() as f64 / prerender_s})
+    );
+    let win_behind: Vec<ComposedRay> = win_px.iter().map(|&p| pre[p].clone()).collect();
+    let reference = [Layer::scene(&scene), object()];
+    let fast = [object()];
+    let mut cases: Vec<(&str, &str, &[Vec3<f64>], &[Vec3<f64>], Option<&[ComposedRay]>)> = vec![
+        ("window", "reference", &win_o, &win_d, None),
+        ("window", "fast", &win_o, &win_d, Some(&win_behind)),
+    ];
+    if !a.window_only {
+        cases.push(("frame", "reference", &all_o, &all_d, None));
+        cases.push(("frame", "fast", &all_o, &all_d, Some(&pre)));
+    }
+    for (case, path, o, d, behind) in cases {
+        let layers: &[Layer<'_>] = if behind.is_some() { &fast } else { &reference };
+        for backward in [false, true] {
+            for reuse in [true, false] {
+                let best = (0..a.runs.max(1))
+                    .map(|_| time_rays(layers, behind, o, d, backward, reuse))
+                    .fold(f64::INFINITY, f64::min);
+                println!(
+                    "{}",
+                    serde_json::json!({"bench": "compose", "case": case, "path": path,
+                        "pass": if backward { "forward+backward" } else { "forward" },
+                        "buffers": if reuse { "reused" } else { "fresh per chunk" },
+                        "rays": o.len(), "seconds": best, "rays_per_s": o.len() as f64 / best})
+                );
+            }
+        }
+    }
+    Ok(())
+}
