@@ -23,10 +23,10 @@
 
 use crate::background_field::BackgroundScratch;
 use crate::checkpoint::LoadedField;
-use crate::field_pass::{FieldPass, InputGrads, SampleGrads};
 use crate::occupancy::{sample_ray, sphere_span};
+use crate::ray_rounds::RayRounds;
 use crate::render_view::RenderSettings;
-use crate::volume::{composite_alpha_backward, section_alpha, section_alpha_backward};
+use crate::volume::{composite_alpha_backward, section_alpha_backward};
 use geom::{Camera, Pose, Vec3};
 
 /// One field placed in the world for a render.
@@ -128,11 +128,12 @@ pub struct RayGradient {
 struct LayerState {
     origins: Vec<[f32; 3]>,
     dirs: Vec<[f32; 3]>,
-    offsets: Vec<usize>,
-    t: Vec<f32>,
-    dt: Vec<f32>,
-    pass: FieldPass,
-    alpha: Vec<f32>,
+    /// Every sample the marching gives (before early termination).
+    all_offsets: Vec<usize>,
+    all_t: Vec<f32>,
+    all_dt: Vec<f32>,
+    /// The samples evaluated (`offsets`, `t`, `dt`, `alpha`, …: per ray, front to back).
+    eval: RayRounds,
     inv_s: f32,
     d_sdf: Vec<f32>,
     d_cos: Vec<f32>,
@@ -204,28 +205,40 @@ impl Composer {
         for (layer, st) in layers.iter().zip(&mut self.layers) {
             st.origins.clear();
             st.dirs.clear();
-            st.offsets.clear();
-            st.offsets.push(0);
-            st.t.clear();
-            st.dt.clear();
+            st.all_offsets.clear();
+            st.all_offsets.push(0);
+            st.all_t.clear();
+            st.all_dt.clear();
             let march = layer.settings.marching();
             for (o, d) in origins.iter().zip(dirs) {
                 let (ou, du) = layer.ray_to_unit(*o, *d);
                 st.origins.push(ou);
                 st.dirs.push(du);
                 if layer.meets_unit(ou, du) {
-                    sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut st.t, &mut st.dt);
+                    sample_ray(
+                        &layer.field.occupancy,
+                        ou,
+                        du,
+                        march,
+                        0.5,
+                        &mut st.all_t,
+                        &mut st.all_dt,
+                    );
                 }
-                st.offsets.push(st.t.len());
+                st.all_offsets.push(st.all_t.len());
             }
             let f = &layer.field.field;
             st.inv_s = f.inv_s();
-            st.pass
-                .forward(f, &st.origins, &st.dirs, &st.offsets, &st.t, layer.settings.pass());
-            st.alpha.clear();
-            let p = &st.pass;
-            st.alpha
-                .extend((0..st.t.len()).map(|s| section_alpha(p.sdf[s], p.cos[s], st.dt[s], st.inv_s, 1.0)));
+            st.eval.forward(
+                f,
+                &st.origins,
+                &st.dirs,
+                &st.all_offsets,
+                &st.all_t,
+                &st.all_dt,
+                layer.settings.pass(),
+                layer.settings.stop_transmittance,
+            );
         }
         // Behind everything.
         self.background.clear();
@@ -262,12 +275,12 @@ impl Composer {
             let cut = self.behind_surface[i];
             for (li, (layer, st)) in layers.iter().zip(&self.layers).enumerate() {
                 let r = layer.field.radius as f32;
-                for s in st.offsets[i]..st.offsets[i + 1] {
-                    if st.t[s] * r > cut {
+                for s in st.eval.offsets[i]..st.eval.offsets[i + 1] {
+                    if st.eval.t[s] * r > cut {
                         continue;
                     }
                     self.merged.push(Merged {
-                        t: st.t[s] * r,
+                        t: st.eval.t[s] * r,
                         layer: li as u32,
                         sample: s as u32,
                     });
@@ -290,9 +303,9 @@ impl Composer {
             for m in &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]] {
                 let st = &self.layers[m.layer as usize];
                 let s = m.sample as usize;
-                let a = st.alpha[s] as f64;
+                let a = st.eval.alpha[s] as f64;
                 let w = trans * a;
-                let c = st.pass.rgb[s];
+                let c = st.eval.rgb[s];
                 for k in 0..3 {
                     rgb[k] += w * c[k] as f64;
                 }
@@ -326,6 +339,11 @@ impl Composer {
         }
     }
 
+    /// How many samples the last [`Self::forward`] evaluated, over all layers.
+    pub fn evaluated_samples(&self) -> usize {
+        self.layers.iter().map(|l| l.eval.t.len()).sum()
+    }
+
     /// The gradient with respect to each object's pose (`[dL/dδt, dL/dδω]`, module docs) of the loss whose
     /// gradients with respect to the last [`Self::forward`]'s outputs are `grads` (one per ray). `layers`
     /// must be the forward's.
@@ -333,7 +351,7 @@ impl Composer {
         let n = self.out.len();
         assert_eq!(grads.len(), n, "Composer::backward: one gradient per ray");
         for st in &mut self.layers {
-            let m = st.t.len();
+            let m = st.eval.t.len();
             st.d_sdf.clear();
             st.d_sdf.resize(m, 0.0);
             st.d_cos.clear();
@@ -349,7 +367,7 @@ impl Composer {
             self.alpha.extend(
                 merged
                     .iter()
-                    .map(|m| self.layers[m.layer as usize].alpha[m.sample as usize]),
+                    .map(|m| self.layers[m.layer as usize].eval.alpha[m.sample as usize]),
             );
             self.trans.resize(k, 0.0);
             self.d_alpha.resize(k, 0.0);
@@ -357,7 +375,7 @@ impl Composer {
             let dot = |c: [f32; 3]| c[0] * g.rgb[0] + c[1] * g.rgb[1] + c[2] * g.rgb[2];
             let v = |j: usize| {
                 let m = merged[j];
-                let c = layers_st[m.layer as usize].pass.rgb[m.sample as usize];
+                let c = layers_st[m.layer as usize].eval.rgb[m.sample as usize];
                 let op = layers[m.layer as usize]
                     .object
                     .and_then(|o| g.object_opacity.get(o).copied())
@@ -379,8 +397,8 @@ impl Composer {
                 let s = m.sample as usize;
                 let w = self.trans[j] * self.alpha[j];
                 st.d_rgb[s] = g.rgb.map(|d| w * d);
-                let p = &st.pass;
-                let (ds, dc, _) = section_alpha_backward(p.sdf[s], p.cos[s], st.dt[s], st.inv_s, 1.0, self.d_alpha[j]);
+                let e = &st.eval;
+                let (ds, dc, _) = section_alpha_backward(e.sdf[s], e.cos[s], e.dt[s], st.inv_s, 1.0, self.d_alpha[j]);
                 st.d_sdf[s] = ds;
                 st.d_cos[s] = dc;
             }
@@ -389,36 +407,30 @@ impl Composer {
         let mut out = vec![[0.0f64; 6]; self.objects];
         for (layer, st) in layers.iter().zip(&mut self.layers) {
             let Some(obj) = layer.object else { continue };
-            let m = st.t.len();
+            let m = st.eval.t.len();
             if m == 0 {
                 continue;
             }
             st.d_point.resize(m, [0.0; 3]);
             st.d_dir.resize(m, [0.0; 3]);
-            st.pass.backward(
+            st.eval.backward_inputs(
                 &layer.field.field,
-                SampleGrads {
-                    sdf: &st.d_sdf,
-                    cos: &st.d_cos,
-                    rgb: &st.d_rgb,
-                    eikonal: 0.0,
-                },
-                None,
-                Some(InputGrads {
-                    point: &mut st.d_point,
-                    dir: &mut st.d_dir,
-                }),
+                &st.d_sdf,
+                &st.d_cos,
+                &st.d_rgb,
+                &mut st.d_point,
+                &mut st.d_dir,
             );
             let a = &layer.capture_from_world;
             let r = layer.field.radius;
             let (mut gt, mut gw) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.0));
             for i in 0..n {
                 let (o, d) = (self.world_o[i], self.world_d[i]);
-                for s in st.offsets[i]..st.offsets[i + 1] {
+                for s in st.eval.offsets[i]..st.eval.offsets[i + 1] {
                     // dL/dx and dL/dd in world axes: u = (A x − c) / r, d_u = R_A d.
                     let gx = a.inverse_transform_vector(Vec3::cst(st.d_point[s].map(f64::from))) * (1.0 / r);
                     let gd = a.inverse_transform_vector(Vec3::cst(st.d_dir[s].map(f64::from)));
-                    let x = o + d * (st.t[s] as f64 * r);
+                    let x = o + d * (st.eval.t[s] as f64 * r);
                     // Moving the object by δ moves its content; the query point moves the other way.
                     gt -= gx;
                     gw += gx.cross(x - layer.pivot) + gd.cross(d);
@@ -448,6 +460,8 @@ pub struct ComposedImage {
     pub objects: usize,
     /// Pixels whose rays went through the fields (the others meet no object and show what is behind).
     pub traced: usize,
+    /// Samples the fields were evaluated at.
+    pub samples: usize,
 }
 
 impl ComposedImage {
@@ -496,6 +510,7 @@ pub fn render_composed(
         object_opacity: vec![0.0; n * objects],
         objects,
         traced: 0,
+        samples: 0,
     };
     for p in 0..n {
         let b = behind_at(p);
@@ -526,6 +541,7 @@ pub fn render_composed(
                     .copy_from_slice(&composer.object_opacity[j * objects..(j + 1) * objects]);
             }
             img.traced += pix.len();
+            img.samples += composer.evaluated_samples();
             o.clear();
             d.clear();
             pix.clear();

@@ -17,6 +17,7 @@ pub mod field_pass;
 pub mod neus_field;
 pub mod object_model;
 pub mod occupancy;
+pub mod ray_rounds;
 pub mod render_view;
 pub mod stereo;
 pub mod surface;

@@ -30,6 +30,9 @@ pub struct RenderSettings {
     pub fd_eps: f32,
     /// Colour from the point alone (the field is still in its view-independent first steps).
     pub view_independent: bool,
+    /// The composed renderer stops a ray through a field once its transmittance through that field is
+    /// below this (0: never; see [`crate::ray_rounds`]).
+    pub stop_transmittance: f32,
 }
 
 /// Buffers of [`render_rays`], reused across calls (a view is rendered in
@@ -58,6 +61,7 @@ impl RenderSettings {
             active_levels: g.levels,
             fd_eps: 2.0 / g.max_resolution as f32,
             view_independent: l.step < c.view_independent_steps,
+            stop_transmittance: 1e-3,
         }
     }
 

@@ -45,6 +45,15 @@ pub struct BenchComposeArgs {
     pub window_only: bool,
 }
 
+/// A figure's rays: case, path, origins, directions and the pre-rendered scene behind them (fast path).
+type Case<'a> = (
+    &'a str,
+    &'a str,
+    &'a [Vec3<f64>],
+    &'a [Vec3<f64>],
+    Option<&'a [ComposedRay]>,
+);
+
 /// Rays through the composer in chunks of 2,048; the seconds it took.
 fn time_rays(
     layers: &[Layer<'_>],
@@ -144,7 +153,7 @@ pub fn run(a: BenchComposeArgs) -> Result<()> {
     let win_behind: Vec<ComposedRay> = win_px.iter().map(|&p| pre[p].clone()).collect();
     let reference = [Layer::scene(&scene), object()];
     let fast = [object()];
-    let mut cases: Vec<(&str, &str, &[Vec3<f64>], &[Vec3<f64>], Option<&[ComposedRay]>)> = vec![
+    let mut cases: Vec<Case<'_>> = vec![
         ("window", "reference", &win_o, &win_d, None),
         ("window", "fast", &win_o, &win_d, Some(&win_behind)),
     ];
