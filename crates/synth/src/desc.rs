@@ -138,10 +138,34 @@ pub struct VideoDesc {
     pub bodies: Vec<VideoBodyDesc>,
 }
 
+/// The engine that makes the videos' motion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Physics {
+    /// The project's own simulator (the model `fit` assumes): truth.json's `model: "pganeus"`.
+    #[default]
+    Pganeus,
+    /// Rapier, a trusted engine the project did not write (`crate::rapier_motion`): `model: "rapier"`.
+    Rapier,
+}
+
+impl Physics {
+    /// The name truth.json gives the model.
+    pub fn model(self) -> &'static str {
+        match self {
+            Physics::Pganeus => "pganeus",
+            Physics::Rapier => "rapier",
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SynthScene {
     pub name: String,
+    /// What moves the bodies in the videos (default: the project's simulator).
+    #[serde(default, skip_serializing_if = "is_default_physics")]
+    pub physics: Physics,
     pub board: Board,
     #[serde(default)]
     pub obstacles: Vec<ObstacleDesc>,
@@ -150,6 +174,10 @@ pub struct SynthScene {
     pub light: Light,
     pub cameras: CameraRig,
     pub videos: Vec<VideoDesc>,
+}
+
+fn is_default_physics(p: &Physics) -> bool {
+    *p == Physics::Pganeus
 }
 
 fn identity() -> [f64; 4] {

@@ -5,7 +5,8 @@ use crate::build::{
     body_object, build_bodies, build_static, field, resting_pose, unit_quat, Bodies, StaticScene, SynthError,
 };
 use crate::cameras::{framed_orbit, framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
-use crate::desc::SynthScene;
+use crate::desc::{Physics, SynthScene};
+use crate::rapier_motion::simulate_with_rapier;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
 use geom::{Camera, Pose, TriMesh, Vec3};
 use pganeus_io::{
@@ -49,11 +50,12 @@ pub type OnImage<'a> = &'a mut dyn FnMut(&str, usize, usize);
 pub fn simulate_videos(scene: &SynthScene, base: &Path) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
     let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
-    simulate_built(scene, &stat, &bodies)
+    simulate_built(scene, base, &stat, &bodies)
 }
 
 fn simulate_built(
     scene: &SynthScene,
+    base: &Path,
     stat: &StaticScene,
     bodies: &Bodies,
 ) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
@@ -100,7 +102,10 @@ fn simulate_built(
             world.add_body(bodies.bodies[k].clone(), state, v.contact, v.contact);
         }
         check_start(&world, &f)?;
-        let traj = world.simulate(&world.params());
+        let traj = match scene.physics {
+            Physics::Pganeus => world.simulate(&world.params()),
+            Physics::Rapier => simulate_with_rapier(scene, base, stat, v, &world)?,
+        };
         out.push((world, traj));
     }
     Ok(out)
@@ -195,7 +200,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
     }
     let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
-    let videos = simulate_built(scene, &stat, &bodies)?;
+    let videos = simulate_built(scene, base, &stat, &bodies)?;
     // The board and the table alone, for the static captures of bodies.
     let bare: Vec<_> = stat.objects[..stat.board_and_table].to_vec();
     let k = intrinsics(rig.width, rig.height, rig.fov_deg);
@@ -347,7 +352,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             mask_bodies: ids.clone(),
             per_body_masks: true,
         });
-        truth_videos.push(video_truth(&vdesc.name, world, traj, vdesc.contact));
+        truth_videos.push(video_truth(&vdesc.name, world, traj, vdesc.contact, scene.physics));
     }
     let truth = Truth {
         gravity: SimConfig::default().gravity,
@@ -374,7 +379,13 @@ fn io_pose(p: &Pose<f64>) -> IoPose {
     }
 }
 
-fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, contact: ContactParams) -> Trajectory {
+fn video_truth(
+    name: &str,
+    world: &World,
+    traj: &sim::Trajectory<f64>,
+    contact: ContactParams,
+    physics: Physics,
+) -> Trajectory {
     let bodies = world
         .bodies
         .iter()
@@ -406,7 +417,7 @@ fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, contact: 
         contact: Contact {
             restitution: contact.restitution,
             friction: contact.friction,
-            model: "pganeus".into(),
+            model: physics.model().into(),
             extra: Default::default(),
         },
         extra,

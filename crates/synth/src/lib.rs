@@ -9,10 +9,11 @@ pub mod contact_sheet;
 pub mod desc;
 pub mod generate;
 pub mod presets;
+mod rapier_motion;
 pub mod render;
 pub mod texture;
 
 pub use build::SynthError;
-pub use desc::SynthScene;
+pub use desc::{Physics, SynthScene};
 pub use generate::{frame_name, generate, simulate_videos, Summary};
 pub use presets::{preset, Scale, PRESETS};

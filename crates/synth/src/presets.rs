@@ -167,6 +167,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
     let n = frames(scale);
     Some(match name {
         "tabletop" => SynthScene {
+            physics: Physics::default(),
             name: "tabletop".into(),
             board: board(),
             obstacles: vec![ObstacleDesc {
@@ -212,6 +213,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
             ],
         },
         "two-body" => SynthScene {
+            physics: Physics::default(),
             name: "two-body".into(),
             board: board(),
             obstacles: vec![ObstacleDesc {

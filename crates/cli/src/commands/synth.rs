@@ -4,6 +4,12 @@ use std::path::{Path, PathBuf};
 use synth::{preset, Scale, SynthScene, PRESETS};
 
 #[derive(Clone, Copy, ValueEnum)]
+pub enum PhysicsArg {
+    Pganeus,
+    Rapier,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 pub enum ScaleArg {
     Small,
     Large,
@@ -29,6 +35,10 @@ pub struct SynthArgs {
     /// Also write contact_sheet.png: a few frames of every capture.
     #[arg(long)]
     pub contact_sheet: bool,
+    /// The engine that makes the videos' motion: the project's simulator, or Rapier (a trusted engine the
+    /// project did not write; truth.json then says `model: "rapier"`). Overrides the scene's `physics`.
+    #[arg(long, value_enum)]
+    pub physics: Option<PhysicsArg>,
     /// Print a preset's scene description as TOML and exit.
     #[arg(long, value_name = "PRESET")]
     pub print_preset: Option<String>,
@@ -68,6 +78,13 @@ pub fn run(a: SynthArgs) -> Result<()> {
         }
         _ => bail!("give --preset NAME or --scene FILE"),
     };
+    let mut scene = scene;
+    if let Some(p) = a.physics {
+        scene.physics = match p {
+            PhysicsArg::Pganeus => synth::Physics::Pganeus,
+            PhysicsArg::Rapier => synth::Physics::Rapier,
+        };
+    }
     if out.exists() && std::fs::read_dir(&out).map(|mut d| d.next().is_some()).unwrap_or(true) && !a.force {
         bail!("{} exists and is not empty; use --force to replace it", out.display());
     }
