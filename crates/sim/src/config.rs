@@ -45,8 +45,26 @@ pub struct SimConfig {
     /// the Δ skin that moves inwards is stopped, so bodies hover up to Δ above
     /// the ground, tilted. `false` is Eq. 8 exactly as the paper writes it. Default true.
     pub speculative_contacts: bool,
-    /// How friction limits the tangential impulse. Default `coulomb`.
+    /// How friction limits the tangential impulse (`mean_point` only). Default `coulomb`.
     pub friction_model: FrictionModel,
+    /// How simultaneous contact points act. Default `mean_point` (the paper's).
+    pub contact_model: ContactModel,
+    /// Sweeps of the `multi_point` solver over its contact points. Default 10.
+    pub solver_sweeps: usize,
+}
+
+/// How the colliding points of a body against the scene or another body act.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactModel {
+    /// The paper's: one impulse at the mean of the colliding points, plus torsional friction of the patch.
+    /// It cannot tip a body over an edge or rock it on its support.
+    #[default]
+    MeanPoint,
+    /// Each patch of colliding points (grouped by normal) reduced to at most four points spanning its
+    /// support polygon; their impulses solved together by sequential impulses (projected Gauss–Seidel,
+    /// `solver_sweeps` sweeps), Coulomb friction per point, restitution per point with the threshold.
+    MultiPoint,
 }
 
 /// The friction law of a contact impulse.
@@ -77,6 +95,8 @@ impl Default for SimConfig {
             restitution_threshold: None,
             speculative_contacts: true,
             friction_model: FrictionModel::Coulomb,
+            contact_model: ContactModel::MeanPoint,
+            solver_sweeps: 10,
         }
     }
 }
@@ -132,6 +152,9 @@ impl SimConfig {
             if v < 0.0 {
                 return Err(ConfigError::new("restitution_threshold", "must not be negative"));
             }
+        }
+        if self.contact_model == ContactModel::MultiPoint && self.solver_sweeps == 0 {
+            return Err(ConfigError::new("solver_sweeps", "must be at least 1"));
         }
         Ok(())
     }

@@ -17,7 +17,7 @@ pub mod tessellate;
 pub mod world;
 
 pub use body::{BodyError, ContactSampling, MassSpec, RigidBody};
-pub use config::{ConfigError, ContactParams, FrictionModel, SimConfig};
+pub use config::{ConfigError, ContactModel, ContactParams, FrictionModel, SimConfig};
 pub use gradients::{simulate_with_gradients, TrajectoryGrad};
 pub use mass_properties_mesh::{mass_properties, MassProperties};
 pub use mesh_check::{check_closed_mesh, MeshCheckError};

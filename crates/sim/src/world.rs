@@ -50,6 +50,9 @@ pub struct World {
 pub struct FrameContacts {
     /// Per body: an impulse against the scene was applied in this frame.
     pub scene: Vec<bool>,
+    /// Per body: the most contact points that pushed it against the scene together in one substep (the
+    /// mean-point model applies one impulse: at most 1).
+    pub scene_points: Vec<usize>,
     /// Per pair (order of [`World::pairs`]): an impulse between the two.
     pub pairs: Vec<bool>,
 }
@@ -230,6 +233,8 @@ impl World {
             speculative_dt: cfg.speculative_contacts.then_some(dt),
             restitution_threshold: cfg.restitution_threshold(),
             friction: cfg.friction_model,
+            model: cfg.contact_model,
+            sweeps: cfg.solver_sweeps,
         };
         let pairs = self.pairs();
         let mut states: Vec<BodyState<S>> = (0..self.bodies.len())
@@ -249,11 +254,13 @@ impl World {
         frames.push(states.clone());
         contacts.push(FrameContacts {
             scene: vec![false; states.len()],
+            scene_points: vec![0; states.len()],
             pairs: vec![false; pairs.len()],
         });
         for _ in 1..cfg.frames {
             let mut log = FrameContacts {
                 scene: vec![false; states.len()],
+                scene_points: vec![0; states.len()],
                 pairs: vec![false; pairs.len()],
             };
             for _ in 0..cfg.substeps {
@@ -263,7 +270,9 @@ impl World {
                 }
                 for (b, st) in states.iter_mut().enumerate() {
                     let o = self.body_param_offset(b);
-                    log.scene[b] |= contact_body_scene(&self.bodies[b], st, &self.scene, p[o + 12], p[o + 13], &det);
+                    let points = contact_body_scene(&self.bodies[b], st, &self.scene, p[o + 12], p[o + 13], &det);
+                    log.scene[b] |= points > 0;
+                    log.scene_points[b] = log.scene_points[b].max(points);
                 }
                 for (k, &(i, j)) in pairs.iter().enumerate() {
                     let o = self.pair_param_offset(k);

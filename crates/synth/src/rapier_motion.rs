@@ -13,7 +13,8 @@
 //! moving one would not stay out of the scene). Every collider has the
 //! video's restitution and friction, so Rapier's combination of the two
 //! colliders' coefficients gives them back. Gyroscopic forces are on (a
-//! tumbling body's ω changes with its orientation) and bodies never sleep.
+//! tumbling body's ω changes with its orientation) and bodies never sleep;
+//! Rapier's length unit is 10 cm, so its tolerances suit bodies that size.
 //! Rapier steps `substeps` times a frame with dt = 1 / (fps · substeps).
 
 use crate::build::{build_shape, StaticScene};
@@ -26,6 +27,9 @@ use rapier3d_f64::prelude::{
 use rapier3d_f64::prelude::{Matrix, Pose as RPose, Rotation, Vector};
 use sim::{BodyState, FrameContacts, RigidBody, World};
 use std::path::Path;
+
+/// Rapier's length unit for tabletop scenes, m (its default of 1 m suits bodies a metre across).
+const LENGTH_UNIT: f64 = 0.1;
 
 fn vector(v: Vec3<f64>) -> Vector {
     Vector::new(v.x, v.y, v.z)
@@ -77,6 +81,9 @@ pub(crate) fn simulate_with_rapier(
     let mut pw = PhysicsWorld::new();
     pw.gravity = Vector::new(cfg.gravity[0], cfg.gravity[1], cfg.gravity[2]);
     pw.integration_parameters.dt = cfg.dt();
+    // Tabletop objects are centimetres across: Rapier's tolerances (its slop, its prediction distance) are
+    // tuned for metre-sized ones and scale with this.
+    pw.integration_parameters.length_unit = LENGTH_UNIT;
     let (e, mu) = (video.contact.restitution, video.contact.friction);
     let with_contact = |c: ColliderBuilder| c.restitution(e).friction(mu).density(0.0);
 
@@ -162,6 +169,7 @@ pub(crate) fn simulate_with_rapier(
     for _ in 1..cfg.frames {
         let mut touched = FrameContacts {
             scene: vec![false; handles.len()],
+            scene_points: vec![0; handles.len()],
             pairs: vec![false; pairs.len()],
         };
         for _ in 0..cfg.substeps {
@@ -179,6 +187,8 @@ pub(crate) fn simulate_with_rapier(
                     };
                     if statics.contains(&other) {
                         touched.scene[bi] = true;
+                        let points = pushing_points(pair);
+                        touched.scene_points[bi] = touched.scene_points[bi].max(points);
                     } else if let Some(bj) = handles.iter().position(|&(_, oc)| oc == other) {
                         let (lo, hi) = (bi.min(bj), bi.max(bj));
                         if let Some(k) = pairs.iter().position(|&p| p == (lo, hi)) {
@@ -192,6 +202,18 @@ pub(crate) fn simulate_with_rapier(
         contacts.push(touched);
     }
     Ok(sim::Trajectory { frames, contacts })
+}
+
+/// How many of a pair's contact points Rapier pushed apart (a positive normal impulse).
+fn pushing_points(pair: &rapier3d_f64::prelude::ContactPair) -> usize {
+    match &pair.contacts {
+        rapier3d_f64::prelude::PairContacts::Rigid(r) => r
+            .manifolds
+            .iter()
+            .map(|m| m.points.iter().filter(|p| p.data.impulse > 0.0).count())
+            .sum(),
+        _ => 0,
+    }
 }
 
 /// A body's collider in its body frame (origin at the centre of mass: the shape's own frame moved by

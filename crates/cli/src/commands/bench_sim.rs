@@ -17,9 +17,34 @@ pub struct BenchSimArgs {
     /// Runs per figure (the median is printed).
     #[arg(long, default_value_t = 7)]
     pub runs: usize,
+    /// The contact model timed: mean-point (the paper's) or multi-point.
+    #[arg(long, value_enum, default_value = "mean-point")]
+    pub contact_model: ContactModelArg,
 }
 
-fn bench_world(bodies: usize) -> World {
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ContactModelArg {
+    MeanPoint,
+    MultiPoint,
+}
+
+impl ContactModelArg {
+    fn model(self) -> sim::ContactModel {
+        match self {
+            ContactModelArg::MeanPoint => sim::ContactModel::MeanPoint,
+            ContactModelArg::MultiPoint => sim::ContactModel::MultiPoint,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            ContactModelArg::MeanPoint => "mean_point",
+            ContactModelArg::MultiPoint => "multi_point",
+        }
+    }
+}
+
+fn bench_world(bodies: usize, model: sim::ContactModel) -> World {
     let ground = Shape::Plane(Plane {
         normal: [0.0, 0.0, 1.0],
         offset: 0.0,
@@ -33,6 +58,7 @@ fn bench_world(bodies: usize) -> World {
             fps: 60.0,
             frames: 50,
             substeps: 10,
+            contact_model: model,
             ..SimConfig::default()
         },
         Shape::Union(vec![ground, wall]),
@@ -82,7 +108,7 @@ pub fn run(a: BenchSimArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.max(1)).build()?;
     pool.install(|| {
         for bodies in [1, 2, 4] {
-            let w = bench_world(bodies);
+            let w = bench_world(bodies, a.contact_model.model());
             let p = w.params();
             let forward = median_ms(a.runs, || {
                 std::hint::black_box(w.simulate(&p));
@@ -99,7 +125,7 @@ pub fn run(a: BenchSimArgs) -> Result<()> {
                 println!(
                     "{}",
                     serde_json::json!({
-                        "bench": "sim", "bodies": bodies, "mode": mode, "params": params, "ms": (ms * 1000.0).round() / 1000.0,
+                        "bench": "sim", "contact_model": a.contact_model.name(), "bodies": bodies, "mode": mode, "params": params, "ms": (ms * 1000.0).round() / 1000.0,
                         "frames": 50, "fps": 60, "substeps": 10, "contact_points": 1000, "threads": a.threads,
                     })
                 );

@@ -1,7 +1,10 @@
 //! Two bodies: the points of `a` against the SDF of `b` (in `b`'s frame), for
 //! one substep. Call twice with the roles swapped for both directions.
 
+use super::contact_set::{select_contacts, Colliding};
+use super::sequential_impulses::{solve, Law, Row, Side};
 use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
+use crate::config::ContactModel;
 use crate::sdf::Sdf;
 use crate::{BodyState, RigidBody};
 use geom::{Mat3, Real, Vec3};
@@ -28,6 +31,7 @@ pub(crate) fn contact_body_body<S: Real>(
     let mut sum_sq = 0.0;
     let mut count = 0usize;
     let mut deepest: Option<(f64, usize)> = None;
+    let mut colliding = Vec::new();
     for (i, r) in a.contact_points.iter().enumerate() {
         let x = ta + rot_a_re.mul_vec(*r);
         let (d, g) = b.sdf.distance_grad(&pose_b_re, x);
@@ -43,11 +47,55 @@ pub(crate) fn contact_body_body<S: Real>(
             sum += *r;
             sum_sq += r.norm_sq();
             count += 1;
+            if det.model == ContactModel::MultiPoint {
+                colliding.push(Colliding {
+                    index: i,
+                    distance: d,
+                    normal: n,
+                    at: x,
+                });
+            }
         }
     }
     let rot_a = sa.pose.q.to_mat();
     let mut hit = false;
-    if count > 0 {
+    if det.model == ContactModel::MultiPoint && count > 0 {
+        let mut chosen = Vec::new();
+        select_contacts(&colliding, &mut chosen);
+        let rows: Vec<Row<S>> = chosen
+            .iter()
+            .filter_map(|&c| {
+                let x = sa.pose.t + rot_a.mul_vec(Vec3::lift(a.contact_points[colliding[c].index]));
+                let (_, g) = b.sdf.distance_grad(&sb.pose, x);
+                g.try_normalize().map(|n| Row {
+                    ra: x - sa.pose.t,
+                    rb: x - sb.pose.t,
+                    n,
+                })
+            })
+            .collect();
+        let ia_inv = world_inertia_inv(&rot_a, &a.inertia_inv);
+        let ib_inv = world_inertia_inv(&sb.pose.q.to_mat(), &b.inertia_inv);
+        let mut side_a = Side {
+            v: &mut sa.v,
+            omega: &mut sa.omega,
+            inv_mass: 1.0 / a.mass,
+            inv_inertia: ia_inv,
+        };
+        let side_b = Side {
+            v: &mut sb.v,
+            omega: &mut sb.omega,
+            inv_mass: 1.0 / b.mass,
+            inv_inertia: ib_inv,
+        };
+        let law = Law {
+            restitution,
+            friction,
+            restitution_threshold: det.restitution_threshold,
+            sweeps: det.sweeps,
+        };
+        hit = solve(&mut side_a, Some(side_b), &rows, &law) > 0;
+    } else if count > 0 {
         let rbar = sum * (1.0 / count as f64);
         let c = sa.pose.t + rot_a.mul_vec(Vec3::lift(rbar));
         let (ra, rb) = (c - sa.pose.t, c - sb.pose.t);

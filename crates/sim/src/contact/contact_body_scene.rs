@@ -1,12 +1,15 @@
 //! One body against the static scene, for one substep.
 
+use super::contact_set::{select_contacts, Colliding};
+use super::sequential_impulses::{solve, Law, Row, Side};
 use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
+use crate::config::ContactModel;
 use crate::sdf::{Sdf, Shape};
 use crate::{BodyState, RigidBody};
 use geom::{Mat3, Real, Vec3};
 
 /// Apply the contact impulse (if any point collides) and push the body out of
-/// the scene if it has sunk in. Returns whether an impulse was applied.
+/// the scene if it has sunk in. Returns how many points pushed (0: none).
 pub(crate) fn contact_body_scene<S: Real>(
     body: &RigidBody,
     st: &mut BodyState<S>,
@@ -14,13 +17,13 @@ pub(crate) fn contact_body_scene<S: Real>(
     restitution: S,
     friction: S,
     det: &Detection,
-) -> bool {
+) -> usize {
     let delta = det.delta;
     let t_re = st.pose.t.re();
     // Cull: the scene is a distance bound, so no point is within Δ when the
     // centre is farther than the bounding radius + Δ.
     if scene.distance_local(t_re) > body.bounding_radius + delta {
-        return false;
+        return 0;
     }
     // Detection (Eq. 8) runs on plain numbers: the set of colliding points is
     // a discrete choice, its derivative is zero.
@@ -30,6 +33,7 @@ pub(crate) fn contact_body_scene<S: Real>(
     let mut sum_sq = 0.0;
     let mut count = 0usize;
     let mut deepest: Option<(f64, usize)> = None;
+    let mut colliding = Vec::new();
     for (i, r) in body.contact_points.iter().enumerate() {
         let rw = rot_re.mul_vec(*r);
         let (d, g) = scene.distance_grad_local(t_re + rw);
@@ -45,11 +49,47 @@ pub(crate) fn contact_body_scene<S: Real>(
             sum += *r;
             sum_sq += r.norm_sq();
             count += 1;
+            if det.model == ContactModel::MultiPoint {
+                colliding.push(Colliding {
+                    index: i,
+                    distance: d,
+                    normal: n,
+                    at: t_re + rw,
+                });
+            }
         }
     }
     let rot = st.pose.q.to_mat();
-    let mut hit = false;
-    if count > 0 {
+    let mut hit = 0;
+    if det.model == ContactModel::MultiPoint && count > 0 {
+        let mut chosen = Vec::new();
+        select_contacts(&colliding, &mut chosen);
+        let rows: Vec<Row<S>> = chosen
+            .iter()
+            .filter_map(|&c| {
+                let r = rot.mul_vec(Vec3::lift(body.contact_points[colliding[c].index]));
+                let (_, g) = scene.distance_grad_local(st.pose.t + r);
+                g.try_normalize().map(|n| Row {
+                    ra: r,
+                    rb: Vec3::zero(),
+                    n,
+                })
+            })
+            .collect();
+        let mut side = Side {
+            v: &mut st.v,
+            omega: &mut st.omega,
+            inv_mass: 1.0 / body.mass,
+            inv_inertia: world_inertia_inv(&rot, &body.inertia_inv),
+        };
+        let law = Law {
+            restitution,
+            friction,
+            restitution_threshold: det.restitution_threshold,
+            sweeps: det.sweeps,
+        };
+        hit = solve(&mut side, None, &rows, &law);
+    } else if count > 0 {
         let rbar = sum * (1.0 / count as f64);
         let r = rot.mul_vec(Vec3::lift(rbar));
         let (_, g) = scene.distance_grad_local(st.pose.t + r);
@@ -65,7 +105,7 @@ pub(crate) fn contact_body_scene<S: Real>(
                 let radius = patch_radius(sum, sum_sq, count);
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
-                hit = true;
+                hit = 1;
             }
         }
     }

@@ -4,11 +4,13 @@
 
 mod contact_body_body;
 mod contact_body_scene;
+mod contact_set;
+mod sequential_impulses;
 
 pub(crate) use contact_body_body::contact_body_body;
 pub(crate) use contact_body_scene::contact_body_scene;
 
-use crate::config::FrictionModel;
+use crate::config::{ContactModel, FrictionModel};
 use geom::{Mat3, Real, Vec3};
 
 /// How a contact point is tested (Eq. 8 plus the optional speculative rule).
@@ -21,6 +23,9 @@ pub(crate) struct Detection {
     pub speculative_dt: Option<f64>,
     pub restitution_threshold: f64,
     pub friction: FrictionModel,
+    pub model: ContactModel,
+    /// Sweeps of the multi-point solver.
+    pub sweeps: usize,
 }
 
 impl Detection {

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use sim::sdf::{Cuboid, Plane, Shape, Sphere};
-use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
+use sim::{BodyState, ContactModel, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
 
 pub fn ground() -> Shape {
     Shape::Plane(Plane {
@@ -37,6 +37,16 @@ pub fn config(fps: f64, frames: usize, substeps: usize) -> SimConfig {
         frames,
         substeps,
         ..SimConfig::default()
+    }
+}
+
+/// Both contact models: the physics laws hold for each.
+pub const MODELS: [ContactModel; 2] = [ContactModel::MeanPoint, ContactModel::MultiPoint];
+
+pub fn config_in(model: ContactModel, fps: f64, frames: usize, substeps: usize) -> SimConfig {
+    SimConfig {
+        contact_model: model,
+        ..config(fps, frames, substeps)
     }
 }
 
