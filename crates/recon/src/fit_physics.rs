@@ -236,7 +236,12 @@ impl PhysicsFit {
     }
 
     fn loss_at(&self, p: &[f64]) -> f64 {
-        let traj = self.world.simulate(p);
+        self.loss_in(&self.world, p)
+    }
+
+    /// Eq. 11's loss of parameters `p` over the frames `world` simulates.
+    fn loss_in(&self, world: &World, p: &[f64]) -> f64 {
+        let traj = world.simulate(p);
         let lq = self.cfg.rotation_weight;
         let mut loss = 0.0;
         for (k, f) in traj.frames.iter().enumerate().skip(1) {
@@ -351,6 +356,13 @@ impl PhysicsFit {
         self.loss
     }
 
+    /// The loss of the current parameters over the whole sequence (whatever the window).
+    pub fn full_loss(&self) -> f64 {
+        let mut w = self.world.clone();
+        w.config.frames = self.poses.len();
+        self.loss_in(&w, &self.params)
+    }
+
     /// The world with the fitted parameters in place, over the whole sequence.
     pub fn fitted_world(&self) -> World {
         let mut w = self.world.clone();
@@ -382,4 +394,87 @@ impl PhysicsFit {
             })
             .collect()
     }
+}
+
+/// The contact values a multi-start begins from besides the scene file's guess: restitution × friction on a
+/// 3 × 3 grid, from dead to bouncy and from slippery to grippy. The loss over contact-rich frames is rugged
+/// (a contact moves by a whole substep, a body tips one way or the other), so one start may end in the
+/// wrong basin.
+pub const CONTACT_STARTS: [(f64, f64); 9] = [
+    (0.15, 0.1),
+    (0.15, 0.35),
+    (0.15, 0.7),
+    (0.45, 0.1),
+    (0.45, 0.35),
+    (0.45, 0.7),
+    (0.75, 0.1),
+    (0.75, 0.35),
+    (0.75, 0.7),
+];
+
+/// One start of [`fit_multi_start`] and where it ended.
+#[derive(Clone, Debug, Serialize)]
+pub struct StartResult {
+    pub restitution: f64,
+    pub friction: f64,
+    /// Eq. 11's loss over the whole sequence when its fit stopped.
+    pub loss: f64,
+    pub iterations: usize,
+}
+
+/// The winner of a multi-start fit.
+pub struct MultiStart {
+    pub best: PhysicsFit,
+    /// Which start won (0: the world's own contact values, then `starts` in order).
+    pub winner: usize,
+    pub starts: Vec<StartResult>,
+    /// The winner's steps.
+    pub history: Vec<FitStats>,
+}
+
+/// A full windowed fit from the world's own contact values and from each `(restitution, friction)` of
+/// `starts` (other parameters from the world); the lowest loss over the whole sequence wins. `on_start` is
+/// told each start's result as it ends.
+pub fn fit_multi_start(
+    cfg: PhysicsFitConfig,
+    world: World,
+    body: usize,
+    poses: Vec<Pose<f64>>,
+    weights: Option<Vec<f64>>,
+    starts: &[(f64, f64)],
+    on_start: &mut dyn FnMut(usize, &StartResult),
+) -> Result<MultiStart, FitError> {
+    if body >= world.bodies.len() {
+        return Err(FitError::NoSuchBody(body));
+    }
+    let own = world.scene_contact[body];
+    let all: Vec<(f64, f64)> = std::iter::once((own.restitution, own.friction))
+        .chain(starts.iter().copied())
+        .collect();
+    let mut best: Option<(PhysicsFit, Vec<FitStats>, usize)> = None;
+    let mut results = Vec::new();
+    for (i, &(restitution, friction)) in all.iter().enumerate() {
+        let mut w = world.clone();
+        w.scene_contact[body] = sim::ContactParams { restitution, friction };
+        let mut fit = PhysicsFit::new(cfg.clone(), w, body, poses.clone(), weights.clone())?;
+        let history = fit.run();
+        let r = StartResult {
+            restitution,
+            friction,
+            loss: fit.full_loss(),
+            iterations: history.len(),
+        };
+        on_start(i, &r);
+        if best.as_ref().is_none_or(|(b, _, _)| r.loss < b.full_loss()) {
+            best = Some((fit, history, i));
+        }
+        results.push(r);
+    }
+    let (best, history, winner) = best.expect("at least the world's own start");
+    Ok(MultiStart {
+        best,
+        winner,
+        starts: results,
+        history,
+    })
 }

@@ -5,5 +5,8 @@ pub mod fit_physics;
 pub mod least_squares;
 pub mod target;
 
-pub use fit_physics::{FitError, FitStats, PhysicsFit, PhysicsFitConfig, PoseError};
+pub use fit_physics::{
+    fit_multi_start, FitError, FitStats, MultiStart, PhysicsFit, PhysicsFitConfig, PoseError, StartResult,
+    CONTACT_STARTS,
+};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};

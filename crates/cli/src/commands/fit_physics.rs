@@ -3,7 +3,7 @@ use crate::scene_file::SceneFile;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::{Pose, Quat, Vec3};
-use recon::{PhysicsFit, PhysicsFitConfig};
+use recon::{fit_multi_start, PhysicsFitConfig, CONTACT_STARTS};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -41,6 +41,9 @@ pub struct FitPhysicsArgs {
     /// Also refine the initial pose.
     #[arg(long)]
     pub fit_pose: bool,
+    /// Fit only from the scene file's contact values (no multi-start over restitution × friction).
+    #[arg(long)]
+    pub single_start: bool,
     /// Where to write the fitted trajectory.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -94,21 +97,39 @@ pub fn run(a: FitPhysicsArgs) -> Result<()> {
         fit_initial_pose: a.fit_pose,
         ..PhysicsFitConfig::default()
     };
-    let mut fit =
-        PhysicsFit::new(cfg, world, body, poses, weights).map_err(|e| anyhow!("{}: {e}", a.poses.display()))?;
-    println!("start: loss {:.6e}", fit.loss());
     let t0 = std::time::Instant::now();
-    let mut history = Vec::new();
-    loop {
-        let s = fit.step();
+    // The scene file's contact values, then a grid over restitution × friction (unless fixed or asked not to).
+    let starts: &[(f64, f64)] = if a.single_start || a.fix_restitution || a.fix_friction {
+        &[]
+    } else {
+        &CONTACT_STARTS
+    };
+    let multi = fit_multi_start(cfg, world, body, poses, weights, starts, &mut |i, r| {
         println!(
-            "iteration {:3}: loss {:.6e} (frames 0..{}, damping {:.1e})",
-            s.iteration, s.loss, s.window, s.lambda
+            "start {i:2} (restitution {:.2}, friction {:.2}): loss {:.6e} after {} iterations",
+            r.restitution, r.friction, r.loss, r.iterations
         );
-        history.push(s);
-        if s.converged {
-            break;
-        }
+    })
+    .map_err(|e| anyhow!("{}: {e}", a.poses.display()))?;
+    let (fit, history) = (&multi.best, &multi.history);
+    if !starts.is_empty() {
+        let w = &multi.starts[multi.winner];
+        println!(
+            "best: start {} (restitution {:.2}, friction {:.2}{})",
+            multi.winner,
+            w.restitution,
+            w.friction,
+            if multi.winner == 0 { ", the scene file's" } else { "" }
+        );
+    }
+    for s in history {
+        tracing::debug!(
+            "iteration {:3}: loss {:.6e} (frames 0..{}, damping {:.1e})",
+            s.iteration,
+            s.loss,
+            s.window,
+            s.lambda
+        );
     }
     let p = fit.fitted_body_params();
     let errors = fit.pose_errors();
@@ -132,7 +153,8 @@ pub fn run(a: FitPhysicsArgs) -> Result<()> {
         let mut extra = serde_json::Map::new();
         extra.insert(
             "fit".into(),
-            serde_json::json!({"history": history, "pose_errors": errors, "poses": a.poses}),
+            serde_json::json!({"history": history, "pose_errors": errors, "poses": a.poses,
+                "starts": multi.starts, "winner": multi.winner}),
         );
         pganeus_io::write_trajectory(out, &trajectory_json(&obs.capture, &w, &traj, extra))?;
         println!("wrote {}", out.display());
