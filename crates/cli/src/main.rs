@@ -42,6 +42,8 @@ enum Command {
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
     BenchSim(commands::bench_sim::BenchSimArgs),
+    /// How well each contact model, fitted, explains motion Rapier made (JSON lines).
+    BenchContact(commands::bench_contact::BenchContactArgs),
     /// Composed-rendering timings (rays/s; reference and fixed-camera fast path; JSON lines).
     BenchCompose(commands::bench_compose::BenchComposeArgs),
     /// Train on a synthetic object capture and print speed, held-out PSNR and Chamfer distance as JSON lines.
@@ -68,6 +70,7 @@ fn main() {
         Command::FitPhysics(a) => commands::fit_physics::run(a),
         Command::BenchSim(a) => commands::bench_sim::run(a),
         Command::BenchCompose(a) => commands::bench_compose::run(a),
+        Command::BenchContact(a) => commands::bench_contact::run(a),
         Command::BenchTrain(a) => commands::bench_train::run(a),
     };
     if let Err(e) = result {

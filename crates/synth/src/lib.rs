@@ -16,4 +16,4 @@ pub mod texture;
 pub use build::SynthError;
 pub use desc::{Physics, SynthScene};
 pub use generate::{frame_name, generate, simulate_videos, Summary};
-pub use presets::{preset, Scale, PRESETS};
+pub use presets::{contact_scenes, preset, Scale, CONTACT_SCENES, PRESETS};

@@ -12,6 +12,9 @@ use sim::ContactParams;
 
 pub const PRESETS: [&str; 3] = ["tabletop", "two-body", "backdrop"];
 
+/// The motion-only scenes that exercise contact (`contact_scenes`): what a contact model must reproduce.
+pub const CONTACT_SCENES: [&str; 4] = ["tipping-slide", "ramp-drop", "rocking", "push"];
+
 /// Image size, view and frame counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Scale {
@@ -281,4 +284,136 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
         }
         _ => return None,
     })
+}
+
+/// Scenes whose motion exercises contact the way real footage does, for comparing contact models with
+/// Rapier (`bench-contact`): a tall box whose friction tips it over as it slides into the wall, the toy
+/// dropped with spin onto a ramp so it tumbles down, a well-rounded body released on its edge so it rocks
+/// to rest, and a resting block pushed into a sliding spin. One video each, 30 frames at 30 fps.
+pub fn contact_scenes() -> Vec<SynthScene> {
+    let base = preset("tabletop", Scale::Small).expect("the tabletop preset");
+    let n = frames(Scale::Small);
+    let with = |name: &str, obstacles: Vec<ObstacleDesc>, body: BodyDesc, v: VideoDesc| SynthScene {
+        name: name.into(),
+        obstacles,
+        bodies: vec![body],
+        videos: vec![v],
+        ..base.clone()
+    };
+    let contact = |mut v: VideoDesc, restitution: f64, friction: f64| {
+        v.contact = ContactParams { restitution, friction };
+        v
+    };
+    let wall = base.obstacles.clone();
+    // Standing on its end (its 6 cm side upright): friction above 0.6 tips it forward while it slides.
+    let standing = [
+        std::f64::consts::FRAC_1_SQRT_2,
+        0.0,
+        std::f64::consts::FRAC_1_SQRT_2,
+        0.0,
+    ];
+    let ramp = obstacle(
+        "ramp",
+        ShapeDesc::Wedge {
+            half: [0.08, 0.1, 0.03],
+        },
+        [0.0, 0.0, 0.03],
+        Texture {
+            direction: [1.0, 0.2, 0.0],
+            ..Texture::new(Pattern::Stripes, 0.015, vec![[0.3, 0.35, 0.7], [0.85, 0.85, 0.9]], 41)
+        },
+    );
+    let rocker = BodyDesc {
+        name: "rocker".into(),
+        shape: ShapeDesc::RoundedBox {
+            half: [0.035, 0.025, 0.02],
+            radius: 0.015,
+        },
+        mass: 0.1,
+        ..toy()
+    };
+    let block = BodyDesc {
+        name: "block".into(),
+        shape: ShapeDesc::Box {
+            half: [0.03, 0.03, 0.02],
+        },
+        mass: 0.15,
+        ..toy()
+    };
+    // Tilted 25° about x: its lowest point (support 23.8 mm) 2 mm above the board.
+    let tilt = [0.9763, 0.2164, 0.0, 0.0];
+    vec![
+        with(
+            "tipping-slide",
+            wall,
+            toy(),
+            contact(
+                video(
+                    "tipping-slide",
+                    n,
+                    0.3,
+                    vec![start("toy", [-0.15, 0.0, 0.0301], standing, [1.1, 0.0, 0.0], [0.0; 3])],
+                ),
+                0.3,
+                0.7,
+            ),
+        ),
+        with(
+            "ramp-drop",
+            vec![ramp],
+            toy(),
+            contact(
+                video(
+                    "ramp-drop",
+                    n,
+                    0.4,
+                    vec![start(
+                        "toy",
+                        [-0.01, 0.0, 0.16],
+                        [0.92, 0.2, 0.3, 0.1],
+                        [0.1, 0.0, 0.0],
+                        [4.0, 2.0, 1.0],
+                    )],
+                ),
+                0.4,
+                0.3,
+            ),
+        ),
+        with(
+            "rocking",
+            vec![],
+            rocker,
+            contact(
+                video(
+                    "rocking",
+                    n,
+                    0.2,
+                    vec![start("rocker", [0.0, 0.0, 0.0258], tilt, [0.0; 3], [0.0; 3])],
+                ),
+                0.2,
+                0.5,
+            ),
+        ),
+        with(
+            "push",
+            vec![],
+            block,
+            contact(
+                video(
+                    "push",
+                    n,
+                    0.3,
+                    vec![start(
+                        "block",
+                        [-0.1, 0.0, 0.02],
+                        UPRIGHT,
+                        [0.9, 0.15, 0.0],
+                        [0.0, 0.0, 4.0],
+                    )],
+                ),
+                0.3,
+                0.3,
+            ),
+        ),
+    ]
 }

@@ -5,10 +5,17 @@
 //! (not the same numbers after it).
 
 use std::path::Path;
-use synth::{preset, simulate_videos, Physics, Scale};
+use synth::{contact_scenes, preset, simulate_videos, Physics, Scale, SynthScene};
 
 fn both(name: &str) -> Vec<(String, sim::World, sim::Trajectory<f64>, sim::Trajectory<f64>)> {
-    let mut scene = preset(name, Scale::Small).expect("a preset");
+    let scene = preset(name, Scale::Small)
+        .or_else(|| contact_scenes().into_iter().find(|s| s.name == name))
+        .expect("a preset or a contact scene");
+    both_of(scene)
+}
+
+fn both_of(mut scene: SynthScene) -> Vec<(String, sim::World, sim::Trajectory<f64>, sim::Trajectory<f64>)> {
+    let name = scene.name.clone();
     let ours = simulate_videos(&scene, Path::new(".")).expect("simulates");
     scene.physics = Physics::Rapier;
     let theirs = simulate_videos(&scene, Path::new(".")).expect("simulates with Rapier");
@@ -27,7 +34,8 @@ fn first_contact(t: &sim::Trajectory<f64>, body: usize) -> Option<usize> {
 
 #[test]
 fn rapier_moves_the_synth_bodies_like_a_physical_engine() {
-    for (video, world, ours, theirs) in ["tabletop", "two-body", "backdrop"].into_iter().flat_map(both) {
+    let names = ["tabletop", "two-body", "backdrop"].into_iter().chain(synth::CONTACT_SCENES);
+    for (video, world, ours, theirs) in names.flat_map(both) {
         let (fps, substeps) = (world.config.fps, world.config.substeps);
         let n = ours.frames.len();
         assert_eq!(theirs.frames.len(), n, "{video}");
@@ -78,7 +86,8 @@ fn rapier_moves_the_synth_bodies_like_a_physical_engine() {
                     -lowest(k) * 1e3
                 );
             }
-            if last.pose.t.x.abs() < 0.25 && last.pose.t.y.abs() < 0.25 {
+            // (The ramp-drop may end on the ramp, still sliding: it is not checked for rest.)
+            if !video.starts_with("ramp-drop") && last.pose.t.x.abs() < 0.25 && last.pose.t.y.abs() < 0.25 {
                 assert!(
                     last.v.norm() < 0.01 && lowest(n - 1).abs() < 1e-3,
                     "{video}: not at rest on the board"

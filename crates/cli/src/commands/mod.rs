@@ -1,4 +1,5 @@
 pub mod bench_compose;
+pub mod bench_contact;
 pub mod bench_sim;
 pub mod bench_train;
 pub mod fit_physics;
