@@ -34,7 +34,9 @@ fn first_contact(t: &sim::Trajectory<f64>, body: usize) -> Option<usize> {
 
 #[test]
 fn rapier_moves_the_synth_bodies_like_a_physical_engine() {
-    let names = ["tabletop", "two-body", "backdrop"].into_iter().chain(synth::CONTACT_SCENES);
+    let names = ["tabletop", "two-body", "backdrop"]
+        .into_iter()
+        .chain(synth::CONTACT_SCENES);
     for (video, world, ours, theirs) in names.flat_map(both) {
         let (fps, substeps) = (world.config.fps, world.config.substeps);
         let n = ours.frames.len();
