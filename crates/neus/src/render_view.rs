@@ -157,8 +157,10 @@ pub fn render_view(
     // evaluations × the sample cap each), and the MLP scratch grows with them.
     let rows_per_chunk = (2048 / w.max(1)).max(1);
     let mut scratch = RenderScratch::default();
+    let (mut o, mut d) = (Vec::new(), Vec::new());
     for y0 in (0..h).step_by(rows_per_chunk as usize) {
-        let (mut o, mut d) = (Vec::new(), Vec::new());
+        o.clear();
+        d.clear();
         for y in y0..(y0 + rows_per_chunk).min(h) {
             for x in 0..w {
                 let r = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
