@@ -1,13 +1,16 @@
 //! Sequential impulses (projected Gauss–Seidel, as Catto's Box2D and Rapier
 //! solve contacts) over a set of contact points between a body and the fixed
 //! scene or another body: each sweep visits every point and changes its
-//! accumulated normal impulse so the point's normal velocity reaches its
-//! target (clamped to push only), then its friction impulse in the tangent
-//! plane so the point stops slipping (clamped to Coulomb's disc of radius
-//! μ × its normal impulse). A fixed number of sweeps, in the generic scalar,
-//! so forward-mode dual numbers carry exact derivatives through the clamps.
-//! Restitution: a point approaching faster than the threshold targets
-//! `−k_n v_n` (its approach speed measured before the solve), else 0.
+//! accumulated normal impulse so the point stops approaching (clamped to push
+//! only), then its friction impulse in the tangent plane so the point stops
+//! slipping (clamped to Coulomb's disc of radius μ × its normal impulse).
+//! Restitution comes last, as Box2D and Rapier apply it once the contact set
+//! is resolved: the points that approached faster than the threshold are
+//! driven, in further sweeps, to `−k_n v_n` (their approach speed before the
+//! solve); solving it with the rest made a tipping box bounce off its first
+//! corner differently from Rapier (the tipping slide's unfitted error
+//! 8.4 → 0.6 mm). Fixed numbers of sweeps, in the generic scalar, so
+//! forward-mode dual numbers carry exact derivatives through the clamps.
 
 use geom::{Mat3, Real, Vec3};
 
@@ -122,9 +125,9 @@ pub(crate) fn solve<S: Real>(a: &mut Side<'_, S>, mut b: Option<Side<'_, S>>, ro
         .collect();
     for _ in 0..law.sweeps {
         for (r, s) in rows.iter().zip(st.iter_mut()) {
-            // Normal: reach the target, never pull.
+            // Normal: stop the approach, never pull.
             let vn = relative(a, &b, r).dot(r.n);
-            let total = (s.lambda_n + s.mass_n * (s.target - vn)).max(S::zero());
+            let total = (s.lambda_n - s.mass_n * vn).max(S::zero());
             let dn = total - s.lambda_n;
             s.lambda_n = total;
             apply(a, &mut b, r, r.n * dn);
@@ -148,6 +151,20 @@ pub(crate) fn solve<S: Real>(a: &mut Side<'_, S>, mut b: Option<Side<'_, S>>, ro
             s.lambda_t1 = l1;
             s.lambda_t2 = l2;
             apply(a, &mut b, r, p);
+        }
+    }
+    // Restitution last (as Box2D and Rapier do): the bouncing points' normal velocities driven to their
+    // targets once the contact set is resolved.
+    for _ in 0..law.sweeps {
+        for (r, s) in rows.iter().zip(st.iter_mut()) {
+            if s.target.re() <= 0.0 {
+                continue;
+            }
+            let vn = relative(a, &b, r).dot(r.n);
+            let total = (s.lambda_n + s.mass_n * (s.target - vn)).max(S::zero());
+            let dn = total - s.lambda_n;
+            s.lambda_n = total;
+            apply(a, &mut b, r, r.n * dn);
         }
     }
     st.iter().filter(|s| s.lambda_n.re() > 0.0).count()
