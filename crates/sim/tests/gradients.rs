@@ -141,12 +141,12 @@ fn corner_impact_gradients_match_finite_differences() {
     check_world("corner impact", &w, &wrt, contact_tolerance());
 }
 
-#[test]
-fn body_pair_gradients_match_finite_differences() {
-    // Two boxes meet corner-first in zero gravity: pair restitution and
-    // friction, and both bodies' initial states.
+/// Two boxes meeting corner-first in zero gravity, checked for body 0's state, body 1's velocity and the
+/// pair's parameters.
+fn check_body_pair(model: sim::ContactModel) {
     let cfg = SimConfig {
         gravity: [0.0; 3],
+        contact_model: model,
         ..config(60.0, 16, 10)
     };
     let mut w = World::new(cfg, ground());
@@ -171,17 +171,24 @@ fn body_pair_gradients_match_finite_differences() {
     w.pair_contact[0] = contact(0.6, 0.2);
     w.validate().unwrap();
     let traj = w.simulate(&w.params());
-    assert!(traj.contacts.iter().any(|c| c.pairs[0]), "the boxes must collide");
+    assert!(
+        traj.contacts.iter().any(|c| c.pairs[0]),
+        "{model:?}: the boxes must collide"
+    );
     let pair = w.pair_param_offset(0);
-    // Body 0's state, body 1's velocity, and the pair's parameters.
     let wrt: Vec<usize> = (0..12).chain(20..23).chain([pair, pair + 1]).collect();
-    check_world("body pair", &w, &wrt, contact_tolerance());
+    check_world(&format!("body pair ({model:?})"), &w, &wrt, contact_tolerance());
     let g = simulate_with_gradients(&w, &w.params(), &[pair, pair + 1]);
     let last = g.frames.len() - 1;
     assert!(
         g.d(last, 1, 7, 0).abs() > 1e-3,
-        "pair restitution changes body 1's velocity"
+        "{model:?}: pair restitution changes body 1's velocity"
     );
+}
+
+#[test]
+fn body_pair_gradients_match_finite_differences() {
+    check_body_pair(sim::ContactModel::MeanPoint);
 }
 
 #[test]
@@ -230,35 +237,5 @@ fn multi_point_gradients_match_finite_differences_through_a_corner_impact_and_an
 
 #[test]
 fn multi_point_body_pair_gradients_match_finite_differences() {
-    let cfg = SimConfig {
-        gravity: [0.0; 3],
-        contact_model: sim::ContactModel::MultiPoint,
-        ..config(60.0, 16, 10)
-    };
-    let mut w = World::new(cfg, ground());
-    let c = contact(0.5, 0.3);
-    w.add_body(
-        corner_box([0.03, 0.02, 0.015], 0.2),
-        BodyState::new(
-            [-0.1, 0.005, 0.5],
-            [0.95, 0.2, 0.1, 0.2],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.5],
-        ),
-        c,
-        c,
-    );
-    w.add_body(
-        corner_box([0.025, 0.025, 0.02], 0.3),
-        BodyState::new([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0], [-0.2, 0.05, 0.0], [0.0; 3]),
-        c,
-        c,
-    );
-    w.pair_contact[0] = contact(0.6, 0.2);
-    w.validate().unwrap();
-    let traj = w.simulate(&w.params());
-    assert!(traj.contacts.iter().any(|c| c.pairs[0]), "the boxes must collide");
-    let pair = w.pair_param_offset(0);
-    let wrt: Vec<usize> = (0..12).chain(20..23).chain([pair, pair + 1]).collect();
-    check_world("multi-point body pair", &w, &wrt, contact_tolerance());
+    check_body_pair(sim::ContactModel::MultiPoint);
 }

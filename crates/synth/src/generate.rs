@@ -50,12 +50,11 @@ pub type OnImage<'a> = &'a mut dyn FnMut(&str, usize, usize);
 pub fn simulate_videos(scene: &SynthScene, base: &Path) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
     let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
-    simulate_built(scene, base, &stat, &bodies)
+    simulate_built(scene, &stat, &bodies)
 }
 
 fn simulate_built(
     scene: &SynthScene,
-    base: &Path,
     stat: &StaticScene,
     bodies: &Bodies,
 ) -> Result<Vec<(World, sim::Trajectory<f64>)>, SynthError> {
@@ -104,7 +103,7 @@ fn simulate_built(
         check_start(&world, &f)?;
         let traj = match scene.physics {
             Physics::Pganeus => world.simulate(&world.params()),
-            Physics::Rapier => simulate_with_rapier(scene, base, stat, v, &world)?,
+            Physics::Rapier => simulate_with_rapier(scene, stat, v, &world),
         };
         out.push((world, traj));
     }
@@ -200,7 +199,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
     }
     let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
-    let videos = simulate_built(scene, base, &stat, &bodies)?;
+    let videos = simulate_built(scene, &stat, &bodies)?;
     // The board and the table alone, for the static captures of bodies.
     let bare: Vec<_> = stat.objects[..stat.board_and_table].to_vec();
     let k = intrinsics(rig.width, rig.height, rig.fov_deg);

@@ -17,16 +17,14 @@
 //! Rapier's length unit is 10 cm, so its tolerances suit bodies that size.
 //! Rapier steps `substeps` times a frame with dt = 1 / (fps · substeps).
 
-use crate::build::{build_shape, StaticScene};
+use crate::build::StaticScene;
 use crate::desc::{ShapeDesc, SynthScene, VideoDesc};
-use crate::SynthError;
 use geom::{Pose, Quat, Vec3};
 use rapier3d_f64::prelude::{
     ColliderBuilder, ColliderHandle, MassProperties, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 use rapier3d_f64::prelude::{Matrix, Pose as RPose, Rotation, Vector};
 use sim::{BodyState, FrameContacts, RigidBody, World};
-use std::path::Path;
 
 /// Rapier's length unit for tabletop scenes, m (its default of 1 m suits bodies a metre across).
 const LENGTH_UNIT: f64 = 0.1;
@@ -72,11 +70,10 @@ fn collider(shape: &ShapeDesc, mesh: &geom::TriMesh, moving: bool) -> ColliderBu
 /// solver applied a contact impulse.
 pub(crate) fn simulate_with_rapier(
     scene: &SynthScene,
-    base: &Path,
     stat: &StaticScene,
     video: &VideoDesc,
     world: &World,
-) -> Result<sim::Trajectory<f64>, SynthError> {
+) -> sim::Trajectory<f64> {
     let cfg = &world.config;
     let mut pw = PhysicsWorld::new();
     pw.gravity = Vector::new(cfg.gravity[0], cfg.gravity[1], cfg.gravity[2]);
@@ -109,15 +106,16 @@ pub(crate) fn simulate_with_rapier(
             None,
         ));
     }
-    for (i, o) in scene.obstacles.iter().enumerate() {
-        let (_, mesh) = build_shape(&format!("obstacles[{i}] ({})", o.name), &o.shape, base)?;
-        let placed = Pose::new(Quat::cst(o.q).normalize_or_identity(), Vec3::cst(o.t));
-        statics.push(pw.insert_collider(
-            with_contact(collider(&o.shape, &mesh, false)).position(pose(&placed)),
-            None,
-        ));
+    // `stat.meshes`: the board, then each obstacle in the world frame.
+    for (o, world_mesh) in scene.obstacles.iter().zip(&stat.meshes[1..]) {
+        let c = match o.shape {
+            // Built from the mesh: already placed.
+            ShapeDesc::Wedge { .. } | ShapeDesc::Mesh { .. } => collider(&o.shape, world_mesh, false),
+            _ => collider(&o.shape, world_mesh, false)
+                .position(pose(&Pose::new(Quat::cst(o.q).normalize_or_identity(), Vec3::cst(o.t)))),
+        };
+        statics.push(pw.insert_collider(with_contact(c), None));
     }
-    debug_assert!(statics.len() >= stat.board_and_table);
 
     // The bodies, at their initial states, with the project's mass properties.
     let initial = world.initial.clone();
@@ -201,7 +199,7 @@ pub(crate) fn simulate_with_rapier(
         frames.push(read(&pw));
         contacts.push(touched);
     }
-    Ok(sim::Trajectory { frames, contacts })
+    sim::Trajectory { frames, contacts }
 }
 
 /// How many of a pair's contact points Rapier pushed apart (a positive normal impulse).

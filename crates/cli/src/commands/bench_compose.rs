@@ -122,13 +122,14 @@ pub fn run(a: BenchComposeArgs) -> Result<()> {
     let routed = model.route(pose, &cam);
     let object = || Layer::object(&routed.field, &routed.capture_from_body, pose, 0);
 
+    let probe = object();
     let (mut all_o, mut all_d, mut win_o, mut win_d, mut win_px) = (vec![], vec![], vec![], vec![], vec![]);
     for y in 0..cam.height {
         for x in 0..cam.width {
             let r = cam.ray(x as f64 + 0.5, y as f64 + 0.5);
             all_o.push(r.origin);
             all_d.push(r.dir);
-            if object().meets(r.origin, r.dir) {
+            if probe.meets(r.origin, r.dir) {
                 win_o.push(r.origin);
                 win_d.push(r.dir);
                 win_px.push((y * cam.width + x) as usize);

@@ -88,13 +88,7 @@ pub(crate) fn contact_body_body<S: Real>(
             inv_mass: 1.0 / b.mass,
             inv_inertia: ib_inv,
         };
-        let law = Law {
-            restitution,
-            friction,
-            restitution_threshold: det.restitution_threshold,
-            sweeps: det.sweeps,
-        };
-        hit = solve(&mut side_a, Some(side_b), &rows, &law) > 0;
+        hit = solve(&mut side_a, Some(side_b), &rows, &Law::of(restitution, friction, det)) > 0;
     } else if count > 0 {
         let rbar = sum * (1.0 / count as f64);
         let c = sa.pose.t + rot_a.mul_vec(Vec3::lift(rbar));

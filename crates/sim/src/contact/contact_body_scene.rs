@@ -82,13 +82,7 @@ pub(crate) fn contact_body_scene<S: Real>(
             inv_mass: 1.0 / body.mass,
             inv_inertia: world_inertia_inv(&rot, &body.inertia_inv),
         };
-        let law = Law {
-            restitution,
-            friction,
-            restitution_threshold: det.restitution_threshold,
-            sweeps: det.sweeps,
-        };
-        hit = solve(&mut side, None, &rows, &law);
+        hit = solve(&mut side, None, &rows, &Law::of(restitution, friction, det));
     } else if count > 0 {
         let rbar = sum * (1.0 / count as f64);
         let r = rot.mul_vec(Vec3::lift(rbar));

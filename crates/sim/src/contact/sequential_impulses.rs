@@ -40,6 +40,18 @@ pub(crate) struct Law<S> {
     pub sweeps: usize,
 }
 
+impl<S: Real> Law<S> {
+    /// The law of a contact with these parameters under `det`'s restitution threshold and sweep count.
+    pub fn of(restitution: S, friction: S, det: &super::Detection) -> Self {
+        Self {
+            restitution,
+            friction,
+            restitution_threshold: det.restitution_threshold,
+            sweeps: det.sweeps,
+        }
+    }
+}
+
 /// Per-row state of a solve.
 struct Solving<S> {
     t1: Vec3<S>,
