@@ -1,9 +1,9 @@
 //! A rigid body: its closed mesh in the body frame (origin at the centre of
 //! mass), mass properties, contact points, and its SDF for body–body contacts.
 
+use crate::contact_points::spread_contact_points;
 use crate::mass_properties_mesh::{mass_properties, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
-use crate::sample_surface::sample_surface;
 use crate::sdf::{SdfGrid, Shape};
 use geom::{Mat3, Pose, TriMesh, Vec3};
 use std::sync::Arc;
@@ -20,7 +20,7 @@ pub enum MassSpec {
 /// Where the contact points come from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ContactSampling {
-    /// `count` points uniform by area, from `seed`.
+    /// `count` points spread evenly over the surface and its normals, from `seed` ([`crate::contact_points`]).
     Surface { count: usize, seed: u64 },
     /// The mesh vertices.
     Vertices,
@@ -113,7 +113,7 @@ impl RigidBody {
         }
         let contact_points = match sampling {
             ContactSampling::Surface { count: 0, .. } => return Err(BodyError::NoContactPoints),
-            ContactSampling::Surface { count, seed } => sample_surface(&mesh, count, seed),
+            ContactSampling::Surface { count, seed } => spread_contact_points(&mesh, count, seed),
             ContactSampling::Vertices => mesh.vertices.iter().map(|v| Vec3::cst(*v)).collect(),
         };
         let bounding_radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);

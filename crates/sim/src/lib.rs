@@ -1,5 +1,5 @@
 //! The differentiable rigid-body solver of PGA-NeuS (Sec. 3.3, Eq. 5–8):
-//! semi-implicit Euler with substeps, gravity and damping, SDF contacts against
+//! semi-implicit Euler with substeps (exact parabolas in free flight), gravity and damping, SDF contacts against
 //! a static scene and between bodies (threshold Δ and the velocity condition
 //! of Eq. 8, impulse at the averaged contact point with restitution `k_n` and
 //! friction `mu`), and exact derivatives of every output by dual numbers.
@@ -7,6 +7,8 @@
 pub mod body;
 pub mod config;
 mod contact;
+pub mod contact_points;
+pub mod contact_query;
 pub mod gradients;
 pub mod mass_properties_mesh;
 pub mod mesh_check;
@@ -18,6 +20,7 @@ pub mod world;
 
 pub use body::{BodyError, ContactSampling, MassSpec, RigidBody};
 pub use config::{ConfigError, ContactModel, ContactParams, FrictionModel, SimConfig};
+pub use contact_query::{points_near_scene, NearPoint};
 pub use gradients::{simulate_with_gradients, TrajectoryGrad};
 pub use mass_properties_mesh::{mass_properties, MassProperties};
 pub use mesh_check::{check_closed_mesh, MeshCheckError};

@@ -1,5 +1,7 @@
-//! With no contact, the centre follows t0 + v0 t + ½ g t² (the semi-implicit
-//! Euler error, ½ g t dt, is accounted for exactly).
+//! With no contact, the centre follows t0 + v0 t + ½ g t² exactly: the
+//! velocity held between substeps is the one at their middle (leapfrog), so
+//! semi-implicit Euler's ½ g t dt (a few millimetres after a second, which a
+//! video of a real throw does not have) is gone.
 mod common;
 use common::*;
 use sim::BodyState;
@@ -20,15 +22,12 @@ fn free_fall_matches_closed_form() {
     let traj = w.simulate(&w.params());
     for (k, f) in traj.frames.iter().enumerate() {
         let t = k as f64 / 60.0;
-        // Semi-implicit Euler: z_n = z0 + v0 t + ½ g t² + ½ g t dt (velocity updated first).
-        let z = 10.0 + 1.0 * t - 0.5 * 9.81 * t * t - 0.5 * 9.81 * t * dt;
+        let z = 10.0 + 1.0 * t - 0.5 * 9.81 * t * t;
         let p = f[0].pose.t;
         assert!((p.z - z).abs() < 1e-9, "frame {k}: z {} vs {}", p.z, z);
         assert!((p.x - 0.5 * t).abs() < 1e-9 && (p.y + 0.2 * t).abs() < 1e-9);
-        let exact = 10.0 + 1.0 * t - 0.5 * 9.81 * t * t;
-        assert!(
-            (p.z - exact).abs() < 0.5 * 9.81 * t * dt + 1e-9,
-            "within the scheme's O(dt) of the exact curve"
-        );
+        // Frame 0 holds the given v0; later frames the velocity half a substep back.
+        let tv = if k == 0 { 0.0 } else { t - 0.5 * dt };
+        assert!((f[0].v.z - (1.0 - 9.81 * tv)).abs() < 1e-9, "frame {k}: v_z");
     }
 }

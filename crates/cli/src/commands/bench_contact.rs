@@ -25,6 +25,9 @@ pub struct BenchContactArgs {
     /// Maximum Levenberg–Marquardt iterations per fit.
     #[arg(long, default_value_t = 40)]
     pub iterations: usize,
+    /// Also print each frame's error (mm, degrees) before and after the fit.
+    #[arg(long)]
+    pub per_frame: bool,
 }
 
 /// Mean and max translation error (m) and max rotation error (degrees) of `world` simulated with `params`
@@ -39,6 +42,20 @@ fn errors(world: &World, params: &[f64], poses: &[Pose<f64>]) -> (f64, f64, f64)
         rot = rot.max(geom::rotation_distance(f[0].pose.q, p.q).to_degrees());
     }
     (sum / poses.len() as f64, max, rot)
+}
+
+/// Each frame's translation error (mm) and rotation error (degrees), rounded.
+fn per_frame(world: &World, params: &[f64], poses: &[Pose<f64>]) -> Vec<(f64, f64)> {
+    let traj = world.simulate(params);
+    traj.frames
+        .iter()
+        .zip(poses)
+        .map(|(f, p)| {
+            let e = (f[0].pose.t - p.t).norm() * 1e3;
+            let r = geom::rotation_distance(f[0].pose.q, p.q).to_degrees();
+            ((e * 10.0).round() / 10.0, (r * 10.0).round() / 10.0)
+        })
+        .collect()
 }
 
 fn mm(e: (f64, f64, f64)) -> serde_json::Value {
@@ -77,7 +94,7 @@ pub fn run(a: BenchContactArgs) -> Result<()> {
                 ..PhysicsFitConfig::default()
             };
             let starts: &[(f64, f64)] = if a.single_start { &[] } else { &CONTACT_STARTS };
-            let multi = fit_multi_start(cfg, w, 0, poses.clone(), None, starts, &mut |_, _| {})
+            let multi = fit_multi_start(cfg, w.clone(), 0, poses.clone(), None, starts, &mut |_, _| {})
                 .map_err(|e| anyhow!("{}: {e}", scene.name))?;
             let fitted_world = multi.best.fitted_world();
             let fitted = errors(&fitted_world, &fitted_world.params(), &poses);
@@ -95,6 +112,16 @@ pub fn run(a: BenchContactArgs) -> Result<()> {
                     "winner": multi.winner, "seconds": (t0.elapsed().as_secs_f64() * 10.0).round() / 10.0,
                 })
             );
+            if a.per_frame {
+                println!(
+                    "{}",
+                    serde_json::json!({
+                        "scene": scene.name,
+                        "unfitted_per_frame": per_frame(&w, &w.params(), &poses),
+                        "fitted_per_frame": per_frame(&fitted_world, &fitted_world.params(), &poses),
+                    })
+                );
+            }
         }
     }
     Ok(())
