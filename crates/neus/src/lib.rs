@@ -23,6 +23,7 @@ pub mod stereo;
 pub mod surface;
 pub mod switching;
 pub mod trainer;
+pub mod untrained_field;
 pub mod volume;
 
 pub use config::{CaptureSubject, TrainConfig};

@@ -8,46 +8,10 @@ use neus::checkpoint::LoadedField;
 use neus::compose::{prerender_scene, render_composed, Behind, Composer, Layer, RayGradient};
 use neus::occupancy::OccupancyGrid;
 use neus::render_view::{render_view, RenderSettings};
-use neus::{FieldConfig, FieldInit, NeusField, TrainConfig};
-use std::path::PathBuf;
+use neus::FieldInit;
 
-/// A small untrained field: a sphere (object) or the board plane (scene), its colour network randomised so
-/// colour varies over the surface. Smooth everywhere, so central differences converge: a softplus colour
-/// network (ReLU kinks at every sample would not), and the hash tables enter the SDF network with the
-/// geometric initialisation's zero weights (trilinear interpolation is only C0; the grid's input gradient is
-/// checked against its own reference in the field crate's tests).
 fn field(init: FieldInit, centre: Vec3<f64>, radius: f64, seed: u64) -> LoadedField {
-    let mut config = TrainConfig {
-        field: FieldConfig {
-            init,
-            color_activation: field::Activation::Softplus { beta: 10.0 },
-            init_radius: 0.45,
-            ..FieldConfig::default()
-        },
-        ..TrainConfig::default()
-    };
-    let g = &mut config.field.grid;
-    g.levels = 6;
-    g.log2_table_size = 12;
-    g.base_resolution = 4;
-    g.max_resolution = 48;
-    let board = (-centre.z / radius) as f32;
-    let mut f = NeusField::new(&config.field, seed, board);
-    for v in &mut f.color_params {
-        *v *= 3.0;
-    }
-    // inv_s = exp(10 v) = 30: a surface a few per cent of the unit sphere thick.
-    f.extra[0] = 30f32.ln() / 10.0;
-    f.extra[1..4].copy_from_slice(&[0.2, 0.4, 0.6]);
-    LoadedField {
-        config,
-        field: f,
-        occupancy: OccupancyGrid::full(8),
-        step: 1_000_000,
-        centre,
-        radius,
-        capture: PathBuf::from("toy_b"),
-    }
+    neus::untrained_field::untrained_field(init, centre, radius, seed)
 }
 
 /// Every sample of the sphere and no cap: samples stay put while the pose moves (no stride changes, no

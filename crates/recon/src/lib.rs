@@ -1,12 +1,22 @@
 //! Inverse problems on the differentiable simulator: the PGA step of Eq. 11
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
+pub mod contact_penalty;
 pub mod fit_physics;
+pub mod image_loss;
 pub mod least_squares;
+pub mod physics_from_video;
+pub mod pose_from_image;
+pub mod poses_from_video;
 pub mod target;
 
+pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use fit_physics::{
     fit_multi_start, FitError, FitStats, MultiStart, PhysicsFit, PhysicsFitConfig, PoseError, StartResult,
     CONTACT_STARTS,
 };
+pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+pub use physics_from_video::{PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsStats};
+pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
+pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};

@@ -1,0 +1,319 @@
+//! PA (the paper's physics-aware stage): a body's launch and contact values
+//! from the frames of a fixed camera, through the simulator. Each step
+//! simulates the frames of the current window with exact derivatives (the
+//! simulator's dual numbers), renders every frame's body at its simulated pose
+//! on a random batch of pixels ([`crate::image_loss`]), and chains each
+//! frame's pose gradient with the pose's derivatives to the parameters:
+//!
+//! `dL/dp = Σ_k [dL/dδt_k · dt_k/dp + dL/dδω_k · dω_k/dp]`, with
+//! `dω_k/dp = 2 vec(dq_k/dp ⊗ q_k*)` (the left tangent of the quaternion).
+//!
+//! The step is taken in pose space, not parameter by parameter: each frame's
+//! pose is asked to move down its image gradient by at most `pose_step`
+//! (the frame with the steepest gradient moves that far, the others in
+//! proportion), and one damped Gauss–Newton solve finds the parameter change
+//! whose poses move so (`J δp ≈ d`, rotations weighed by the body's size).
+//! The simulator's Jacobian then does the conditioning: a parameter the poses
+//! barely depend on barely moves. (Adam, moving every parameter at the same
+//! pace whatever its effect, sent a sliding block's v0 upward into hops: in
+//! the image, up and forward look alike from a camera above.) The window of
+//! frames doubles every `window_steps` steps, so the launch is pinned by the
+//! frames before the first contact, as [`crate::PhysicsFit`] does with poses.
+
+use crate::fit_physics::probe_scale;
+use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+use crate::least_squares::{lm_step, Linearization};
+use geom::{Quat, SplitMix64};
+use neus::compose::{ComposedRay, Composer};
+use neus::ObjectModel;
+use serde::{Deserialize, Serialize};
+use sim::{simulate_with_gradients, World};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VideoPhysicsConfig {
+    /// Steps. Default 200.
+    pub iterations: usize,
+    /// Pixels rendered per frame per step (a random batch of the window around the body and its mask; 0:
+    /// all of it). Default 256.
+    pub rays_per_frame: usize,
+    /// Frames in the first window (it doubles every `window_steps` steps). Default 4.
+    pub initial_window: usize,
+    /// Steps per window before it doubles. Default 40.
+    pub window_steps: usize,
+    /// How far the frame with the steepest image gradient is asked to move per step at the start, m
+    /// (a turn counts as the body's size times its angle); it decays tenfold over the run. Default 0.003.
+    pub pose_step: f64,
+    /// Damping of the Gauss–Newton solve, relative to the diagonal. Default 1e-3.
+    pub damping: f64,
+    pub fit_initial_pose: bool,
+    pub fit_velocity: bool,
+    pub fit_angular_velocity: bool,
+    pub fit_restitution: bool,
+    pub fit_friction: bool,
+    pub weights: ImageLossWeights,
+    pub seed: u64,
+}
+
+impl Default for VideoPhysicsConfig {
+    fn default() -> Self {
+        Self {
+            iterations: 200,
+            rays_per_frame: 256,
+            initial_window: 4,
+            window_steps: 40,
+            pose_step: 0.003,
+            damping: 1e-3,
+            fit_initial_pose: false,
+            fit_velocity: true,
+            fit_angular_velocity: true,
+            fit_restitution: true,
+            fit_friction: true,
+            weights: ImageLossWeights::default(),
+            seed: 0,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum VideoPhysicsError {
+    #[error("frame {frame}: {error}")]
+    Frame { frame: usize, error: FrameError },
+    #[error("need at least 2 frames, got {0}")]
+    TooFewFrames(usize),
+    #[error("body index {0} is out of range")]
+    NoSuchBody(usize),
+    #[error("nothing to fit: every fit_* switch is off")]
+    NothingToFit,
+    #[error("{0}")]
+    Config(String),
+}
+
+/// One step's outcome.
+#[derive(Clone, Debug, Serialize)]
+pub struct VideoPhysicsStats {
+    pub iteration: usize,
+    pub window: usize,
+    /// Mean over the window's frames of the batch loss, before the step.
+    pub loss: f64,
+}
+
+/// The stage: `new`, then [`Self::step`] (or [`Self::run`]).
+pub struct PhysicsFromVideo<'a> {
+    cfg: VideoPhysicsConfig,
+    object: &'a ObjectModel,
+    scene: &'a [ComposedRay],
+    frames: Vec<PreparedFrame<'a>>,
+    world: World,
+    body: usize,
+    params: Vec<f64>,
+    wrt: Vec<usize>,
+    /// Whether each fitted parameter is a contact value (kept in (0, 1)).
+    bounded: Vec<bool>,
+    /// The body's size: a turn of one radian moves its surface this far, m.
+    size: f64,
+    window: usize,
+    iteration: usize,
+    composer: Composer,
+    rng: SplitMix64,
+}
+
+impl<'a> PhysicsFromVideo<'a> {
+    /// `world` holds the scene's collision shape, the bodies and the start guess of body `body`'s initial
+    /// state and contact values; `frames` (one per video frame, all through one fixed camera) and `scene`
+    /// (the scene pre-rendered through that camera) are what its renders are compared with.
+    pub fn new(
+        cfg: VideoPhysicsConfig,
+        object: &'a ObjectModel,
+        scene: &'a [ComposedRay],
+        frames: &'a [FrameTarget],
+        world: World,
+        body: usize,
+    ) -> Result<Self, VideoPhysicsError> {
+        if body >= world.bodies.len() {
+            return Err(VideoPhysicsError::NoSuchBody(body));
+        }
+        if frames.len() < 2 {
+            return Err(VideoPhysicsError::TooFewFrames(frames.len()));
+        }
+        let prepared = frames
+            .iter()
+            .enumerate()
+            .map(|(frame, f)| PreparedFrame::new(f, scene).map_err(|error| VideoPhysicsError::Frame { frame, error }))
+            .collect::<Result<Vec<_>, _>>()?;
+        world.validate().map_err(|e| VideoPhysicsError::Config(e.to_string()))?;
+        let o = world.body_param_offset(body);
+        let mut wrt = Vec::new();
+        let mut push = |on: bool, range: std::ops::Range<usize>| {
+            if on {
+                wrt.extend(range.map(|i| o + i));
+            }
+        };
+        push(cfg.fit_initial_pose, 0..6);
+        push(cfg.fit_velocity, 6..9);
+        push(cfg.fit_angular_velocity, 9..12);
+        push(cfg.fit_restitution, 12..13);
+        push(cfg.fit_friction, 13..14);
+        if wrt.is_empty() {
+            return Err(VideoPhysicsError::NothingToFit);
+        }
+        let bounded = wrt.iter().map(|&i| i >= o + 12).collect();
+        let params = world.params();
+        let size = world.bodies[body].bounding_radius.max(1e-3);
+        let mut fit = Self {
+            rng: SplitMix64::new(cfg.seed),
+            cfg,
+            object,
+            scene,
+            frames: prepared,
+            world,
+            body,
+            params,
+            wrt,
+            bounded,
+            size,
+            window: 0,
+            iteration: 0,
+            composer: Composer::default(),
+        };
+        fit.set_window(fit.cfg.initial_window);
+        Ok(fit)
+    }
+
+    fn set_window(&mut self, window: usize) {
+        let n = self.frames.len();
+        self.window = if window < 2 { n } else { window.min(n) };
+        self.world.config.frames = self.window;
+    }
+
+    /// Frames in the current window.
+    pub fn window(&self) -> usize {
+        self.window
+    }
+
+    /// One step over the window's frames.
+    pub fn step(&mut self) -> VideoPhysicsStats {
+        if self.iteration > 0
+            && self.iteration.is_multiple_of(self.cfg.window_steps.max(1))
+            && self.window < self.frames.len()
+        {
+            self.set_window(2 * self.window);
+        }
+        let g = simulate_with_gradients(&self.world, &self.params, &self.wrt);
+        let n = self.wrt.len();
+        // Per frame: its pose gradient and the Jacobian of its pose tangent (rotations in metres).
+        let mut rows: Vec<([f64; 6], Vec<[f64; 6]>)> = Vec::new();
+        let mut total = 0.0;
+        for k in 1..self.window {
+            let pose = g.frames[k][self.body].pose;
+            let frame = &self.frames[k];
+            // A frame whose mask is empty (out of view, hidden) has no image terms.
+            if !frame.has_mask() {
+                continue;
+            }
+            let Some(window) = frame.window(self.object, &pose, self.cfg.weights.margin_px) else {
+                continue;
+            };
+            let pixels = frame.pixels(window, self.cfg.rays_per_frame, &mut self.rng);
+            let (loss, gp) = frame.loss(
+                &mut self.composer,
+                self.object,
+                self.scene,
+                &pose,
+                &pixels,
+                &self.cfg.weights,
+                true,
+            );
+            total += loss.loss;
+            let qc = pose.q.conj();
+            let jac = (0..n)
+                .map(|j| {
+                    let d = |c: usize| g.d(k, self.body, c, j);
+                    let dq = Quat::new(d(3), d(4), d(5), d(6));
+                    let dw = (dq * qc).vec() * (2.0 * self.size);
+                    [d(0), d(1), d(2), dw.x, dw.y, dw.z]
+                })
+                .collect();
+            let gp = [
+                gp[0],
+                gp[1],
+                gp[2],
+                gp[3] / self.size,
+                gp[4] / self.size,
+                gp[5] / self.size,
+            ];
+            rows.push((gp, jac));
+        }
+        self.iteration += 1;
+        let steepest = rows
+            .iter()
+            .map(|(gp, _)| gp.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        if steepest > 0.0 {
+            let decay = 0.1f64.powf(self.iteration as f64 / self.cfg.iterations.max(1) as f64);
+            let eta = self.cfg.pose_step * decay / steepest;
+            // Residual r = −d (the wanted pose change d = −η ∇), so the step solves J δ ≈ d; and a trust
+            // region: moving a parameter by its scale costs as much as missing a pose by the step (a
+            // parameter the poses barely depend on would otherwise take a huge step to move them a little).
+            let o = self.world.body_param_offset(self.body);
+            let mut residuals: Vec<f64> = rows.iter().flat_map(|(gp, _)| gp.map(|v| eta * v)).collect();
+            let mut jac: Vec<Vec<f64>> = rows
+                .iter()
+                .flat_map(|(_, jac)| (0..6).map(move |c| jac.iter().map(|r| r[c]).collect::<Vec<f64>>()))
+                .collect();
+            for (j, &i) in self.wrt.iter().enumerate() {
+                let mut row = vec![0.0; n];
+                row[j] = self.cfg.pose_step * decay / probe_scale(i - o);
+                jac.push(row);
+                residuals.push(0.0);
+            }
+            let lin = Linearization { residuals, jac };
+            if let Some(delta) = lm_step(&lin, self.cfg.damping) {
+                for ((&i, d), &bounded) in self.wrt.iter().zip(&delta).zip(&self.bounded) {
+                    self.params[i] += d;
+                    if bounded {
+                        self.params[i] = self.params[i].clamp(1e-3, 1.0 - 1e-3);
+                    }
+                }
+            }
+        }
+        let counted = rows.len();
+        VideoPhysicsStats {
+            iteration: self.iteration,
+            window: self.window,
+            loss: total / counted.max(1) as f64,
+        }
+    }
+
+    /// Run the configured number of steps; the stats of each.
+    pub fn run(&mut self) -> Vec<VideoPhysicsStats> {
+        (0..self.cfg.iterations).map(|_| self.step()).collect()
+    }
+
+    /// The world with the fitted parameters in place, over every frame.
+    pub fn fitted_world(&self) -> World {
+        let mut w = self.world.clone();
+        w.config.frames = self.frames.len();
+        w.set_params(&self.params);
+        w
+    }
+
+    /// The image terms of every frame (every pixel around the mask and the body) at the simulated poses.
+    pub fn evaluate(&mut self) -> Vec<ImageLoss> {
+        let w = self.fitted_world();
+        let traj = w.simulate(&w.params());
+        self.frames
+            .iter()
+            .zip(&traj.frames)
+            .map(|(f, s)| {
+                f.evaluate(
+                    &mut self.composer,
+                    self.object,
+                    self.scene,
+                    &s[self.body].pose,
+                    &self.cfg.weights,
+                )
+            })
+            .collect()
+    }
+}

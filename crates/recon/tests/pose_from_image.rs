@@ -1,0 +1,153 @@
+//! The first-pose stage: an object rendered in its scene at a known pose is
+//! found again from a guess 2 cm off (a third of its size) and turned, by the
+//! composed renderer's pose gradients of colour and silhouette.
+
+use geom::{Camera, Intrinsics, Pose, Quat, TriMesh, Vec3};
+use neus::compose::{prerender_scene, render_composed, Behind, Composer, Layer};
+use neus::object_model::ObjectField;
+use neus::untrained_field::untrained_field;
+use neus::{FieldInit, ObjectModel};
+use recon::{FrameError, FrameTarget, PoseFitConfig, PoseFitError, PoseFromImage};
+use std::path::PathBuf;
+
+fn camera(w: u32, h: u32) -> Camera<f64> {
+    let k = Intrinsics {
+        fx: 1.2 * w as f64,
+        fy: 1.2 * w as f64,
+        cx: 0.5 * w as f64,
+        cy: 0.5 * h as f64,
+        skew: 0.0,
+    };
+    Camera::look_at(
+        Vec3::new(0.13, -0.16, 0.14),
+        Vec3::new(0.0, 0.0, 0.03),
+        Vec3::new(0.0, 0.0, 1.0),
+        k,
+        w,
+        h,
+    )
+}
+
+/// A box mesh (body frame) around the object's sphere: the stage only uses its bounds.
+fn bounds_mesh(h: f64) -> TriMesh {
+    let v: Vec<[f64; 3]> = (0..8)
+        .map(|k| {
+            [
+                if k & 1 == 0 { -h } else { h },
+                if k & 2 == 0 { -h } else { h },
+                if k & 4 == 0 { -h } else { h },
+            ]
+        })
+        .collect();
+    TriMesh::new(v, vec![[0, 1, 2], [1, 3, 2]])
+}
+
+/// A 6 cm toy (a sphere field) whose body origin sits off the sphere's centre, so turning it also moves
+/// its surface.
+fn toy() -> ObjectModel {
+    ObjectModel {
+        source: PathBuf::from("untrained"),
+        primary: ObjectField {
+            field: untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3),
+            capture_from_body: Pose::new(Quat::exp(Vec3::new(0.1, -0.2, 0.3)), Vec3::new(0.008, -0.005, 0.03)),
+        },
+        other: None,
+        mesh: bounds_mesh(0.04),
+        volume: 1e-4,
+        reference_capture: "toy_b".into(),
+        reference_pose: Pose::identity(),
+    }
+}
+
+/// Where the sphere's centre is in the world with the body at `pose`.
+fn sphere_centre(toy: &ObjectModel, pose: &Pose<f64>) -> Vec3<f64> {
+    let of = &toy.primary;
+    pose.transform_point(of.capture_from_body.inverse().transform_point(of.field.centre))
+}
+
+#[test]
+fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
+    let (w, h) = (96, 72);
+    let cam = camera(w, h);
+    let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+    let toy = toy();
+    let mut composer = Composer::default();
+    let behind = prerender_scene(&scene, &cam, &mut composer);
+    let truth = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.01, 0.02, 0.0));
+    let layer = Layer::object(&toy.primary.field, &toy.primary.capture_from_body, &truth, 0);
+    let img = render_composed(&[layer], 1, Behind::Scene(&behind), &cam, &mut composer);
+    let frame = FrameTarget {
+        camera: cam,
+        rgb: img.rgb.clone(),
+        mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
+    };
+    assert!(
+        frame.mask.iter().filter(|&&m| m).count() > 300,
+        "the toy covers a fair part of the image"
+    );
+
+    let guess = Pose::new(
+        Quat::exp(Vec3::new(0.1, -0.15, 0.4 + 0.2)),
+        truth.t + Vec3::new(0.015, -0.01, 0.008),
+    );
+    let cfg = PoseFitConfig {
+        iterations: 120,
+        rays_per_step: 512,
+        ..PoseFitConfig::default()
+    };
+    let mut fit = PoseFromImage::new(cfg, &toy, &behind, &frame, guess).expect("a valid frame");
+    let before = fit.evaluate();
+    let stats = fit.run();
+    let after = fit.evaluate();
+    let (iou_before, iou_after) = (before.iou(), after.iou());
+    let err = |p: &Pose<f64>| (sphere_centre(&toy, p) - sphere_centre(&toy, &truth)).norm();
+    eprintln!(
+        "loss {:.4} -> {:.4}, IoU {iou_before:.3} -> {iou_after:.3}, sphere centre off by {:.1} -> {:.1} mm ({} steps)",
+        before.loss,
+        after.loss,
+        err(&guess) * 1e3,
+        err(&fit.pose) * 1e3,
+        stats.len()
+    );
+    assert!(
+        iou_before < 0.7 && err(&guess) > 0.015,
+        "the guess is well off: IoU {iou_before}"
+    );
+    assert!(
+        after.loss < 0.2 * before.loss,
+        "the loss falls: {} -> {}",
+        before.loss,
+        after.loss
+    );
+    assert!(iou_after > 0.95, "the silhouette is matched: IoU {iou_after}");
+    assert!(
+        err(&fit.pose) < 2e-3,
+        "the object is back where it was: {} m",
+        err(&fit.pose)
+    );
+}
+
+#[test]
+fn frames_that_do_not_fit_the_camera_are_refused() {
+    let cam = camera(8, 6);
+    let toy = toy();
+    let scene = vec![neus::compose::ComposedRay::default(); 48];
+    let good = FrameTarget {
+        camera: cam,
+        rgb: vec![[0.0; 3]; 48],
+        mask: vec![false; 48],
+    };
+    let cfg = PoseFitConfig::default;
+    assert_eq!(
+        PoseFromImage::new(cfg(), &toy, &scene, &good, Pose::identity()).err(),
+        Some(PoseFitError::EmptyMask)
+    );
+    let short = FrameTarget {
+        rgb: vec![[0.0; 3]; 47],
+        ..good
+    };
+    assert_eq!(
+        PoseFromImage::new(cfg(), &toy, &scene, &short, Pose::identity()).err(),
+        Some(PoseFitError::Frame(FrameError::ImageSize { got: 47, want: 48 }))
+    );
+}
