@@ -3,7 +3,6 @@
 
 mod commands;
 mod output;
-mod scene_file;
 
 use clap::{Parser, Subcommand};
 
@@ -38,6 +37,8 @@ enum Command {
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
     Target(commands::target::TargetArgs),
+    /// A body's pose in every frame of a fixed-camera video and the physics that explains it (first pose, PA, GA, PGA).
+    Fit(commands::fit::FitArgs),
     /// Recover v0, omega0, k_n and mu of a body from a pose sequence (Eq. 11).
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
@@ -67,6 +68,7 @@ fn main() {
         Command::Merge(a) => commands::mesh_cmds::merge(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
+        Command::Fit(a) => commands::fit::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),
         Command::BenchSim(a) => commands::bench_sim::run(a),
         Command::BenchCompose(a) => commands::bench_compose::run(a),

@@ -45,9 +45,14 @@ fn f32_tensor(v: &[f32]) -> Tensor {
     }
 }
 
-/// Write the trainer's state to `path` (atomically).
-pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
-    let f = &trainer.field;
+/// The tensors and header entries of a field (parameters, occupancy, where its unit sphere sits).
+fn field_entries(
+    f: &NeusField,
+    occ: &OccupancyGrid,
+    config: &TrainConfig,
+    step: usize,
+    (centre, radius, capture): (Vec3<f64>, f64, &Path),
+) -> (BTreeMap<String, Tensor>, BTreeMap<String, String>) {
     let mut tensors = BTreeMap::new();
     for (name, p) in [
         ("grid", &f.grid_params),
@@ -57,23 +62,14 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
     ] {
         tensors.insert(name.to_string(), f32_tensor(p));
     }
-    for (name, a) in ["grid", "sdf", "color", "extra"].iter().zip(&trainer.adam) {
-        tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
-        tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
-    }
-    if let (Some(b), Some(opt)) = (&f.background, &trainer.bg_optim) {
+    if let Some(b) = &f.background {
         for (name, p) in BG_NAMES
             .iter()
             .zip([&b.grid_params, &b.density_params, &b.color_params])
         {
             tensors.insert(name.to_string(), f32_tensor(p));
         }
-        for (name, a) in BG_NAMES.iter().zip(&opt.adam) {
-            tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
-            tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
-        }
     }
-    let occ = &trainer.occupancy;
     tensors.insert(
         "occupancy".into(),
         Tensor {
@@ -85,9 +81,38 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
     metadata.insert("format".into(), FORMAT.into());
     metadata.insert(
         "config".into(),
-        serde_json::to_string(&trainer.config).expect("config serialises"),
+        serde_json::to_string(config).expect("config serialises"),
     );
-    metadata.insert("step".into(), trainer.step.to_string());
+    metadata.insert("step".into(), step.to_string());
+    metadata.insert(
+        "centre".into(),
+        serde_json::to_string(&centre.to_array()).expect("numbers"),
+    );
+    metadata.insert("radius".into(), radius.to_string());
+    metadata.insert("capture".into(), capture.display().to_string());
+    (tensors, metadata)
+}
+
+/// Write the trainer's state to `path` (atomically).
+pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
+    let d = &trainer.data;
+    let (mut tensors, mut metadata) = field_entries(
+        &trainer.field,
+        &trainer.occupancy,
+        &trainer.config,
+        trainer.step,
+        (d.centre, d.radius, &d.dir),
+    );
+    for (name, a) in ["grid", "sdf", "color", "extra"].iter().zip(&trainer.adam) {
+        tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
+        tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
+    }
+    if let Some(opt) = &trainer.bg_optim {
+        for (name, a) in BG_NAMES.iter().zip(&opt.adam) {
+            tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
+            tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
+        }
+    }
     metadata.insert("rng".into(), trainer.rng.0.to_string());
     let bg_steps = trainer.bg_optim.iter().flat_map(|o| o.adam.iter().map(|a| a.step));
     metadata.insert(
@@ -95,12 +120,20 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
         serde_json::to_string(&trainer.adam.iter().map(|a| a.step).chain(bg_steps).collect::<Vec<_>>())
             .expect("numbers"),
     );
-    metadata.insert(
-        "centre".into(),
-        serde_json::to_string(&trainer.data.centre.to_array()).expect("numbers"),
+    write_safetensors(path, &SafeTensors { metadata, tensors })?;
+    Ok(())
+}
+
+/// Write a field alone (no optimiser state: it renders, meshes and bakes, but training cannot resume from
+/// it) to `path`, atomically; [`load_field`] reads it back.
+pub fn save_field(l: &LoadedField, path: &Path) -> Result<(), CheckpointError> {
+    let (tensors, metadata) = field_entries(
+        &l.field,
+        &l.occupancy,
+        &l.config,
+        l.step,
+        (l.centre, l.radius, &l.capture),
     );
-    metadata.insert("radius".into(), trainer.data.radius.to_string());
-    metadata.insert("capture".into(), trainer.data.dir.display().to_string());
     write_safetensors(path, &SafeTensors { metadata, tensors })?;
     Ok(())
 }

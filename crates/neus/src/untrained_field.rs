@@ -24,6 +24,8 @@ pub fn untrained_field(init: FieldInit, centre: Vec3<f64>, radius: f64, seed: u6
         },
         ..TrainConfig::default()
     };
+    // A coarse full grid: nothing to skip in an untrained field, and `save_field` round-trips it.
+    config.occupancy_res = 8;
     let g = &mut config.field.grid;
     g.levels = 6;
     g.log2_table_size = 12;

@@ -29,6 +29,41 @@ pub struct FrameTarget {
     pub mask: Vec<bool>,
 }
 
+impl FrameTarget {
+    /// The mask's centroid in pixel coordinates and its area in pixels (`None` when it is empty).
+    pub fn mask_centroid(&self) -> Option<([f64; 2], usize)> {
+        let w = self.camera.width as usize;
+        let (mut su, mut sv, mut n) = (0.0, 0.0, 0usize);
+        for (i, _) in self.mask.iter().enumerate().filter(|(_, &m)| m) {
+            su += (i % w) as f64 + 0.5;
+            sv += (i / w) as f64 + 0.5;
+            n += 1;
+        }
+        (n > 0).then(|| ([su / n as f64, sv / n as f64], n))
+    }
+
+    /// `pose` slid parallel to the image plane, at its depth, until its origin (the body's centre of mass)
+    /// projects onto the mask's centroid; unchanged when it already projects within a quarter of the
+    /// mask's radius of it, or when the mask is empty. A predicted start that missed the body by more than
+    /// its size leaves the silhouette terms nothing to pull on (a toss moves a small object by more than its
+    /// width per frame); the centroid is only a guess of where the origin projects, so a close start keeps
+    /// its own.
+    pub fn centred_on_mask(&self, pose: &Pose<f64>) -> Pose<f64> {
+        let Some(([mu, mv], area)) = self.mask_centroid() else {
+            return *pose;
+        };
+        let (u, v, depth) = self.camera.project(pose.t);
+        let radius = (area as f64 / std::f64::consts::PI).sqrt();
+        if !(depth > 0.0) || (u - mu).hypot(v - mv) <= 0.25 * radius {
+            return *pose;
+        }
+        let ray = self.camera.ray(mu, mv);
+        let forward = self.camera.world_to_cam.inverse().q.rotate(Vec3::new(0.0, 0.0, 1.0));
+        let along = depth / ray.dir.dot(forward).max(1e-6);
+        Pose::new(pose.q, ray.at(along))
+    }
+}
+
 /// How the image terms are weighed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -75,6 +110,8 @@ pub struct ImageLoss {
     pub colour_l1: f64,
     pub silhouette: f64,
     pub pull: f64,
+    /// Mean squared colour error (over channels and pixels, 0–1 values): the PSNR of the rendered pixels.
+    pub mse: f64,
     /// Pixels where the body's opacity is above ½ and the mask is set, and where either is.
     pub intersection: usize,
     pub union: usize,
@@ -91,6 +128,11 @@ impl ImageLoss {
         }
     }
 
+    /// PSNR of the rendered pixels against the frame, dB (capped at 100).
+    pub fn psnr(&self) -> f64 {
+        (-10.0 * self.mse.max(1e-10).log10()).min(100.0)
+    }
+
     /// Pixel-weighted sum of two measurements.
     pub fn add(&mut self, o: &ImageLoss) {
         let (a, b) = (self.pixels as f64, o.pixels as f64);
@@ -100,6 +142,7 @@ impl ImageLoss {
         self.colour_l1 = mix(self.colour_l1, o.colour_l1);
         self.silhouette = mix(self.silhouette, o.silhouette);
         self.pull = mix(self.pull, o.pull);
+        self.mse = mix(self.mse, o.mse);
         self.intersection += o.intersection;
         self.union += o.union;
         self.pixels += o.pixels;
@@ -236,6 +279,10 @@ impl<'a> PreparedFrame<'a> {
             let m = if inside { 1.0 } else { 0.0 };
             let dist = self.mask_distance[p] as f64 / weights.pull_scale_px;
             let mut g_rgb = [0.0f32; 3];
+            for k in 0..3 {
+                let e = (rendered.rgb[k] - self.frame.rgb[p][k]) as f64;
+                out.mse += e * e / 3.0;
+            }
             if inside {
                 for k in 0..3 {
                     let e = (rendered.rgb[k] - self.frame.rgb[p][k]) as f64;
@@ -259,6 +306,7 @@ impl<'a> PreparedFrame<'a> {
         out.colour_l1 /= n;
         out.silhouette /= n;
         out.pull /= n;
+        out.mse /= n;
         out.loss = weights.colour * out.colour_l1 + weights.silhouette * out.silhouette + weights.pull * out.pull;
         let g = if grad {
             composer.backward(&layers, &grads)[0]
@@ -357,5 +405,53 @@ mod tests {
         }
         assert_eq!(bounding_box(&mask, w), Some([10, 7, 10, 7]));
         assert_eq!(bounding_box(&[false; 4], 2), None);
+    }
+
+    #[test]
+    fn a_far_start_is_centred_on_the_mask_at_its_depth() {
+        let (w, h) = (64u32, 48u32);
+        let k = geom::Intrinsics {
+            fx: 70.0,
+            fy: 70.0,
+            cx: 32.0,
+            cy: 24.0,
+            skew: 0.0,
+        };
+        let camera = Camera::look_at(
+            Vec3::new(0.0, -0.5, 0.3),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            k,
+            w,
+            h,
+        );
+        // A disc of radius 4 px around (44.5, 30.5).
+        let mask: Vec<bool> = (0..w * h)
+            .map(|i| ((i % w) as f64 - 44.0).hypot((i / w) as f64 - 30.0) <= 4.0)
+            .collect();
+        let frame = FrameTarget {
+            camera,
+            rgb: vec![[0.0; 3]; (w * h) as usize],
+            mask,
+        };
+        let ([mu, mv], area) = frame.mask_centroid().unwrap();
+        assert!(
+            (mu - 44.5).abs() < 1e-9 && (mv - 30.5).abs() < 1e-9 && area > 40,
+            "{mu} {mv} {area}"
+        );
+        let far = Pose::new(geom::Quat::exp(Vec3::new(0.1, 0.2, 0.3)), Vec3::new(-0.05, 0.02, 0.01));
+        let centred = frame.centred_on_mask(&far);
+        let (u, v, depth) = camera.project(centred.t);
+        assert!((u - mu).abs() < 1e-6 && (v - mv).abs() < 1e-6, "({u}, {v})");
+        assert!((depth - camera.project(far.t).2).abs() < 1e-9);
+        assert_eq!(centred.q, far.q);
+        // A start already over the mask keeps its own guess of where its origin projects.
+        let near = Pose::new(far.q, camera.ray(45.0, 31.0).at(0.5));
+        assert_eq!(frame.centred_on_mask(&near), near);
+        let empty = FrameTarget {
+            mask: vec![false; (w * h) as usize],
+            ..frame
+        };
+        assert_eq!(empty.centred_on_mask(&far), far);
     }
 }

@@ -9,6 +9,7 @@ pub mod physics_from_video;
 pub mod pose_from_image;
 pub mod poses_from_video;
 pub mod target;
+pub mod video_fit;
 
 pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use fit_physics::{
@@ -20,3 +21,4 @@ pub use physics_from_video::{PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsE
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
+pub use video_fit::VideoFitConfig;

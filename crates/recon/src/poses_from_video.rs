@@ -77,7 +77,14 @@ pub struct PosesFromVideo<'a> {
     body: usize,
     starts: Vec<Pose<f64>>,
     contacts: Vec<Vec<usize>>,
+    /// Without PA: starts carried on at the pace of the last two fitted frames.
+    tracking: bool,
     pub results: Vec<FramePose>,
+}
+
+/// The pose after `b` at the pace from `a` to `b` (constant velocity and spin).
+pub fn carried_on(a: &Pose<f64>, b: &Pose<f64>) -> Pose<f64> {
+    Pose::new((b.q * a.q.conj() * b.q).normalize_or_identity(), b.t + (b.t - a.t))
 }
 
 impl<'a> PosesFromVideo<'a> {
@@ -126,6 +133,36 @@ impl<'a> PosesFromVideo<'a> {
             body,
             starts,
             contacts,
+            tracking: false,
+            results: Vec::new(),
+        })
+    }
+
+    /// Without PA (the paper's `--no-pa` ablation): frame 0 starts from `first`, every later frame from the
+    /// previous frames' fitted poses carried on at their pace, and no frame has a contact penalty.
+    pub fn tracking(
+        cfg: PosesFromVideoConfig,
+        object: &'a ObjectModel,
+        scene: &'a [ComposedRay],
+        frames: &'a [FrameTarget],
+        world: &'a World,
+        body: usize,
+        first: Pose<f64>,
+    ) -> Result<Self, PosesFromVideoError> {
+        if body >= world.bodies.len() {
+            return Err(PosesFromVideoError::NoSuchBody(body));
+        }
+        // Equal starts: the carried correction of frame k − 1 is then its fitted pose itself.
+        Ok(Self {
+            cfg,
+            object,
+            scene,
+            frames,
+            world,
+            body,
+            starts: vec![first; frames.len()],
+            contacts: vec![Vec::new(); frames.len()],
+            tracking: true,
             results: Vec::new(),
         })
     }
@@ -142,6 +179,7 @@ impl<'a> PosesFromVideo<'a> {
             return Ok(None);
         }
         let start = match self.results.last() {
+            Some(prev) if self.tracking && k >= 2 => carried_on(&self.results[k - 2].pose, &prev.pose),
             // The previous frame's correction: p_GA = R_c p_PA + … , carried over.
             Some(prev) => {
                 let before = self.starts[k - 1];
@@ -153,6 +191,7 @@ impl<'a> PosesFromVideo<'a> {
             }
             None => self.starts[k],
         };
+        let start = self.frames[k].centred_on_mask(&start);
         let in_contact = !self.contacts[k].is_empty();
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add(k as u64),

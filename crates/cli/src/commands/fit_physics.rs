@@ -1,9 +1,9 @@
 use crate::output::trajectory_json;
-use crate::scene_file::SceneFile;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::{Pose, Quat, Vec3};
 use recon::{fit_multi_start, PhysicsFitConfig, CONTACT_STARTS};
+use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]

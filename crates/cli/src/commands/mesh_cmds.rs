@@ -136,6 +136,52 @@ fn scene_box(l: &neus::checkpoint::LoadedField) -> ([f64; 3], [f64; 3]) {
     ([c[0] - r, c[1] - r, -0.1 * r], [c[0] + r, c[1] + r, z_hi])
 }
 
+/// A field's SDF in metres sampled on the nodes of `bounds` (`res` along the longest side), united with the
+/// solid below `floor` when given.
+fn field_grid(
+    l: &neus::checkpoint::LoadedField,
+    source: &Path,
+    (lo, hi): ([f64; 3], [f64; 3]),
+    res: usize,
+    floor: Option<f64>,
+) -> Result<SdfGrid> {
+    let (c, r) = (l.centre.to_array(), l.radius);
+    let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (res - 1) as f64;
+    let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / h).ceil() as usize + 1);
+    let mut pts = Vec::with_capacity(dims.iter().product::<usize>() * 3);
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                let w = [lo[0] + x as f64 * h, lo[1] + y as f64 * h, lo[2] + z as f64 * h];
+                pts.extend((0..3).map(|k| ((w[k] - c[k]) / r) as f32));
+            }
+        }
+    }
+    let sdf = l.field.sdf_values(&pts, l.config.field.grid.levels);
+    if !sdf.iter().any(|v| *v < 0.0) || !sdf.iter().any(|v| *v > 0.0) {
+        bail!("{}: the field has no zero level inside the bounds", source.display());
+    }
+    // Unit-sphere distances to metres, united with the solid below the floor.
+    let values = sdf
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let d = v * r as f32;
+            match floor {
+                Some(f) => d.min((lo[2] + (i / (dims[0] * dims[1])) as f64 * h - f) as f32),
+                None => d,
+            }
+        })
+        .collect();
+    Ok(SdfGrid::from_values(lo, h, dims, values)?)
+}
+
+/// A scene run's grid for the simulator, as `bake` makes it by default (the board region, 128 nodes along
+/// its longest side, the solid below z = 0, smoothed over 1.5 spacings).
+pub(crate) fn bake_scene(l: &neus::checkpoint::LoadedField, source: &Path) -> Result<SdfGrid> {
+    Ok(field_grid(l, source, scene_box(l), 128, Some(0.0))?.smoothed(1.5))
+}
+
 pub fn bake(a: BakeArgs) -> Result<()> {
     if a.res < 2 {
         bail!("--res must be at least 2");
@@ -166,9 +212,9 @@ pub fn bake(a: BakeArgs) -> Result<()> {
         SdfGrid::bake(&dist, lo, hi, h)?
     } else {
         let l = load_field(&checkpoint_of(&a.source))?;
-        let (c, r) = (l.centre.to_array(), l.radius);
         let scene = l.config.kind == neus::CaptureSubject::Scene;
         scene_field = scene;
+        let (c, r) = (l.centre.to_array(), l.radius);
         let (lo, hi) = if scene {
             let (lo, hi) = scene_box(&l);
             bounds(lo, hi)?
@@ -180,34 +226,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             (Some(z), _) => Some(z),
             (None, false) => scene.then_some(0.0),
         };
-        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
-        let dims: [usize; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / h).ceil() as usize + 1);
-        let mut pts = Vec::with_capacity(dims.iter().product::<usize>() * 3);
-        for z in 0..dims[2] {
-            for y in 0..dims[1] {
-                for x in 0..dims[0] {
-                    let w = [lo[0] + x as f64 * h, lo[1] + y as f64 * h, lo[2] + z as f64 * h];
-                    pts.extend((0..3).map(|k| ((w[k] - c[k]) / r) as f32));
-                }
-            }
-        }
-        let sdf = l.field.sdf_values(&pts, l.config.field.grid.levels);
-        if !sdf.iter().any(|v| *v < 0.0) || !sdf.iter().any(|v| *v > 0.0) {
-            bail!("{}: the field has no zero level inside the bounds", a.source.display());
-        }
-        // Unit-sphere distances to metres, united with the solid below the floor.
-        let values = sdf
-            .iter()
-            .enumerate()
-            .map(|(i, v)| {
-                let d = v * r as f32;
-                match floor {
-                    Some(f) => d.min((lo[2] + (i / (dims[0] * dims[1])) as f64 * h - f) as f32),
-                    None => d,
-                }
-            })
-            .collect();
-        SdfGrid::from_values(lo, h, dims, values)?
+        field_grid(&l, &a.source, (lo, hi), a.res, floor)?
     };
     let smooth = a.smooth.unwrap_or(if scene_field { 1.5 } else { 0.0 });
     if !(smooth.is_finite() && smooth >= 0.0) {

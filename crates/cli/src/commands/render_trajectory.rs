@@ -135,7 +135,7 @@ fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
         .collect()
 }
 
-fn to8(v: f32) -> u8 {
+pub(crate) fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
@@ -159,7 +159,7 @@ fn iou(a: &[bool], b: &[bool]) -> f64 {
 }
 
 /// A capture's image as RGB in [0, 1].
-fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
+pub(crate) fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
     let img = pganeus_io::read_png(path)?;
     let ch = img.channels as usize;
     Ok(img
@@ -175,7 +175,7 @@ fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
         .collect())
 }
 
-fn read_mask(path: &Path) -> Result<Vec<bool>> {
+pub(crate) fn read_mask(path: &Path) -> Result<Vec<bool>> {
     let m = pganeus_io::read_png(path)?;
     let ch = m.channels as usize;
     Ok(m.data.chunks_exact(ch).map(|p| p[0] >= 128).collect())
@@ -434,28 +434,25 @@ fn side_by_side(dir: &Path, ours: &[Image]) -> Result<Vec<Image>> {
                     a.height
                 );
             }
-            let mut out = Image::new(a.width + b.width, a.height, 3);
-            let bc = b.channels as usize;
-            for y in 0..a.height as usize {
-                for x in 0..b.width as usize {
-                    let s = (y * b.width as usize + x) * bc;
-                    let px = if bc >= 3 {
-                        [b.data[s], b.data[s + 1], b.data[s + 2]]
-                    } else {
-                        [b.data[s]; 3]
-                    };
-                    let d = (y * out.width as usize + x) * 3;
-                    out.data[d..d + 3].copy_from_slice(&px);
-                }
-                for x in 0..a.width as usize {
-                    let s = (y * a.width as usize + x) * 3;
-                    let d = (y * out.width as usize + b.width as usize + x) * 3;
-                    out.data[d..d + 3].copy_from_slice(&a.data[s..s + 3]);
-                }
-            }
-            Ok(out)
+            Ok(beside(&b, a))
         })
         .collect()
+}
+
+/// Two images of the same height side by side (`left` may be grey or RGBA; `right` is RGB).
+pub(crate) fn beside(left: &Image, right: &Image) -> Image {
+    let (l, r) = (left.to_rgb(), right);
+    let mut out = Image::new(l.width + r.width, l.height, 3);
+    fn row(img: &Image, y: usize) -> &[u8] {
+        let w = img.width as usize * 3;
+        &img.data[y * w..(y + 1) * w]
+    }
+    for y in 0..l.height as usize {
+        let d = y * out.width as usize * 3;
+        out.data[d..d + l.width as usize * 3].copy_from_slice(row(&l, y));
+        out.data[d + l.width as usize * 3..d + out.width as usize * 3].copy_from_slice(row(r, y));
+    }
+    out
 }
 
 /// `video.mp4` from `image/` when ffmpeg is on PATH (true if written).

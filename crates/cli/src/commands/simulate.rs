@@ -1,7 +1,7 @@
 use crate::output::trajectory_json;
-use crate::scene_file::SceneFile;
 use anyhow::Result;
 use clap::Args;
+use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]

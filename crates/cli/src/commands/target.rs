@@ -1,9 +1,9 @@
 use crate::output::trajectory_json;
-use crate::scene_file::SceneFile;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use geom::Vec3;
 use recon::{TargetConfig, TargetReach};
+use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]

@@ -1,14 +1,27 @@
 //! The scene file of `simulate`, `target` and `fit-physics` (TOML, or JSON by
-//! extension): static shapes, bodies, contact parameters and time stepping.
-//! Every problem is reported with the file and the field that holds it.
+//! extension): static shapes, bodies, contact parameters and time stepping,
+//! and the [`World`] it describes. Every problem is a [`SceneError`] naming
+//! the file and the field that holds it.
 
-use anyhow::{anyhow, bail, Context, Result};
 use geom::{Pose, Quat, TriMesh, Vec3};
 use serde::Deserialize;
 use sim::sdf::{Capsule, Cuboid, Plane, RoundedBox, SdfGrid, Shape, Sphere, Wedge};
 use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// Why a scene file gave no world.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene file {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {msg}")]
+    Parse { path: PathBuf, msg: String },
+    #[error("{path}: {field}: {msg}")]
+    Field { path: PathBuf, field: String, msg: String },
+}
+
+type Result<T> = std::result::Result<T, SceneError>;
 
 /// One static shape or a body's geometry.
 #[derive(Clone, Debug, Deserialize)]
@@ -103,8 +116,12 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn err(&self, field: &str, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {field}: {msg}", self.file.display())
+    fn err(&self, field: &str, msg: impl std::fmt::Display) -> SceneError {
+        SceneError::Field {
+            path: self.file.to_path_buf(),
+            field: field.to_string(),
+            msg: msg.to_string(),
+        }
     }
     fn finite<const N: usize>(&self, field: &str, v: [f64; N]) -> Result<()> {
         if v.iter().all(|x| x.is_finite()) {
@@ -133,7 +150,7 @@ impl Ctx<'_> {
         self.finite(field, q)?;
         let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         if n < 1e-9 {
-            bail!(self.err(field, "quaternion has zero length"));
+            return Err(self.err(field, "quaternion has zero length"));
         }
         if (n - 1.0).abs() > 1e-3 {
             tracing::warn!(
@@ -179,7 +196,7 @@ impl ShapeSpec {
                 let half = ctx.half(&f("half"), self.half)?;
                 let radius = ctx.positive(&f("radius"), self.radius)?;
                 if radius >= half.iter().cloned().fold(f64::INFINITY, f64::min) {
-                    bail!(ctx.err(&f("radius"), format!("must be below the smallest half extent {half:?}")));
+                    return Err(ctx.err(&f("radius"), format!("must be below the smallest half extent {half:?}")));
                 }
                 Shape::RoundedBox(RoundedBox { half, radius })
             }
@@ -188,7 +205,7 @@ impl ShapeSpec {
                     .half_length
                     .ok_or_else(|| ctx.err(&f("half_length"), "is missing"))?;
                 if !(half_length.is_finite() && half_length >= 0.0) {
-                    bail!(ctx.err(&f("half_length"), format!("must be ≥ 0, got {half_length}")));
+                    return Err(ctx.err(&f("half_length"), format!("must be ≥ 0, got {half_length}")));
                 }
                 Shape::Capsule(Capsule {
                     half_length,
@@ -200,30 +217,37 @@ impl ShapeSpec {
             }),
             "grid" if !as_body => {
                 let file = self.file.as_ref().ok_or_else(|| ctx.err(&f("file"), "is missing"))?;
-                Shape::Grid(Arc::new(SdfGrid::load(&ctx.resolve(file))?))
+                Shape::Grid(Arc::new(
+                    SdfGrid::load(&ctx.resolve(file)).map_err(|e| ctx.err(&f("file"), e))?,
+                ))
             }
             "mesh" if !as_body => {
                 let file = self.file.as_ref().ok_or_else(|| ctx.err(&f("file"), "is missing"))?;
                 let path = ctx.resolve(file);
-                let mesh = pganeus_io::read_mesh(&path)?;
+                let mesh = pganeus_io::read_mesh(&path).map_err(|e| ctx.err(&f("file"), e))?;
                 sim::check_closed_mesh(&mesh)
-                    .with_context(|| format!("{}: {} is not usable", ctx.file.display(), path.display()))?;
+                    .map_err(|e| ctx.err(&f("file"), format!("{} is not usable: {e}", path.display())))?;
                 // 96 cells across by default, or the requested spacing.
                 let cells = self
                     .spacing
                     .map_or(96, |h| (mesh_extent(&mesh) / h).ceil().max(1.0) as usize);
                 Shape::Grid(Arc::new(
-                    SdfGrid::from_mesh(&mesh, cells, 4.0).with_context(|| format!("baking {}", path.display()))?,
+                    SdfGrid::from_mesh(&mesh, cells, 4.0)
+                        .map_err(|e| ctx.err(&f("file"), format!("baking {}: {e}", path.display())))?,
                 ))
             }
-            "grid" | "mesh" => bail!(ctx.err(
-                &f("shape"),
-                "a body's shape is analytic; give a mesh with `mesh = \"file.ply\"` instead"
-            )),
-            other => bail!(ctx.err(
-                &f("shape"),
-                format!("unknown shape \"{other}\" (plane, box, sphere, rounded_box, capsule, wedge, grid, mesh)")
-            )),
+            "grid" | "mesh" => {
+                return Err(ctx.err(
+                    &f("shape"),
+                    "a body's shape is analytic; give a mesh with `mesh = \"file.ply\"` instead",
+                ))
+            }
+            other => {
+                return Err(ctx.err(
+                    &f("shape"),
+                    format!("unknown shape \"{other}\" (plane, box, sphere, rounded_box, capsule, wedge, grid, mesh)"),
+                ))
+            }
         };
         if self.t.is_none() && self.q.is_none() {
             return Ok(shape);
@@ -248,12 +272,18 @@ fn mesh_extent(m: &TriMesh) -> f64 {
 
 impl SceneFile {
     pub fn load(path: &Path) -> Result<LoadedScene> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("cannot read scene file {}", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let parse = |msg: String| SceneError::Parse {
+            path: path.to_path_buf(),
+            msg,
+        };
         let file: SceneFile = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
-            serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
+            serde_json::from_str(&text).map_err(|e| parse(e.to_string()))?
         } else {
-            toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?
+            toml::from_str(&text).map_err(|e| parse(e.to_string()))?
         };
         file.build(path)
     }
@@ -278,12 +308,12 @@ impl SceneFile {
         };
         let mut world = World::new(self.sim.clone(), scene);
         if self.body.is_empty() {
-            bail!(ctx.err("body", "the scene has no [[body]]"));
+            return Err(ctx.err("body", "the scene has no [[body]]"));
         }
         for (i, b) in self.body.iter().enumerate() {
             let field = format!("body[{i}] ({})", b.name);
             if self.body[..i].iter().any(|o| o.name == b.name) {
-                bail!(ctx.err(&field, "two bodies have this name"));
+                return Err(ctx.err(&field, "two bodies have this name"));
             }
             let (body, state, contact) = self.build_body(&ctx, &field, b)?;
             world.add_body(body, state, contact, self.contact);
@@ -298,7 +328,7 @@ impl SceneFile {
             };
             let (a, b) = (find(&p.bodies[0])?, find(&p.bodies[1])?);
             if a == b {
-                bail!(ctx.err(&format!("{field}.bodies"), "a pair needs two different bodies"));
+                return Err(ctx.err(&format!("{field}.bodies"), "a pair needs two different bodies"));
             }
             let c = ContactParams {
                 restitution: p.restitution,
@@ -322,15 +352,15 @@ impl SceneFile {
         let mass = match (b.mass, b.density) {
             (Some(m), None) => MassSpec::Mass(ctx.positive(&f("mass"), Some(m))?),
             (None, Some(d)) => MassSpec::Density(ctx.positive(&f("density"), Some(d))?),
-            (Some(_), Some(_)) => bail!(ctx.err(field, "give `mass` or `density`, not both")),
-            (None, None) => bail!(ctx.err(field, "give `mass` (kg) or `density` (kg/m³)")),
+            (Some(_), Some(_)) => return Err(ctx.err(field, "give `mass` or `density`, not both")),
+            (None, None) => return Err(ctx.err(field, "give `mass` (kg) or `density` (kg/m³)")),
         };
         let sampling = if b.contact_vertices.unwrap_or(false) {
             ContactSampling::Vertices
         } else {
             let count = b.contact_points.unwrap_or(1000);
             if count == 0 {
-                bail!(ctx.err(&f("contact_points"), "must be at least 1"));
+                return Err(ctx.err(&f("contact_points"), "must be at least 1"));
             }
             ContactSampling::Surface {
                 count,
@@ -344,10 +374,9 @@ impl SceneFile {
             }
             (None, Some(m)) => {
                 let path = ctx.resolve(m);
-                let mesh =
-                    pganeus_io::read_mesh(&path).with_context(|| format!("{}: {}", ctx.file.display(), f("mesh")))?;
+                let mesh = pganeus_io::read_mesh(&path).map_err(|e| ctx.err(&f("mesh"), e))?;
                 let body = RigidBody::from_mesh(&b.name, &mesh, mass, sampling, None)
-                    .map_err(|e| anyhow!("{}: {}: {}: {e}", ctx.file.display(), f("mesh"), path.display()))?;
+                    .map_err(|e| ctx.err(&f("mesh"), format!("{}: {e}", path.display())))?;
                 if body.mesh_offset.norm() > 1e-3 {
                     tracing::warn!(
                         "{}: the centre of mass of {} is at {:?} in its file; `t` places the centre of mass",
@@ -358,8 +387,8 @@ impl SceneFile {
                 }
                 body
             }
-            (Some(_), Some(_)) => bail!(ctx.err(field, "give `shape` or `mesh`, not both")),
-            (None, None) => bail!(ctx.err(field, "give a `shape` table or a `mesh` file")),
+            (Some(_), Some(_)) => return Err(ctx.err(field, "give `shape` or `mesh`, not both")),
+            (None, None) => return Err(ctx.err(field, "give a `shape` table or a `mesh` file")),
         };
         ctx.finite(&f("t"), b.t)?;
         let v = b.v.unwrap_or([0.0; 3]);

@@ -1,0 +1,1051 @@
+//! `fit`: a body's pose in every frame of a fixed-camera video and the physics
+//! that explains it (Sec. 3.3–3.4): the first pose from a rough guess, PA,
+//! GA with the contact penalty, and PGA (GA ↔ PGA while it helps). Each
+//! stage's result is written as it ends, so a run that stops resumes at the
+//! stage it was in (same settings; `--force` starts over).
+
+use super::checkpoint_of;
+use super::mesh_cmds::{bake_scene, world_cameras};
+use super::render_trajectory::{beside, read_mask, reference_frame, to8};
+use crate::output::trajectory_json;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use geom::{Pose, Quat, Vec3};
+use neus::checkpoint::load_field;
+use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
+use neus::ObjectModel;
+use pganeus_io::Image;
+use recon::poses_from_video::carried_on;
+use recon::video_fit::{
+    evaluate_poses, fit_to_poses, ga_weights, launch_guess, lift_out, pose_from_guess, total_loss, TOUCHING,
+};
+use recon::{
+    FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
+    PosesFromVideo, VideoFitConfig,
+};
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Map, Value};
+use sim::sdf::SdfGrid;
+use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus fit data/slide --scene runs/background --object toy=merged --init init.json --out fits/slide
+  pganeus fit data/slide --scene runs/background --object toy=merged --init init.json --no-pa --out fits/slide_no_pa")]
+pub struct FitArgs {
+    /// The video: a capture in the NeuS layout from one fixed camera, with `mask/` (one body) or
+    /// `mask_<NAME>/`, and `capture.json` giving the fps.
+    pub video: PathBuf,
+    /// The scene's run folder (its field renders the background).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// The scene's baked grid for contacts (`bake` output); default: baked from the scene run into the
+    /// output folder.
+    #[arg(long)]
+    pub scene_grid: Option<PathBuf>,
+    /// The body: NAME=DIR, DIR a `merge` output (or a single run folder).
+    #[arg(long)]
+    pub object: Vec<String>,
+    /// The first-pose guess (init.json, FORMATS.md).
+    #[arg(long)]
+    pub init: PathBuf,
+    /// The output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Stages to run (the earlier ones' results must be in the output folder).
+    #[arg(long, value_delimiter = ',')]
+    pub stages: Option<Vec<Stage>>,
+    /// Ablation: no PA; GA tracks frame by frame from the previous frame, then PGA.
+    #[arg(long, conflicts_with = "no_ga")]
+    pub no_pa: bool,
+    /// Ablation: PA alone (no GA, no PGA).
+    #[arg(long)]
+    pub no_ga: bool,
+    /// Settings of every stage (TOML; the sections and defaults are those of `config.toml` in a fit folder).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Use the first N frames of the video.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Frames per second (default: the video's `capture.json`).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Density of the body, kg/m³ (the motion against a static scene does not depend on it).
+    #[arg(long, default_value_t = 1000.0)]
+    pub density: f64,
+    /// Start over even if the output folder holds a fit with other settings.
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// The first pose from the guess, and the launch guess from the next frames.
+    First,
+    /// PA: physics from the rendered frames.
+    Pa,
+    /// GA: every frame's pose, with the contact penalty.
+    Ga,
+    /// PGA: physics from GA's poses (GA ↔ PGA while it helps), renders and the final trajectory.
+    Pga,
+}
+
+/// An `init.json` entry.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Guess {
+    capture: String,
+    t: [f64; 3],
+    q: [f64; 4],
+}
+
+/// What a fit folder was made with; a resumed run must match it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FitRecord {
+    inputs: RecordInputs,
+    #[serde(default)]
+    fit: VideoFitConfig,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RecordInputs {
+    video: PathBuf,
+    scene: PathBuf,
+    object: String,
+    init: PathBuf,
+    frames: usize,
+    fps: f64,
+    no_pa: bool,
+    no_ga: bool,
+}
+
+/// The first stage's result.
+#[derive(Serialize, Deserialize)]
+struct FirstPose {
+    t: [f64; 3],
+    q: [f64; 4],
+    /// How far the guess was raised out of the scene, m.
+    lift: f64,
+    /// The launch guess from the next frames' poses.
+    v: [f64; 3],
+    omega: [f64; 3],
+    touching: bool,
+    iou: f64,
+    loss: f64,
+}
+
+/// Everything the stages read.
+struct Job {
+    name: String,
+    object: ObjectModel,
+    frames: Vec<FrameTarget>,
+    scene_pre: Vec<ComposedRay>,
+    world: World,
+    fps: f64,
+    capture: String,
+    video: PathBuf,
+    cfg: VideoFitConfig,
+    out: PathBuf,
+    log: std::fs::File,
+}
+
+impl Job {
+    fn log(&mut self, v: Value) -> Result<()> {
+        writeln!(self.log, "{v}").with_context(|| format!("cannot write {}", self.out.join("log.jsonl").display()))
+    }
+
+    fn stage_file(&self, name: &str) -> PathBuf {
+        self.out.join(name)
+    }
+}
+
+fn parse_object(list: &[String]) -> Result<(String, PathBuf)> {
+    match list {
+        [one] => {
+            let (n, d) = one
+                .split_once('=')
+                .ok_or_else(|| anyhow!("--object {one:?}: expected NAME=DIR (a merge output or a run folder)"))?;
+            if n.is_empty() {
+                bail!("--object {one:?}: the name is empty");
+            }
+            Ok((n.to_string(), PathBuf::from(d)))
+        }
+        [] => bail!("give the body with --object NAME=DIR"),
+        _ => bail!("fit takes one body per video for now (got {} --object)", list.len()),
+    }
+}
+
+/// The video's frames for body `name`: images, the body's masks and the one fixed camera.
+fn read_video(dir: &Path, name: &str, single: bool, limit: Option<usize>) -> Result<(Vec<FrameTarget>, Option<f64>)> {
+    let c = pganeus_io::open_capture(dir)?;
+    let cameras = world_cameras(&c)?;
+    let m0 = cameras[0].world_mat();
+    let scale = m0.iter().flatten().map(|v| v.abs()).fold(1e-12, f64::max);
+    for (k, cam) in cameras.iter().enumerate().skip(1) {
+        let m = cam.world_mat();
+        let diff = m
+            .iter()
+            .flatten()
+            .zip(m0.iter().flatten())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        if diff > 1e-9 * scale {
+            bail!(
+                "{}: world_mat_{k} differs from world_mat_0 (by {diff:.3e}): fit needs a video from one fixed camera",
+                dir.join("cameras_sphere.npz").display()
+            );
+        }
+    }
+    let masks = match c.extra_masks.iter().find(|(n, _)| n == name) {
+        Some((_, m)) => m.clone(),
+        None => match (&c.masks, single) {
+            (Some(m), true) => m.clone(),
+            _ => bail!(
+                "{}: no mask_{name}/ folder for body {name:?}{}",
+                dir.display(),
+                if single { " (nor mask/)" } else { "" }
+            ),
+        },
+    };
+    let n = limit.map_or(c.len(), |l| l.min(c.len()));
+    if n < 2 {
+        bail!("{}: fit needs at least 2 frames, the video has {n}", dir.display());
+    }
+    let mut frames = Vec::with_capacity(n);
+    let mut empty = Vec::new();
+    for k in 0..n {
+        let mask = read_mask(&masks[k])?;
+        if !mask.iter().any(|&m| m) {
+            empty.push(k);
+        }
+        frames.push(FrameTarget {
+            camera: cameras[0],
+            rgb: reference_frame(&c.images[k])?,
+            mask,
+        });
+    }
+    let mask_dir = masks[0].parent().unwrap_or(dir).display().to_string();
+    if empty.len() == n {
+        bail!("{mask_dir}: the masks of body {name:?} are empty in every frame");
+    }
+    if !empty.is_empty() {
+        tracing::warn!("{mask_dir}: body {name:?} is not seen in frames {empty:?}: its image terms skip them");
+    }
+    Ok((frames, c.info.and_then(|i| i.fps)))
+}
+
+/// Where the body frame sat in capture `capture` (the object's reference capture or, for a merge, its other).
+fn capture_from_body(model: &ObjectModel, capture: &str) -> Option<Pose<f64>> {
+    let name_of = |f: &neus::object_model::ObjectField| {
+        f.field
+            .capture
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    if capture == model.reference_capture {
+        return Some(model.primary.capture_from_body);
+    }
+    model
+        .other
+        .as_ref()
+        .filter(|o| name_of(o) == capture)
+        .map(|o| o.capture_from_body)
+}
+
+fn read_guess(path: &Path, name: &str, model: &ObjectModel) -> Result<Pose<f64>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let all: BTreeMap<String, Guess> = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    if let Some(other) = all.keys().find(|k| *k != name) {
+        bail!(
+            "{}: a guess for body {other:?}, which the fit has no --object and the video no mask for",
+            path.display()
+        );
+    }
+    let g = all
+        .get(name)
+        .ok_or_else(|| anyhow!("{}: no guess for body {name:?}", path.display()))?;
+    if !(g.t.iter().chain(&g.q).all(|v| v.is_finite()) && g.q.iter().map(|v| v * v).sum::<f64>() > 1e-12) {
+        bail!(
+            "{}: {name}: t must be finite and q a non-zero quaternion",
+            path.display()
+        );
+    }
+    let from = capture_from_body(model, &g.capture).ok_or_else(|| {
+        anyhow!(
+            "{}: {name}: capture {:?} is not one the object {} was built from ({})",
+            path.display(),
+            g.capture,
+            model.source.display(),
+            model.reference_capture
+        )
+    })?;
+    Ok(pose_from_guess(&from, g.t, g.q))
+}
+
+pub fn run(a: FitArgs) -> Result<()> {
+    let t_start = Instant::now();
+    let (name, object_dir) = parse_object(&a.object)?;
+    let cfg: VideoFitConfig = match &a.config {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+            toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?
+        }
+        None => VideoFitConfig::default(),
+    };
+    if !(a.density.is_finite() && a.density > 0.0) {
+        bail!("--density must be positive, got {}", a.density);
+    }
+    // Every input is read and checked before anything is written.
+    let (frames, video_fps) = read_video(&a.video, &name, true, a.frames)?;
+    let fps = match (a.fps, video_fps) {
+        (Some(f), _) if f.is_finite() && f > 0.0 => f,
+        (Some(f), _) => bail!("--fps must be positive, got {f}"),
+        (None, Some(f)) => f,
+        (None, None) => bail!(
+            "{}: capture.json gives no fps: add it there or pass --fps",
+            a.video.display()
+        ),
+    };
+    let object = ObjectModel::load(&object_dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
+    let guess = read_guess(&a.init, &name, &object)?;
+    let cam = frames[0].camera;
+    let (u, v, z) = cam.project(guess.t);
+    if !(z > 0.0 && (0.0..cam.width as f64).contains(&u) && (0.0..cam.height as f64).contains(&v)) {
+        bail!(
+            "{}: the guess for {name:?} puts its centre outside the image (pixel ({u:.0}, {v:.0}), depth {z:.3} m)",
+            a.init.display()
+        );
+    }
+    let scene_field =
+        load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
+    if scene_field.config.kind != neus::CaptureSubject::Scene {
+        tracing::warn!(
+            "--scene {}: trained as an object capture, not a scene",
+            a.scene.display()
+        );
+    }
+    let grid = match &a.scene_grid {
+        Some(p) => Some(SdfGrid::load(p).map_err(|e| anyhow!("--scene-grid: {e}"))?),
+        None => None,
+    };
+    let body = RigidBody::from_mesh(
+        &name,
+        &object.mesh,
+        MassSpec::Density(a.density),
+        ContactSampling::default(),
+        None,
+    )
+    .map_err(|e| anyhow!("--object {name}: {}: its mesh: {e}", object_dir.display()))?;
+    if body.mesh_offset.norm() > 1e-5 {
+        bail!(
+            "--object {name}: the mesh's centre of mass is {:?} from the body origin",
+            body.mesh_offset.to_array()
+        );
+    }
+    let record = FitRecord {
+        inputs: RecordInputs {
+            video: a.video.clone(),
+            scene: a.scene.clone(),
+            object: format!("{name}={}", object_dir.display()),
+            init: a.init.clone(),
+            frames: frames.len(),
+            fps,
+            no_pa: a.no_pa,
+            no_ga: a.no_ga,
+        },
+        fit: cfg.clone(),
+    };
+
+    // The output folder: a new one, or the same fit resumed.
+    let record_path = a.out.join("config.toml");
+    let record_text = toml::to_string(&record)?;
+    if record_path.exists() && !a.force {
+        let old = std::fs::read_to_string(&record_path)?;
+        let same = toml::from_str::<FitRecord>(&old).is_ok_and(|r| r == record);
+        if !same {
+            bail!(
+                "{} holds a fit with other inputs or settings: give another --out, or --force to start over",
+                a.out.display()
+            );
+        }
+        tracing::info!("resuming the fit in {}", a.out.display());
+    } else {
+        if a.force {
+            for f in ["first_pose.json", "pa.json", "ga.json", "pga.json", "trajectory.json"] {
+                let _ = std::fs::remove_file(a.out.join(f));
+            }
+        }
+        std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+        pganeus_io::write_atomic(&record_path, record_text.as_bytes())?;
+    }
+    let grid = match grid {
+        Some(g) => g,
+        None => {
+            let path = a.out.join("scene_grid.bin");
+            if path.exists() {
+                SdfGrid::load(&path)?
+            } else {
+                let t = Instant::now();
+                let g = bake_scene(&scene_field, &a.scene)?;
+                g.save(&path)?;
+                tracing::info!(
+                    "baked the scene's grid in {:.1} s: {}",
+                    t.elapsed().as_secs_f64(),
+                    path.display()
+                );
+                g
+            }
+        }
+    };
+    let sim_cfg = SimConfig {
+        fps,
+        frames: frames.len(),
+        ..cfg.sim.clone()
+    };
+    let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
+    world.add_body(
+        body,
+        BodyState::new(guess.t.to_array(), guess.q.to_array_re(), [0.0; 3], [0.0; 3]),
+        cfg.start_contact,
+        cfg.start_contact,
+    );
+    world
+        .validate()
+        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
+
+    let t = Instant::now();
+    let mut composer = Composer::default();
+    let scene_pre = prerender_scene(&scene_field, &cam, &mut composer);
+    tracing::info!(
+        "the scene rendered through the video's camera in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(a.out.join("log.jsonl"))
+        .with_context(|| format!("cannot open {}", a.out.join("log.jsonl").display()))?;
+    let capture = a
+        .video
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "video".into());
+    let mut job = Job {
+        name,
+        object,
+        frames,
+        scene_pre,
+        world,
+        fps,
+        capture,
+        video: a.video.clone(),
+        cfg,
+        out: a.out.clone(),
+        log,
+    };
+    let wanted = a
+        .stages
+        .clone()
+        .unwrap_or_else(|| vec![Stage::First, Stage::Pa, Stage::Ga, Stage::Pga]);
+    let mut timings = Map::new();
+    let mut time = |stage: &str, t: Instant| {
+        let s = t.elapsed().as_secs_f64();
+        timings.insert(stage.into(), json!((s * 10.0).round() / 10.0));
+        tracing::info!("{stage}: {s:.1} s");
+    };
+
+    let t = Instant::now();
+    let first = stage_first(&mut job, guess, wanted.contains(&Stage::First))?;
+    time("first_pose", t);
+    let t = Instant::now();
+    let pa = if a.no_pa {
+        None
+    } else {
+        Some(stage_pa(&mut job, &first, wanted.contains(&Stage::Pa))?)
+    };
+    time("pa", t);
+    if a.no_ga {
+        let Some(pa) = pa else {
+            unreachable!("--no-pa conflicts with --no-ga")
+        };
+        if wanted.contains(&Stage::Pga) || wanted.contains(&Stage::Ga) {
+            finish(&mut job, &pa, None, &timings, t_start)?;
+        }
+        return Ok(());
+    }
+    let t = Instant::now();
+    let start_world = pa.unwrap_or_else(|| launch_world(&job, &first));
+    let ga = stage_ga(&mut job, &start_world, a.no_pa, wanted.contains(&Stage::Ga), "ga.json")?;
+    time("ga", t);
+    if !wanted.contains(&Stage::Pga) {
+        return Ok(());
+    }
+    let t = Instant::now();
+    let (final_world, final_ga, rounds) = stage_pga(&mut job, start_world, ga, !a.no_pa)?;
+    time("pga", t);
+    timings.insert("pga_rounds".into(), json!(rounds));
+    finish(&mut job, &final_world, Some(&final_ga), &timings, t_start)
+}
+
+/// The world at the first pose with the launch guess (PA's start, or PGA's with `--no-pa`).
+fn launch_world(job: &Job, first: &FirstPose) -> World {
+    let mut w = job.world.clone();
+    w.initial[0] = BodyState::new(first.t, first.q, first.v, first.omega);
+    w
+}
+
+fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
+    Pose::new(Quat::cst(q).normalize_or_identity(), Vec3::cst(t))
+}
+
+/// Stage 1: the first pose from the guess (lifted out of the scene), then the poses of the next frames the
+/// same way, for the launch guess.
+fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> {
+    let path = job.stage_file("first_pose.json");
+    if path.exists() {
+        let text = std::fs::read_to_string(&path)?;
+        tracing::info!("first pose: from {}", path.display());
+        return serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()));
+    }
+    if !run {
+        bail!("stage first has not run: {} is missing", path.display());
+    }
+    let body = &job.world.bodies[0];
+    let (start, lift) = lift_out(body, &job.world.scene, guess);
+    if lift > 0.0 {
+        tracing::info!("the guess sank {:.1} mm into the scene: lifted out", lift * 1e3);
+    }
+    let cfg: &PoseFitConfig = &job.cfg.first_pose;
+    let n = (1 + job.cfg.launch_frames).min(job.frames.len());
+    let pb = super::progress((cfg.iterations * n) as u64, "first pose");
+    let mut poses: Vec<Pose<f64>> = Vec::new();
+    let mut first_eval = ImageLoss::default();
+    for k in 0..n {
+        // Frame 0 from the guess; the next ones carried on at the pace of the last two.
+        let start_k = match k {
+            0 => start,
+            1 => poses[0],
+            _ => carried_on(&poses[k - 2], &poses[k - 1]),
+        };
+        let start_k = job.frames[k].centred_on_mask(&start_k);
+        let mut fit = match PoseFromImage::new(cfg.clone(), &job.object, &job.scene_pre, &job.frames[k], start_k) {
+            Ok(f) => f,
+            Err(recon::PoseFitError::EmptyMask) if k == 0 => {
+                bail!(
+                    "{}: the body's mask is empty in frame 0: the first pose cannot be fitted",
+                    job.video.display()
+                )
+            }
+            Err(recon::PoseFitError::EmptyMask) => break,
+            Err(e) => bail!("frame {k}: {e}"),
+        };
+        for i in 0..cfg.iterations {
+            let l = fit.step();
+            if i % 10 == 0 {
+                writeln!(
+                    job.log,
+                    "{}",
+                    json!({"stage": "first_pose", "frame": k, "iteration": i, "loss": l.loss})
+                )?;
+            }
+            pb.inc(1);
+        }
+        if k == 0 {
+            first_eval = fit.evaluate();
+        }
+        // A launch frame where the body already touches the scene is past the flight the guess fits.
+        let landed = k > 0 && recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &fit.pose) < TOUCHING;
+        if landed && recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &poses[0]) >= TOUCHING {
+            break;
+        }
+        poses.push(fit.pose);
+    }
+    pb.finish_and_clear();
+    let touching = recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &poses[0]) < TOUCHING;
+    let (v, omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
+    let first = FirstPose {
+        t: poses[0].t.to_array(),
+        q: poses[0].q.to_array_re(),
+        lift,
+        v,
+        omega,
+        touching,
+        iou: first_eval.iou(),
+        loss: first_eval.loss,
+    };
+    tracing::info!(
+        "first pose: IoU {:.3}, launch guess v {:?} m/s{}",
+        first.iou,
+        v.map(|x| (x * 1e3).round() / 1e3),
+        if touching { " (on the scene)" } else { "" }
+    );
+    pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&first)?.as_bytes())?;
+    job.log(json!({"stage": "first_pose", "done": true, "iou": first.iou, "v": v, "omega": omega}))?;
+    Ok(first)
+}
+
+/// The world of a trajectory file this command wrote (its initial state and contact values).
+fn world_from_file(job: &Job, path: &Path) -> Result<World> {
+    let t = pganeus_io::read_trajectory(path)?;
+    let b = t.bodies.first().ok_or_else(|| anyhow!("{}: no body", path.display()))?;
+    let mut w = job.world.clone();
+    w.initial[0] = BodyState::new(b.initial.t, b.initial.q, b.initial.v, b.initial.omega);
+    w.scene_contact[0] = ContactParams {
+        restitution: t.contact.restitution,
+        friction: t.contact.friction,
+    };
+    Ok(w)
+}
+
+/// Per-frame image terms as JSON rows.
+fn metric_rows(losses: &[ImageLoss]) -> Value {
+    json!(losses
+        .iter()
+        .enumerate()
+        .map(|(k, l)| json!({
+            "frame": k,
+            "loss": l.loss,
+            "psnr_window": (l.psnr() * 100.0).round() / 100.0,
+            "iou": (l.iou() * 1e4).round() / 1e4,
+            "seen": l.pixels > 0,
+        }))
+        .collect::<Vec<_>>())
+}
+
+fn write_world(job: &Job, path: &Path, world: &World, losses: &[ImageLoss], extra: Map<String, Value>) -> Result<()> {
+    let traj = world.simulate(&world.params());
+    let mut e = extra;
+    e.insert("frames".into(), metric_rows(losses));
+    let t = trajectory_json(&job.capture, world, &traj, e);
+    pganeus_io::write_trajectory(path, &t)?;
+    Ok(())
+}
+
+/// Stage 2, PA.
+fn stage_pa(job: &mut Job, first: &FirstPose, run: bool) -> Result<World> {
+    let path = job.stage_file("pa.json");
+    if path.exists() {
+        tracing::info!("PA: from {}", path.display());
+        return world_from_file(job, &path);
+    }
+    if !run {
+        bail!("stage pa has not run: {} is missing", path.display());
+    }
+    let start = launch_world(job, first);
+    let cfg = job.cfg.pa.clone();
+    let pb = super::progress(cfg.iterations as u64, "PA");
+    let (world, losses) = {
+        let mut pa = PhysicsFromVideo::new(cfg.clone(), &job.object, &job.scene_pre, &job.frames, start, 0)
+            .map_err(|e| anyhow!("PA: {e}"))?;
+        let mut rows = Vec::new();
+        for _ in 0..cfg.iterations {
+            let s = pa.step();
+            rows.push(json!({"stage": "pa", "iteration": s.iteration, "window": s.window, "loss": s.loss}));
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+        for r in rows {
+            writeln!(job.log, "{r}")?;
+        }
+        let w = pa.fitted_world();
+        let losses = pa.evaluate();
+        (w, losses)
+    };
+    report_stage("PA", &world, &losses);
+    write_world(job, &path, &world, &losses, Map::new())?;
+    Ok(world)
+}
+
+fn report_stage(stage: &str, world: &World, losses: &[ImageLoss]) {
+    let seen: Vec<&ImageLoss> = losses.iter().filter(|l| l.pixels > 0).collect();
+    let mean_iou = seen.iter().map(|l| l.iou()).sum::<f64>() / seen.len().max(1) as f64;
+    let min_iou = seen.iter().map(|l| l.iou()).fold(f64::INFINITY, f64::min);
+    let s = &world.initial[0];
+    tracing::info!(
+        "{stage}: IoU mean {mean_iou:.3}, worst {min_iou:.3}; v0 {:?} m/s, restitution {:.3}, friction {:.3}",
+        s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
+        world.scene_contact[0].restitution,
+        world.scene_contact[0].friction
+    );
+}
+
+/// Stage 3, GA: every frame's pose from `start`'s simulation (PA's or the last PGA's), or tracked frame by
+/// frame without PA.
+fn stage_ga(job: &mut Job, start: &World, tracking: bool, run: bool, file: &str) -> Result<Vec<FramePose>> {
+    let path = job.stage_file(file);
+    if path.exists() {
+        tracing::info!("GA: from {}", path.display());
+        return read_ga(&path, job.frames.len());
+    }
+    if !run {
+        bail!("stage ga has not run: {} is missing", path.display());
+    }
+    let traj = start.simulate(&start.params());
+    let pb = super::progress(job.frames.len() as u64, "GA");
+    let results = {
+        let mut ga = if tracking {
+            PosesFromVideo::tracking(
+                job.cfg.ga.clone(),
+                &job.object,
+                &job.scene_pre,
+                &job.frames,
+                start,
+                0,
+                traj.frames[0][0].pose,
+            )
+        } else {
+            PosesFromVideo::new(
+                job.cfg.ga.clone(),
+                &job.object,
+                &job.scene_pre,
+                &job.frames,
+                start,
+                0,
+                &traj,
+            )
+        }
+        .map_err(|e| anyhow!("GA: {e}"))?;
+        while !ga.done() {
+            ga.step().map_err(|e| anyhow!("GA: {e}"))?;
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+        ga.results.clone()
+    };
+    for (k, r) in results.iter().enumerate() {
+        job.log(
+            json!({"stage": "ga", "frame": k, "loss": r.image.loss, "iou": r.image.iou(),
+            "contact_penalty": r.contact_penalty, "in_contact": r.in_contact, "fitted": r.fitted}),
+        )?;
+    }
+    let losses: Vec<ImageLoss> = results.iter().map(|r| r.image.clone()).collect();
+    let seen: Vec<f64> = losses.iter().filter(|l| l.pixels > 0).map(|l| l.iou()).collect();
+    tracing::info!(
+        "GA: IoU mean {:.3}, worst {:.3}",
+        seen.iter().sum::<f64>() / seen.len().max(1) as f64,
+        seen.iter().cloned().fold(f64::INFINITY, f64::min)
+    );
+    write_ga(job, &path, &results)?;
+    Ok(results)
+}
+
+/// GA's poses as a trajectory file (poses only; the initial velocity is not GA's to say).
+fn write_ga(job: &Job, path: &Path, results: &[FramePose]) -> Result<()> {
+    let p = |x: &Pose<f64>| pganeus_io::Pose {
+        t: x.t.to_array(),
+        q: x.q.to_array_re(),
+    };
+    let mut extra = Map::new();
+    extra.insert(
+        "frames".into(),
+        metric_rows(&results.iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
+    );
+    extra.insert(
+        "ga".into(),
+        json!(results
+            .iter()
+            .map(
+                |r| json!({"in_contact": r.in_contact, "fitted": r.fitted, "contact_penalty": r.contact_penalty,
+                "loss": r.image.loss, "intersection": r.image.intersection, "union": r.image.union,
+                "pixels": r.image.pixels, "mse": r.image.mse})
+            )
+            .collect::<Vec<_>>()),
+    );
+    let t = pganeus_io::Trajectory {
+        capture: job.capture.clone(),
+        fps: job.fps,
+        bodies: vec![pganeus_io::VideoBody {
+            name: job.name.clone(),
+            initial: pganeus_io::BodyState {
+                t: results[0].pose.t.to_array(),
+                q: results[0].pose.q.to_array_re(),
+                v: [0.0; 3],
+                omega: [0.0; 3],
+            },
+            poses: results.iter().map(|r| p(&r.pose)).collect(),
+            extra: object_entry(job),
+        }],
+        contact: pganeus_io::Contact {
+            restitution: 0.0,
+            friction: 0.0,
+            model: "none".into(),
+            extra: Map::new(),
+        },
+        extra,
+    };
+    pganeus_io::write_trajectory(path, &t)?;
+    Ok(())
+}
+
+fn read_ga(path: &Path, frames: usize) -> Result<Vec<FramePose>> {
+    let t = pganeus_io::read_trajectory(path)?;
+    let b = t.bodies.first().ok_or_else(|| anyhow!("{}: no body", path.display()))?;
+    let rows = t
+        .extra
+        .get("ga")
+        .and_then(|v| v.as_array())
+        .cloned()
+        .unwrap_or_default();
+    if b.poses.len() != frames || rows.len() != frames {
+        bail!("{}: {} poses for {frames} frames", path.display(), b.poses.len());
+    }
+    Ok(b.poses
+        .iter()
+        .zip(&rows)
+        .map(|(p, r)| {
+            let f = |k: &str| r[k].as_f64().unwrap_or(0.0);
+            let u = |k: &str| r[k].as_u64().unwrap_or(0) as usize;
+            FramePose {
+                pose: pose_of(p.t, p.q),
+                image: ImageLoss {
+                    loss: f("loss"),
+                    mse: f("mse"),
+                    intersection: u("intersection"),
+                    union: u("union"),
+                    pixels: u("pixels"),
+                    ..ImageLoss::default()
+                },
+                contact_penalty: f("contact_penalty"),
+                in_contact: r["in_contact"].as_bool().unwrap_or(false),
+                fitted: r["fitted"].as_bool().unwrap_or(false),
+            }
+        })
+        .collect())
+}
+
+/// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls; the best
+/// world, the GA poses it was fitted to and the rounds kept.
+fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> Result<(World, Vec<FramePose>, usize)> {
+    let weights_cfg = job.cfg.pa.weights.clone();
+    let mut best: Option<(World, Vec<FramePose>, f64)> = None;
+    if from_pa {
+        // PA's own simulation is the bar: PGA fits GA's poses, and where GA is noisier than PA was (depth
+        // from a small silhouette), a round that explains the images worse is not kept.
+        let traj = start.simulate(&start.params());
+        let poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+        let total = total_loss(&evaluate_poses(
+            &job.object,
+            &job.scene_pre,
+            &job.frames,
+            &poses,
+            &weights_cfg,
+        )?);
+        job.log(json!({"stage": "pga", "round": "pa", "image_loss": total}))?;
+        best = Some((start.clone(), ga.clone(), total));
+    }
+    let mut ga = ga;
+    let mut from = start;
+    let mut kept = 0;
+    for round in 0..job.cfg.rounds.max(1) {
+        if round > 0 {
+            let file = format!("ga_round{round}.json");
+            ga = stage_ga(job, &from, false, true, &file)?;
+        }
+        let losses: Vec<ImageLoss> = ga.iter().map(|r| r.image.clone()).collect();
+        let fitted: Vec<bool> = ga.iter().map(|r| r.fitted).collect();
+        let weights = ga_weights(&losses, &fitted);
+        let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
+        let multi = job.cfg.pga_multi_start && round == 0;
+        let starts = if multi { 1 + recon::CONTACT_STARTS.len() } else { 1 };
+        let pb = super::progress(starts as u64, "PGA");
+        let mut start_rows = Vec::new();
+        // Rotations in metres, as PA and GA weigh them: a quaternion error counts at the body's radius.
+        let pga_cfg = PhysicsFitConfig {
+            rotation_weight: job.cfg.pga.rotation_weight * job.world.bodies[0].bounding_radius,
+            ..job.cfg.pga.clone()
+        };
+        let fit = fit_to_poses(&pga_cfg, multi, from.clone(), 0, poses, weights, &mut |i, r| {
+            start_rows.push(
+                json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
+                "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
+            );
+            pb.inc(1);
+        })
+        .map_err(|e| anyhow!("PGA: {e}"))?;
+        pb.finish_and_clear();
+        for r in start_rows {
+            job.log(r)?;
+        }
+        let world = fit.best.fitted_world();
+        let traj = world.simulate(&world.params());
+        let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+        let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &weights_cfg)?;
+        let total = total_loss(&sim_losses);
+        report_stage(&format!("PGA round {}", round + 1), &world, &sim_losses);
+        job.log(json!({"stage": "pga", "round": round, "winner": fit.winner, "image_loss": total}))?;
+        if best.as_ref().is_some_and(|(_, _, b)| total >= *b) {
+            tracing::info!(
+                "GA ↔ PGA: round {} did not lower the image loss; kept {}",
+                round + 1,
+                if kept == 0 {
+                    "PA's".to_string()
+                } else {
+                    format!("round {kept}")
+                }
+            );
+            break;
+        }
+        kept = round + 1;
+        best = Some((world.clone(), ga.clone(), total));
+        from = world;
+    }
+    let (world, ga, _) = best.expect("at least one round");
+    Ok((world, ga, kept))
+}
+
+/// `"object"` of a body entry: the mesh and where the body frame sat in the reference capture.
+fn object_entry(job: &Job) -> Map<String, Value> {
+    let p = job.object.reference_pose;
+    let mut e = Map::new();
+    e.insert(
+        "object".into(),
+        json!({"mesh": "object.ply", "source": job.object.source,
+            "reference": {"capture": job.object.reference_capture,
+                "pose": {"t": p.t.to_array(), "q": p.q.to_array_re()}}}),
+    );
+    e
+}
+
+/// The final trajectory (the simulated one, each frame flagged where it explains the video much worse than
+/// GA's pose), renders, the strip and the animation.
+fn finish(
+    job: &mut Job,
+    world: &World,
+    ga: Option<&[FramePose]>,
+    timings: &Map<String, Value>,
+    t_start: Instant,
+) -> Result<()> {
+    let traj = world.simulate(&world.params());
+    let n = job.frames.len();
+    let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+    let weights = job.cfg.pa.weights.clone();
+    let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &weights)?;
+    // The reported poses are the simulated ones (Eq. 11): GA's poses follow each image alone and, where the
+    // image cannot tell depth (a small object far off), wander by centimetres that the physics does not.
+    // A frame whose silhouette the simulation covers much worse than GA's did is flagged, not replaced.
+    let reported = &sim_poses;
+    let explained: Vec<bool> = (0..n)
+        .map(|k| match ga {
+            Some(ga) if ga[k].fitted && sim_losses[k].pixels > 0 => {
+                let (s, g) = (sim_losses[k].iou(), ga[k].image.iou());
+                s >= g - 0.05 || s >= 0.9
+            }
+            _ => true,
+        })
+        .collect();
+    // Renders of the reported poses over the pre-rendered scene.
+    let (w, h) = (job.frames[0].camera.width, job.frames[0].camera.height);
+    std::fs::create_dir_all(job.out.join("render"))?;
+    let pb = super::progress(n as u64, "render");
+    let mut composer = Composer::default();
+    let mut rows = Vec::with_capacity(n);
+    let mut pairs = Vec::with_capacity(n);
+    for k in 0..n {
+        let f = &job.frames[k];
+        let routed = job.object.route(&reported[k], &f.camera);
+        let layer = Layer::object(&routed.field, &routed.capture_from_body, &reported[k], 0);
+        let img = render_composed(&[layer], 1, Behind::Scene(&job.scene_pre), &f.camera, &mut composer);
+        let mut rgb = Image::new(w, h, 3);
+        for (p, c) in img.rgb.iter().enumerate() {
+            rgb.data[p * 3..p * 3 + 3].copy_from_slice(&c.map(to8));
+        }
+        pganeus_io::write_png(&job.out.join("render").join(format!("{k:03}.png")), &rgb)?;
+        let psnr = neus::render_view::psnr(&img.rgb, &f.rgb, None) as f64;
+        let ours: Vec<bool> = img.object_opacity.iter().map(|&o| o > 0.5).collect();
+        let inter = ours.iter().zip(&f.mask).filter(|(a, b)| **a && **b).count();
+        let union = ours.iter().zip(&f.mask).filter(|(a, b)| **a || **b).count();
+        let iou = if union == 0 { 1.0 } else { inter as f64 / union as f64 };
+        rows.push(
+            json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0, "iou": (iou * 1e4).round() / 1e4,
+            "explained": explained[k]}),
+        );
+        let mut input = Image::new(w, h, 3);
+        for (p, c) in f.rgb.iter().enumerate() {
+            input.data[p * 3..p * 3 + 3].copy_from_slice(&c.map(to8));
+        }
+        pairs.push(beside(&input, &rgb));
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    pganeus_io::write_apng(&job.out.join("animation.png"), &pairs, job.fps)?;
+    pganeus_io::write_png(&job.out.join("strip.png"), &strip(&pairs, 6))?;
+
+    let mut extra = Map::new();
+    extra.insert("frames".into(), json!(rows));
+    let mut stages = Map::new();
+    stages.insert("simulated".into(), metric_rows(&sim_losses));
+    if let Some(ga) = ga {
+        stages.insert(
+            "ga".into(),
+            metric_rows(&ga.iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
+        );
+    }
+    extra.insert("stages".into(), Value::Object(stages));
+    extra.insert("timings_s".into(), Value::Object(timings.clone()));
+    extra.insert("video".into(), json!(job.video));
+    let mut t = trajectory_json(&job.capture, world, &traj, extra);
+    t.bodies[0].extra.extend(object_entry(job));
+    // The object's mesh beside the trajectory, in the body frame.
+    pganeus_io::write_ply(
+        &job.out.join("object.ply"),
+        &pganeus_io::PlyMesh {
+            mesh: job.object.mesh.clone(),
+            colors: None,
+            normals: None,
+        },
+        pganeus_io::PlyEncoding::BinaryLittleEndian,
+    )?;
+    if ga.is_some() {
+        pganeus_io::write_trajectory(
+            &job.out.join("pga.json"),
+            &trajectory_json(&job.capture, world, &traj, Map::new()),
+        )?;
+    }
+    pganeus_io::write_trajectory(&job.out.join("trajectory.json"), &t)?;
+    let psnr: Vec<f64> = rows.iter().filter_map(|r| r["psnr"].as_f64()).collect();
+    let ious: Vec<f64> = rows.iter().filter_map(|r| r["iou"].as_f64()).collect();
+    let s = &world.initial[0];
+    println!(
+        "fitted {n} frames in {:.1} s: v0 {:?} m/s, omega0 {:?} rad/s, restitution {:.3}, friction {:.3}; \
+         PSNR {:.2} dB, IoU mean {:.3} worst {:.3}; {} frames the simulation explains much worse than GA; \
+         wrote {}",
+        t_start.elapsed().as_secs_f64(),
+        s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
+        s.omega.to_array().map(|x| (x * 1e3).round() / 1e3),
+        world.scene_contact[0].restitution,
+        world.scene_contact[0].friction,
+        psnr.iter().sum::<f64>() / psnr.len().max(1) as f64,
+        ious.iter().sum::<f64>() / ious.len().max(1) as f64,
+        ious.iter().cloned().fold(f64::INFINITY, f64::min),
+        explained.iter().filter(|e| !**e).count(),
+        job.out.join("trajectory.json").display()
+    );
+    Ok(())
+}
+
+/// Up to `count` frames, evenly spaced, one above the other.
+fn strip(pairs: &[Image], count: usize) -> Image {
+    let n = pairs.len();
+    let picks: Vec<usize> = if n <= count {
+        (0..n).collect()
+    } else {
+        (0..count).map(|i| i * (n - 1) / (count - 1)).collect()
+    };
+    let (w, h) = (pairs[0].width, pairs[0].height);
+    let mut out = Image::new(w, h * picks.len() as u32, 3);
+    for (row, &k) in picks.iter().enumerate() {
+        let len = (w * h * 3) as usize;
+        let at = row * len;
+        out.data[at..at + len].copy_from_slice(&pairs[k].to_rgb().data);
+    }
+    out
+}

@@ -1,0 +1,228 @@
+//! What joins the stages of `fit` for one body (Sec. 3.3–3.4): a rough guess
+//! lifted out of the scene, a launch guess from the first frames' poses, the
+//! image terms of a whole pose sequence (for reports and for GA ↔ PGA), PGA's
+//! per-frame weights from GA's residuals, and PGA itself (Eq. 11 on GA's
+//! poses). The stages are [`crate::PoseFromImage`] (first pose),
+//! [`crate::PhysicsFromVideo`] (PA), [`crate::PosesFromVideo`] (GA) and
+//! [`crate::PhysicsFit`] (PGA).
+
+use crate::fit_physics::{fit_multi_start, FitError, MultiStart, PhysicsFitConfig, CONTACT_STARTS};
+use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+use crate::physics_from_video::VideoPhysicsConfig;
+use crate::pose_from_image::PoseFitConfig;
+use crate::poses_from_video::PosesFromVideoConfig;
+use geom::{Pose, Quat, Vec3};
+use neus::compose::{ComposedRay, Composer};
+use neus::ObjectModel;
+use serde::{Deserialize, Serialize};
+use sim::sdf::{Sdf, Shape};
+use sim::{ContactParams, RigidBody, SimConfig, World};
+
+/// Settings of every stage of `fit`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VideoFitConfig {
+    /// The simulator (its `fps` and `frames` come from the video).
+    pub sim: SimConfig,
+    /// The first pose (and the poses of the launch frames).
+    pub first_pose: PoseFitConfig,
+    /// Frames after the first whose poses, fitted as the first one, give the launch guess. Default 2.
+    pub launch_frames: usize,
+    /// Contact values PA starts from (and PGA with `--no-pa`). Default 0.5 and 0.5.
+    pub start_contact: ContactParams,
+    pub pa: VideoPhysicsConfig,
+    pub ga: PosesFromVideoConfig,
+    /// PGA (Eq. 11 on GA's poses). Its `rotation_weight` is in body radii here: a quaternion error counts
+    /// as the arc it moves the body's surface, as PA and GA weigh turns (at the paper's λ_q = 1 a ball's
+    /// spin, which its silhouette does not show, outweighed every centimetre of its path).
+    pub pga: PhysicsFitConfig,
+    /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins). Default true.
+    pub pga_multi_start: bool,
+    /// GA ↔ PGA rounds at most; a round is kept only if it lowers the image loss of the simulated
+    /// trajectory. Default 2.
+    pub rounds: usize,
+}
+
+impl Default for VideoFitConfig {
+    fn default() -> Self {
+        Self {
+            sim: SimConfig::default(),
+            first_pose: PoseFitConfig::default(),
+            launch_frames: 2,
+            start_contact: ContactParams {
+                restitution: 0.5,
+                friction: 0.5,
+            },
+            pa: VideoPhysicsConfig::default(),
+            ga: PosesFromVideoConfig::default(),
+            pga: PhysicsFitConfig {
+                fit_initial_pose: true,
+                ..PhysicsFitConfig::default()
+            },
+            pga_multi_start: true,
+            rounds: 2,
+        }
+    }
+}
+
+/// Closer than this to the scene (m), a body counts as touching it at the start (no free fall in the launch
+/// guess).
+pub const TOUCHING: f64 = 0.002;
+
+/// The lowest signed distance of the body's contact points to the scene at `pose` (m; negative: sunk).
+pub fn clearance(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> f64 {
+    body.contact_points
+        .iter()
+        .map(|p| scene.distance_local(pose.transform_point(*p)))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// A rough guess raised along +z until no contact point is inside the scene (a guess from markers may sink
+/// into the board; that is normal, not an error); the lift, m.
+pub fn lift_out(body: &RigidBody, scene: &Shape, pose: Pose<f64>) -> (Pose<f64>, f64) {
+    let mut p = pose;
+    // A few rounds: under a slope, rising moves the deepest point.
+    for _ in 0..8 {
+        let c = clearance(body, scene, &p);
+        if c >= 0.0 {
+            break;
+        }
+        p.t.z += -c + 1e-4;
+    }
+    (p, p.t.z - pose.t.z)
+}
+
+/// The launch `(v0, ω0)` (world frame) of poses one frame apart: least squares over `poses` of
+/// `t_k = t_0 + v0 k dt + ½ g (k dt)²` (without the gravity term when the body starts on the scene), and the
+/// mean turn rate.
+pub fn launch_guess(poses: &[Pose<f64>], fps: f64, gravity: [f64; 3], touching: bool) -> ([f64; 3], [f64; 3]) {
+    if poses.len() < 2 || !(fps > 0.0) {
+        return ([0.0; 3], [0.0; 3]);
+    }
+    let dt = 1.0 / fps;
+    let g = if touching {
+        Vec3::new(0.0, 0.0, 0.0)
+    } else {
+        Vec3::cst(gravity)
+    };
+    let (mut num, mut den) = (Vec3::new(0.0, 0.0, 0.0), 0.0);
+    for (k, p) in poses.iter().enumerate().skip(1) {
+        let s = k as f64 * dt;
+        num += (p.t - poses[0].t - g * (0.5 * s * s)) * s;
+        den += s * s;
+    }
+    let v = num * (1.0 / den);
+    let last = poses.len() - 1;
+    let turn = (poses[last].q * poses[0].q.conj()).normalize_or_identity().log();
+    let omega = turn * (1.0 / (last as f64 * dt));
+    (v.to_array(), omega.to_array())
+}
+
+/// The image terms of every frame with the body at `poses[k]` (every pixel of each frame's window; frames
+/// whose mask is empty give the default, zero pixels).
+pub fn evaluate_poses(
+    object: &ObjectModel,
+    scene: &[ComposedRay],
+    frames: &[FrameTarget],
+    poses: &[Pose<f64>],
+    weights: &ImageLossWeights,
+) -> Result<Vec<ImageLoss>, FrameError> {
+    let mut composer = Composer::default();
+    frames
+        .iter()
+        .zip(poses)
+        .map(|(f, pose)| {
+            let prepared = PreparedFrame::new(f, scene)?;
+            Ok(if prepared.has_mask() {
+                prepared.evaluate(&mut composer, object, scene, pose, weights)
+            } else {
+                ImageLoss::default()
+            })
+        })
+        .collect()
+}
+
+/// The summed loss of a sequence's frames (what GA ↔ PGA rounds compare).
+pub fn total_loss(losses: &[ImageLoss]) -> f64 {
+    losses.iter().map(|l| l.loss).sum()
+}
+
+/// PGA's weight of each GA pose: 0 where GA had no mask, else `min(1, median / residual)` of the image
+/// losses, so frames GA could not explain (occlusion, blur, a wrong basin) count less than the rest.
+pub fn ga_weights(losses: &[ImageLoss], fitted: &[bool]) -> Vec<f64> {
+    let mut used: Vec<f64> = losses
+        .iter()
+        .zip(fitted)
+        .filter(|(_, &f)| f)
+        .map(|(l, _)| l.loss)
+        .collect();
+    if used.is_empty() {
+        return vec![0.0; losses.len()];
+    }
+    used.sort_by(f64::total_cmp);
+    let median = used[used.len() / 2].max(1e-12);
+    losses
+        .iter()
+        .zip(fitted)
+        .map(|(l, &f)| if f { (median / l.loss.max(1e-12)).min(1.0) } else { 0.0 })
+        .collect()
+}
+
+/// PGA (Eq. 11): body `body`'s physics fitted to GA's poses with `weights`, from the world's own values
+/// (PA's) and, with `multi_start`, from each of [`CONTACT_STARTS`]. `on_start` hears each start's end.
+pub fn fit_to_poses(
+    cfg: &PhysicsFitConfig,
+    multi_start: bool,
+    world: World,
+    body: usize,
+    poses: Vec<Pose<f64>>,
+    weights: Vec<f64>,
+    on_start: &mut dyn FnMut(usize, &crate::StartResult),
+) -> Result<MultiStart, FitError> {
+    let starts: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
+    fit_multi_start(cfg.clone(), world, body, poses, Some(weights), starts, on_start)
+}
+
+/// The rigid motion `p_frame0 = R(q) p_capture + t` of an `init.json` entry applied to where the body frame
+/// sat in that capture: the body's pose in frame 0.
+pub fn pose_from_guess(capture_from_body: &Pose<f64>, t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
+    Pose::new(Quat::cst(q).normalize_or_identity(), Vec3::cst(t)).compose(capture_from_body)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn launch_guess_recovers_a_parabola_and_a_spin() {
+        let (v0, w0, g) = (Vec3::new(0.4, -0.2, 0.9), Vec3::new(0.0, 2.0, -1.0), [0.0, 0.0, -9.81]);
+        let fps = 30.0;
+        let poses: Vec<Pose<f64>> = (0..4)
+            .map(|k| {
+                let s = k as f64 / fps;
+                Pose::new(
+                    Quat::exp(w0 * s),
+                    Vec3::new(0.1, 0.0, 0.2) + v0 * s + Vec3::cst(g) * (0.5 * s * s),
+                )
+            })
+            .collect();
+        let (v, w) = launch_guess(&poses, fps, g, false);
+        for k in 0..3 {
+            assert!((v[k] - v0.to_array()[k]).abs() < 1e-9, "{v:?}");
+            assert!((w[k] - w0.to_array()[k]).abs() < 1e-9, "{w:?}");
+        }
+        // On the board, the gravity term is left out.
+        let (v, _) = launch_guess(&poses[..2], fps, g, true);
+        assert!((v[2] - (v0.z - 0.5 * 9.81 / fps)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn weights_favour_the_frames_ga_explains() {
+        let l = |loss| ImageLoss {
+            loss,
+            ..ImageLoss::default()
+        };
+        let w = ga_weights(&[l(0.1), l(0.1), l(0.4), l(0.05)], &[true, true, true, false]);
+        assert_eq!(w, vec![1.0, 1.0, 0.25, 0.0]);
+    }
+}
