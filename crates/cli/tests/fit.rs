@@ -277,8 +277,30 @@ fn fit_recovers_a_toss_and_refuses_bad_inputs() {
         .unwrap();
     assert!(!o.status.success() && text(&o).contains("--force"), "{}", text(&o));
 
+    first_pose_without_a_guess(&f, &object, &truth_poses[0]);
     refusals(&f, &object);
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `--init auto`: the first stage alone finds the ball in flight (its silhouette's size gives the depth).
+fn first_pose_without_a_guess(f: &Fixture, object: &str, truth: &Pose<f64>) {
+    let out = f.d.join("auto");
+    let o = run_ok(fit_cmd(f, &f.video, object, Path::new("auto"), &out).args(["--stages", "first"]));
+    eprintln!("{}", text(&o));
+    let found: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("first_pose.json")).unwrap()).unwrap();
+    let t: Vec<f64> = found["t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let e = (Vec3::new(t[0], t[1], t[2]) - truth.t).norm();
+    eprintln!("--init auto: first pose {:.2} mm off", e * 1e3);
+    let guess: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("init_auto.json")).unwrap()).unwrap();
+    assert_eq!(guess["ball"]["capture"], "toy_b");
+    assert!(e < 0.004, "--init auto: first pose {:.2} mm off", e * 1e3);
 }
 
 /// Each bad input: a message with the needle, a non-zero exit and no output folder.

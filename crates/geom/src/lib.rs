@@ -10,6 +10,7 @@ pub mod pose;
 pub mod quat;
 pub mod real;
 pub mod rng;
+pub mod silhouette;
 pub mod trimesh;
 pub mod vec3;
 
@@ -19,5 +20,6 @@ pub use pose::{left_jacobian, Pose};
 pub use quat::{rotation_distance, Quat};
 pub use real::Real;
 pub use rng::SplitMix64;
+pub use silhouette::{coverage_iou, silhouette};
 pub use trimesh::{bounding_box, TriMesh};
 pub use vec3::{Mat3, Vec3};

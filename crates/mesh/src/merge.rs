@@ -27,6 +27,12 @@ use sim::sdf::MeshDistance;
 
 type V = Vec3<f64>;
 
+/// A part's colour at surface points seen head-on (points and outward normals in its capture's frame), RGB.
+pub type ColourFn<'a> = dyn Fn(&[V], &[V]) -> Vec<[f64; 3]> + Sync + 'a;
+
+/// A's samples compared by colour with B under an alignment: at most this many.
+const COLOUR_SAMPLES: usize = 2000;
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct MergeConfig {
     /// Parts within this height of a capture's board (z ≤ margin) were not seen. Default 3 mm.
@@ -110,6 +116,8 @@ pub struct PartialSurface<'a> {
     /// The capture's cameras (its frame), if known: then "seen" also means
     /// seen by them, not only "above the board".
     cameras: Vec<Camera<f64>>,
+    /// Its colour, if known: it tells apart the alignments a symmetric shape allows.
+    colour: Option<Box<ColourFn<'a>>>,
 }
 
 impl<'a> PartialSurface<'a> {
@@ -125,6 +133,7 @@ impl<'a> PartialSurface<'a> {
             sdf: Box::new(move |pts: &[V]| pts.iter().map(|p| dist.signed_distance(*p).0).collect()),
             project: false,
             cameras: Vec::new(),
+            colour: None,
         })
     }
 
@@ -140,6 +149,7 @@ impl<'a> PartialSurface<'a> {
             sdf: Box::new(sdf),
             project: true,
             cameras: Vec::new(),
+            colour: None,
         })
     }
 
@@ -148,6 +158,13 @@ impl<'a> PartialSurface<'a> {
     /// side the object stands on) are taken from the other pose.
     pub fn with_cameras(mut self, cameras: Vec<Camera<f64>>) -> Self {
         self.cameras = cameras;
+        self
+    }
+
+    /// The part's colour (a field's, rendered head-on at surface points): of the alignments a symmetric shape
+    /// allows equally well (a box turned over about x or about y), the one whose colours agree wins.
+    pub fn with_colour(mut self, colour: impl Fn(&[V], &[V]) -> Vec<[f64; 3]> + Sync + 'a) -> Self {
+        self.colour = Some(Box::new(colour));
         self
     }
 
@@ -247,7 +264,7 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     // the cameras saw would, on boxy objects, leave little more than parallel
     // walls, which do not fix the pose; the guesses above the board are close
     // (masks carve them) and trimming drops the pairs that disagree.
-    let (pa, _) = a.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 1);
+    let (pa, na) = a.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 1);
     let (pb, nb) = b.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 2);
     if pa.is_empty() {
         return Err(MergeError::NothingVisible('A', cfg.board_margin));
@@ -268,7 +285,45 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
         .into_iter()
         .filter(|p| p.z <= cfg.board_margin)
         .collect();
-    let fit = align(&pa, &target, &a_hidden, cfg);
+    // With both parts' colours: how much A's colours disagree with B's where an alignment puts A on what B
+    // saw (mean L1 over RGB; none where it puts nothing there).
+    let colour_gap = match (&a.colour, &b.colour) {
+        (Some(ca), Some(cb)) => {
+            let every = pa.len().div_ceil(COLOUR_SAMPLES).max(1);
+            let (sa, sn): (Vec<V>, Vec<V>) = pa.iter().zip(&na).step_by(every).map(|(p, n)| (*p, *n)).unzip();
+            let col_a = ca(&sa, &sn);
+            let judge = move |t: &Pose<f64>| -> Option<f64> {
+                let moved: Vec<V> = sa.iter().map(|p| t.transform_point(*p)).collect();
+                let dist = (b.sdf)(&moved);
+                let keep: Vec<usize> = (0..moved.len())
+                    .filter(|&i| {
+                        moved[i].z > cfg.board_margin + cfg.blend && dist[i].abs() <= 2.0 * cfg.inlier_distance
+                    })
+                    .collect();
+                if keep.is_empty() {
+                    return None;
+                }
+                let pts: Vec<V> = keep.iter().map(|&i| moved[i]).collect();
+                let nrm: Vec<V> = keep.iter().map(|&i| t.transform_vector(sn[i])).collect();
+                let col_b = cb(&pts, &nrm);
+                let gap: f64 = keep
+                    .iter()
+                    .zip(&col_b)
+                    .map(|(&i, cb)| (0..3).map(|k| (col_a[i][k] - cb[k]).abs()).sum::<f64>() / 3.0)
+                    .sum();
+                Some(gap / keep.len() as f64)
+            };
+            Some(judge)
+        }
+        _ => None,
+    };
+    let fit = align(
+        &pa,
+        &target,
+        &a_hidden,
+        cfg,
+        colour_gap.as_ref().map(|f| f as &ColourGap<'_>),
+    );
     if !(fit.residual <= cfg.max_residual) {
         return Err(MergeError::NoConvergence {
             residual: fit.residual,
@@ -363,6 +418,9 @@ fn board_patch(m: &TriMesh, margin: f64, count: usize) -> Vec<V> {
         .collect()
 }
 
+/// The mean colour difference between A's surface placed by a transform and B's, where it can be told.
+type ColourGap<'a> = dyn Fn(&Pose<f64>) -> Option<f64> + 'a;
+
 /// Rigid alignment of A's samples onto B's.
 ///
 /// Each start is refined twice: trimmed ICP (robust to the parts' different
@@ -374,7 +432,16 @@ fn board_patch(m: &TriMesh, margin: f64, count: usize) -> Vec<V> {
 /// of the automatic start are refined (a symmetric object has several good ones); of those that make about as much of A land on B
 /// (within 5 %), the one that moves most of A's hidden side (on its board)
 /// up into B's view wins: the second pose is there to show what the first hid.
-fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> IcpResult {
+/// A box turned over about x or about y shows as much: with both parts'
+/// colours (`colour_gap`), of those within 5 % of the most shown, the one
+/// whose colours agree best with B's wins.
+fn align(
+    pa: &[V],
+    target: &IcpTarget,
+    a_hidden: &[V],
+    cfg: &MergeConfig,
+    colour_gap: Option<&ColourGap<'_>>,
+) -> IcpResult {
     // Of A's samples that an alignment puts where B saw (clear of its board),
     // the share that lands on B's surface; where B did not see, A is free to
     // differ from B's guess. Alignments that put under a quarter of A where B
@@ -423,12 +490,23 @@ fn align(pa: &[V], target: &IcpTarget, a_hidden: &[V], cfg: &MergeConfig) -> Icp
                 })
                 .collect();
             let most = scored.iter().map(|s| s.1).fold(0.0, f64::max);
-            scored
-                .into_iter()
-                .filter(|s| s.1 >= most - 0.05)
-                .max_by(|x, y| x.2.total_cmp(&y.2).then(x.1.total_cmp(&y.1)))
-                .expect("the best hypothesis passes")
-                .0
+            let landing: Vec<(IcpResult, f64, f64)> = scored.into_iter().filter(|s| s.1 >= most - 0.05).collect();
+            let most_shown = landing.iter().map(|s| s.2).fold(0.0, f64::max);
+            let by_colour = colour_gap.and_then(|gap| {
+                landing
+                    .iter()
+                    .filter(|s| s.2 >= most_shown - 0.05)
+                    .filter_map(|s| gap(&s.0.transform).map(|g| (s.0, g)))
+                    .min_by(|x, y| x.1.total_cmp(&y.1))
+                    .map(|(r, _)| r)
+            });
+            by_colour.unwrap_or_else(|| {
+                landing
+                    .into_iter()
+                    .max_by(|x, y| x.2.total_cmp(&y.2).then(x.1.total_cmp(&y.1)))
+                    .expect("the best hypothesis passes")
+                    .0
+            })
         }
     }
 }

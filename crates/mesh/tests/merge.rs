@@ -337,3 +337,55 @@ fn a_symmetric_box_is_turned_over_not_left_as_is() {
         alone.p95 * 1e3
     );
 }
+
+/// Turned over about x or about y, a box shows the same shape: only its
+/// colours tell which. Each part paints the box by body coordinates (a
+/// pattern no half-turn maps onto itself); the merge must find each pose's
+/// own turn, however B was turned.
+#[test]
+fn a_symmetric_box_is_turned_over_the_way_its_colours_agree() {
+    let shape = Shape::Cuboid(Cuboid {
+        half: [0.03, 0.022, 0.018],
+    });
+    let body = extract_zero_level(&common::grid_of(
+        &shape,
+        [-0.04, -0.03, -0.025],
+        [0.04, 0.03, 0.025],
+        120,
+    ));
+    let paint = |p: Vec3<f64>| {
+        [
+            0.5 + 0.5 * (60.0 * p.x).sin(),
+            0.5 + 0.5 * (45.0 * p.y + 0.7).sin(),
+            0.5 + 10.0 * p.x * p.y,
+        ]
+    };
+    let pose_a = rest(&body, Quat::identity(), [0.0, 0.0]);
+    for axis in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)] {
+        let pose_b = rest(&body, Quat::exp(axis * std::f64::consts::PI), [0.0, 0.0]);
+        let (rec_a, rec_b) = (
+            wrong_underside(&posed(&body, &pose_a)),
+            wrong_underside(&posed(&body, &pose_b)),
+        );
+        let colour_of = |pose: Pose<f64>| {
+            move |pts: &[Vec3<f64>], _: &[Vec3<f64>]| -> Vec<[f64; 3]> {
+                pts.iter().map(|p| paint(pose.inverse_transform_point(*p))).collect()
+            }
+        };
+        let merged = merge_two_poses(
+            &PartialSurface::from_mesh(rec_a).unwrap().with_colour(colour_of(pose_a)),
+            &PartialSurface::from_mesh(rec_b).unwrap().with_colour(colour_of(pose_b)),
+            &MergeConfig {
+                resolution: 64,
+                ..MergeConfig::default()
+            },
+        )
+        .unwrap();
+        let truth = pose_b.compose(&pose_a.inverse());
+        let off = rotation_distance(merged.a_to_b.q, truth.q).to_degrees();
+        assert!(
+            off < 2.0,
+            "turned about {axis:?}: the merge's turn is {off:.1}° from the truth"
+        );
+    }
+}

@@ -273,7 +273,8 @@ impl PhysicsFit {
         let traj = world.simulate(p);
         let lq = self.cfg.rotation_weight;
         let mut loss = 0.0;
-        for (k, f) in traj.frames.iter().enumerate().skip(1) {
+        // Frame 0 counts too: it is the initial pose, fitted with `fit_initial_pose` (without it, a constant).
+        for (k, f) in traj.frames.iter().enumerate() {
             let s = f[self.body];
             let et = (s.pose.t - self.poses[k].t).norm();
             let eq = Self::quat_error(s.pose.q, self.poses[k].q)
@@ -293,7 +294,7 @@ impl PhysicsFit {
         let lq = self.cfg.rotation_weight;
         let mut residuals = Vec::new();
         let mut jac = Vec::new();
-        for k in 1..g.frames.len() {
+        for k in 0..g.frames.len() {
             let s = g.frames[k][self.body];
             let et: Vec<f64> = (s.pose.t - self.poses[k].t).to_array().to_vec();
             let eq: Vec<f64> = Self::quat_error(s.pose.q, self.poses[k].q)

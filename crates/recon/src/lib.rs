@@ -2,6 +2,7 @@
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
 pub mod contact_penalty;
+pub mod first_pose_search;
 pub mod fit_physics;
 pub mod image_loss;
 pub mod least_squares;
@@ -12,6 +13,7 @@ pub mod target;
 pub mod video_fit;
 
 pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
+pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{
     fit_multi_start, FitError, FitStats, MultiStart, PhysicsFit, PhysicsFitConfig, PoseError, StartResult,
     CONTACT_STARTS,

@@ -51,13 +51,16 @@ pub struct FitArgs {
     /// The body: NAME=DIR, DIR a `merge` output (or a single run folder).
     #[arg(long)]
     pub object: Vec<String>,
-    /// The first-pose guess (init.json, FORMATS.md).
+    /// The first-pose guess (init.json, FORMATS.md), or `auto`: candidates from the first frame's mask and
+    /// the body's resting sides, the best refined by the image terms (the pose found is written to
+    /// `init_auto.json` in the fit folder, in the same format).
     #[arg(long)]
     pub init: PathBuf,
     /// The output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Stages to run (the earlier ones' results must be in the output folder).
+    /// Stages to run (the earlier ones' results must be in the output folder); the fit stops after the last
+    /// one named.
     #[arg(long, value_delimiter = ',')]
     pub stages: Option<Vec<Stage>>,
     /// Ablation: no PA; GA tracks frame by frame from the previous frame, then PGA.
@@ -316,14 +319,20 @@ pub fn run(a: FitArgs) -> Result<()> {
         ),
     };
     let object = ObjectModel::load(&object_dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
-    let guess = read_guess(&a.init, &name, &object)?;
+    let guess = if a.init.as_os_str() == "auto" {
+        None
+    } else {
+        Some(read_guess(&a.init, &name, &object)?)
+    };
     let cam = frames[0].camera;
-    let (u, v, z) = cam.project(guess.t);
-    if !(z > 0.0 && (0.0..cam.width as f64).contains(&u) && (0.0..cam.height as f64).contains(&v)) {
-        bail!(
-            "{}: the guess for {name:?} puts its centre outside the image (pixel ({u:.0}, {v:.0}), depth {z:.3} m)",
-            a.init.display()
-        );
+    if let Some(guess) = guess {
+        let (u, v, z) = cam.project(guess.t);
+        if !(z > 0.0 && (0.0..cam.width as f64).contains(&u) && (0.0..cam.height as f64).contains(&v)) {
+            bail!(
+                "{}: the guess for {name:?} puts its centre outside the image (pixel ({u:.0}, {v:.0}), depth {z:.3} m)",
+                a.init.display()
+            );
+        }
     }
     let scene_field =
         load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
@@ -414,7 +423,8 @@ pub fn run(a: FitArgs) -> Result<()> {
     let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
     world.add_body(
         body,
-        BodyState::new(guess.t.to_array(), guess.q.to_array_re(), [0.0; 3], [0.0; 3]),
+        // A placeholder: every stage starts from the first pose.
+        BodyState::new([0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]),
         cfg.start_contact,
         cfg.start_contact,
     );
@@ -466,6 +476,10 @@ pub fn run(a: FitArgs) -> Result<()> {
     let t = Instant::now();
     let first = stage_first(&mut job, guess, wanted.contains(&Stage::First))?;
     time("first_pose", t);
+    let last = wanted.iter().copied().max().unwrap_or(Stage::Pga);
+    if last == Stage::First {
+        return Ok(());
+    }
     let t = Instant::now();
     let pa = if a.no_pa {
         None
@@ -473,6 +487,9 @@ pub fn run(a: FitArgs) -> Result<()> {
         Some(stage_pa(&mut job, &first, wanted.contains(&Stage::Pa))?)
     };
     time("pa", t);
+    if last == Stage::Pa && !a.no_pa {
+        return Ok(());
+    }
     if a.no_ga {
         let Some(pa) = pa else {
             unreachable!("--no-pa conflicts with --no-ga")
@@ -509,7 +526,7 @@ fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
 
 /// Stage 1: the first pose from the guess (lifted out of the scene), then the poses of the next frames the
 /// same way, for the launch guess.
-fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> {
+fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<FirstPose> {
     let path = job.stage_file("first_pose.json");
     if path.exists() {
         let text = std::fs::read_to_string(&path)?;
@@ -519,6 +536,10 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
     if !run {
         bail!("stage first has not run: {} is missing", path.display());
     }
+    let guess = match guess {
+        Some(g) => g,
+        None => auto_guess(job)?,
+    };
     let body = &job.world.bodies[0];
     let (start, lift) = lift_out(body, &job.world.scene, guess);
     if lift > 0.0 {
@@ -526,7 +547,10 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
     }
     let cfg: &PoseFitConfig = &job.cfg.first_pose;
     let n = (1 + job.cfg.launch_frames).min(job.frames.len());
-    let pb = super::progress((cfg.iterations * n) as u64, "first pose");
+    let pb = super::progress(
+        (cfg.iterations + cfg.iterations.div_ceil(2) * (n - 1)) as u64,
+        "first pose",
+    );
     let mut poses: Vec<Pose<f64>> = Vec::new();
     let mut first_eval = ImageLoss::default();
     for k in 0..n {
@@ -537,7 +561,17 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
             _ => carried_on(&poses[k - 2], &poses[k - 1]),
         };
         let start_k = job.frames[k].centred_on_mask(&start_k);
-        let mut fit = match PoseFromImage::new(cfg.clone(), &job.object, &job.scene_pre, &job.frames[k], start_k) {
+        // A launch frame starts at the pace of the frames before it, closer than a guess: half the steps.
+        let cfg_k = PoseFitConfig {
+            iterations: if k == 0 {
+                cfg.iterations
+            } else {
+                cfg.iterations.div_ceil(2)
+            },
+            ..cfg.clone()
+        };
+        let steps = cfg_k.iterations;
+        let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &job.frames[k], start_k) {
             Ok(f) => f,
             Err(recon::PoseFitError::EmptyMask) if k == 0 => {
                 bail!(
@@ -548,7 +582,7 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
             Err(recon::PoseFitError::EmptyMask) => break,
             Err(e) => bail!("frame {k}: {e}"),
         };
-        for i in 0..cfg.iterations {
+        for i in 0..steps {
             let l = fit.step();
             if i % 10 == 0 {
                 writeln!(
@@ -562,15 +596,19 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
         if k == 0 {
             first_eval = fit.evaluate();
         }
-        // A launch frame where the body already touches the scene is past the flight the guess fits.
-        let landed = k > 0 && recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &fit.pose) < TOUCHING;
-        if landed && recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &poses[0]) >= TOUCHING {
+        // A launch frame where the body already touches the scene is past the flight the guess fits; the
+        // second frame always counts (a slide whose first pose floats a millimetre has no other).
+        let clear = |p: &Pose<f64>| recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, p);
+        if k >= 2 && clear(&fit.pose) < TOUCHING && clear(&poses[0]) >= TOUCHING {
             break;
         }
         poses.push(fit.pose);
     }
     pb.finish_and_clear();
-    let touching = recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, &poses[0]) < TOUCHING;
+    // Any kept frame on the scene makes the launch a slide or a landing: no free fall to take out.
+    let touching = poses
+        .iter()
+        .any(|p| recon::video_fit::clearance(&job.world.bodies[0], &job.world.scene, p) < TOUCHING);
     let (v, omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
     let first = FirstPose {
         t: poses[0].t.to_array(),
@@ -591,6 +629,56 @@ fn stage_first(job: &mut Job, guess: Pose<f64>, run: bool) -> Result<FirstPose> 
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&first)?.as_bytes())?;
     job.log(json!({"stage": "first_pose", "done": true, "iou": first.iou, "v": v, "omega": omega}))?;
     Ok(first)
+}
+
+/// `--init auto`: the first pose searched from frame 0's mask and the body's resting sides; written to
+/// `init_auto.json` as a guess relative to the object's reference capture, every candidate to the log.
+fn auto_guess(job: &mut Job) -> Result<Pose<f64>> {
+    let cfg = job.cfg.auto_init.clone();
+    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
+    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
+    let pb = super::progress(steps as u64, "first pose search");
+    let found = recon::search_first_pose(
+        &job.world.bodies[0],
+        &job.world.scene,
+        &job.object,
+        &job.scene_pre,
+        &job.frames[0],
+        &cfg,
+        || pb.inc(1),
+    );
+    pb.finish_and_clear();
+    let (pose, candidates) = match found {
+        Ok(f) => f,
+        Err(recon::PoseFitError::EmptyMask) => bail!(
+            "{}: the body's mask is empty in frame 0: the first pose cannot be searched",
+            job.video.display()
+        ),
+        Err(e) => bail!("frame 0: {e}"),
+    };
+    for c in &candidates {
+        writeln!(
+            job.log,
+            "{}",
+            json!({"stage": "first_pose_search", "t": c.pose.t.to_array(), "q": c.pose.q.to_array_re(),
+                   "silhouette_iou": c.silhouette_iou, "depth_from": c.depth_from, "refined_loss": c.refined_loss})
+        )?;
+    }
+    let screened = candidates.iter().filter(|c| c.refined_loss.is_some()).count();
+    tracing::info!(
+        "first pose search: {} candidates, {screened} screened; the best at {:?} m",
+        candidates.len(),
+        pose.t.to_array().map(|x| (x * 1e4).round() / 1e4)
+    );
+    let reference = job.object.primary.capture_from_body;
+    let g = pose.compose(&reference.inverse());
+    let entry =
+        json!({ &job.name: {"capture": job.object.reference_capture, "t": g.t.to_array(), "q": g.q.to_array_re()} });
+    pganeus_io::write_atomic(
+        &job.out.join("init_auto.json"),
+        serde_json::to_string_pretty(&entry)?.as_bytes(),
+    )?;
+    Ok(pose)
 }
 
 /// The world of a trajectory file this command wrote (its initial state and contact values).
@@ -625,7 +713,8 @@ fn write_world(job: &Job, path: &Path, world: &World, losses: &[ImageLoss], extr
     let traj = world.simulate(&world.params());
     let mut e = extra;
     e.insert("frames".into(), metric_rows(losses));
-    let t = trajectory_json(&job.capture, world, &traj, e);
+    let mut t = trajectory_json(&job.capture, world, &traj, e);
+    t.bodies[0].extra.extend(object_entry(job));
     pganeus_io::write_trajectory(path, &t)?;
     Ok(())
 }
@@ -1021,10 +1110,9 @@ fn finish(
         pganeus_io::PlyEncoding::BinaryLittleEndian,
     )?;
     if ga.is_some() {
-        pganeus_io::write_trajectory(
-            &job.out.join("pga.json"),
-            &trajectory_json(&job.capture, world, &traj, Map::new()),
-        )?;
+        let mut simulated = trajectory_json(&job.capture, world, &traj, Map::new());
+        simulated.bodies[0].extra.extend(object_entry(job));
+        pganeus_io::write_trajectory(&job.out.join("pga.json"), &simulated)?;
     }
     pganeus_io::write_trajectory(&job.out.join("trajectory.json"), &t)?;
     let psnr: Vec<f64> = rows.iter().filter_map(|r| r["psnr"].as_f64()).collect();

@@ -430,14 +430,32 @@ pub(crate) fn world_cameras(c: &pganeus_io::CaptureIndex) -> Result<Vec<geom::Ca
 /// file, in its capture's world frame.
 fn partial_surface(p: &Path, res: usize) -> Result<mesh::PartialSurface<'static>> {
     if p.is_dir() || p.extension().is_some_and(|e| e == "safetensors") {
-        let l = load_field(&checkpoint_of(p))?;
+        let l = std::sync::Arc::new(load_field(&checkpoint_of(p))?);
         let levels = l.config.field.grid.levels;
         let zero = zero_level_mesh(&l.field, levels, l.centre, l.radius, res);
+        let lc = l.clone();
         let sdf = move |pts: &[Vec3<f64>]| field_distances(&l, levels, pts);
-        mesh::PartialSurface::from_field(&zero, sdf).map_err(|e| anyhow!("{}: {e}", p.display()))
+        Ok(mesh::PartialSurface::from_field(&zero, sdf)
+            .map_err(|e| anyhow!("{}: {e}", p.display()))?
+            .with_colour(move |pts, normals| field_colour(&lc, pts, normals)))
     } else {
         mesh::PartialSurface::from_mesh(read_mesh(p)?).map_err(|e| anyhow!("{}: {e}", p.display()))
     }
+}
+
+/// A field's colour at surface points (world) seen head-on: rendered along the inward normal from 5 mm out.
+fn field_colour(l: &neus::checkpoint::LoadedField, pts: &[Vec3<f64>], normals: &[Vec3<f64>]) -> Vec<[f64; 3]> {
+    let set = neus::render_view::RenderSettings::of(l);
+    let mut scratch = neus::render_view::RenderScratch::default();
+    let unit = |p: Vec3<f64>| ((p - l.centre) * (1.0 / l.radius)).to_array().map(|v| v as f32);
+    let mut out = Vec::with_capacity(pts.len());
+    for (p, n) in pts.chunks(2048).zip(normals.chunks(2048)) {
+        let o: Vec<[f32; 3]> = p.iter().zip(n).map(|(p, n)| unit(*p + *n * 0.005)).collect();
+        let d: Vec<[f32; 3]> = n.iter().map(|n| (-*n).to_array().map(|v| v as f32)).collect();
+        let rays = neus::render_view::render_rays(&l.field, &l.occupancy, &set, &o, &d, &mut scratch);
+        out.extend(rays.iter().map(|(r, _)| r.rgb.map(f64::from)));
+    }
+    out
 }
 
 /// A field's signed distance at world points, in metres. The field is only

@@ -1,0 +1,347 @@
+//! The first pose without a guess (`fit --init auto`, beyond the paper, which
+//! reads it from markers): candidate poses built from the first frame's mask and
+//! the body's shape, ranked by how well their silhouettes cover the mask, the best
+//! few refined by the image terms and the lowest loss kept.
+//!
+//! A candidate turns the body onto one of its stable resting sides (a local
+//! minimum of the height of its centre of mass over a plane under it), spins it
+//! about the vertical, and slides it along the ray through the mask's centroid:
+//! to where it first touches the scene (a body resting on the board), and to the
+//! depth where its silhouette has the mask's area (a body in flight).
+
+use crate::image_loss::FrameTarget;
+use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
+use crate::video_fit::clearance;
+use geom::{coverage_iou, rotation_distance, silhouette, Pose, Quat, TriMesh, Vec3};
+use neus::compose::ComposedRay;
+use neus::ObjectModel;
+use serde::{Deserialize, Serialize};
+use sim::sdf::Shape;
+use sim::RigidBody;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FirstPoseSearchConfig {
+    /// Resting sides tried, most likely first. Default 6.
+    pub resting_sides: usize,
+    /// Turns about the vertical per side, evenly spaced. Default 12 (30° apart).
+    pub yaw_steps: usize,
+    /// Candidates screened by the image terms: the best silhouettes that differ (a box's turns by half a turn
+    /// look the same; only colour tells them apart, after a few steps). Default 12.
+    pub screened: usize,
+    /// Steps of each screened candidate before they are compared. Default 15.
+    pub screen_iterations: usize,
+    /// The screened candidates with the lowest loss, refined to the end. Default 3.
+    pub refined: usize,
+    /// The refinement: a short first-pose fit (its `iterations` count the screening steps). Default 50
+    /// steps of 512 pixels.
+    pub refine: PoseFitConfig,
+}
+
+impl Default for FirstPoseSearchConfig {
+    fn default() -> Self {
+        Self {
+            resting_sides: 6,
+            yaw_steps: 12,
+            screened: 12,
+            screen_iterations: 15,
+            refined: 3,
+            refine: PoseFitConfig {
+                iterations: 50,
+                rays_per_step: 512,
+                ..PoseFitConfig::default()
+            },
+        }
+    }
+}
+
+/// One candidate first pose and how well it explains the frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    pub pose: Pose<f64>,
+    /// Silhouette IoU of the posed mesh with the mask.
+    pub silhouette_iou: f64,
+    /// "resting" (touching the scene along the ray) or "size" (the mask's area).
+    pub depth_from: &'static str,
+    /// The image loss after the last steps it was given, for the screened ones.
+    pub refined_loss: Option<f64>,
+}
+
+/// The body-frame directions that can point down when the body rests on a plane, most likely first, with the
+/// share of all orientations that settle on each.
+///
+/// With the centre of mass at the body origin, resting with `d` down puts it `h(d) = max_v v·d` above the
+/// plane; stable sides are the local minima of `h` over the sphere of directions. From each of an even spread
+/// of starts, `d` descends `h` along its gradient on the sphere (the support vertex's tangential part) in
+/// shrinking steps; a side's share is the share of starts that end on it (dropped at random, the body
+/// settles there about that often). Ends closer than 20° are one side.
+pub fn resting_sides(mesh: &TriMesh, count: usize) -> Vec<(Vec3<f64>, f64)> {
+    const STARTS: usize = 1000;
+    const STEPS: usize = 200;
+    // Only vertices that are the support in some direction matter (the hull's corners, roughly).
+    let verts: Vec<Vec3<f64>> = mesh.vertices.iter().map(|v| Vec3::cst(*v)).collect();
+    let support = |d: Vec3<f64>, among: &[Vec3<f64>]| {
+        among
+            .iter()
+            .copied()
+            .max_by(|a, b| a.dot(d).total_cmp(&b.dot(d)))
+            .unwrap_or(Vec3::zero())
+    };
+    let mut hull: Vec<Vec3<f64>> = fibonacci_sphere(4 * STARTS)
+        .into_iter()
+        .map(|d| support(d, &verts))
+        .collect();
+    hull.sort_by(|a, b| {
+        a.to_array()
+            .partial_cmp(&b.to_array())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    hull.dedup();
+    // A soft maximum (temperature a hundredth of the size): on an edge the hard support flips between its
+    // ends and the descent zigzags across it; the soft one slopes along it.
+    let size = hull.iter().map(|v| v.norm()).fold(0.0, f64::max).max(1e-9);
+    let tau = 0.01 * size;
+    let mut ends: Vec<Vec3<f64>> = Vec::with_capacity(STARTS);
+    for start in fibonacci_sphere(STARTS) {
+        let mut d = start;
+        for k in 0..STEPS {
+            let top = support(d, &hull).dot(d);
+            let (mut sum, mut mean) = (0.0, Vec3::zero());
+            for v in &hull {
+                let w = ((v.dot(d) - top) / tau).exp();
+                sum += w;
+                mean += *v * w;
+            }
+            let v = mean * (1.0 / sum);
+            let g = v - d * v.dot(d);
+            let Some(dir) = g.try_normalize() else { break };
+            let step = 0.1 * 0.97f64.powi(k as i32);
+            d = (d - dir * step).normalize_or(d);
+        }
+        ends.push(d);
+    }
+    let merge = 20f64.to_radians().cos();
+    let mut sides: Vec<(Vec3<f64>, f64)> = Vec::new();
+    for d in ends {
+        match sides.iter_mut().find(|(s, _)| s.dot(d) >= merge) {
+            Some(side) => side.1 += 1.0 / STARTS as f64,
+            None => sides.push((d, 1.0 / STARTS as f64)),
+        }
+    }
+    // A start exactly on a symmetric ridge stays on its saddle: a true side settles a share of the sphere,
+    // a saddle a few starts (and a side that rare does not matter).
+    sides.retain(|s| s.1 >= 0.005);
+    sides.sort_by(|a, b| b.1.total_cmp(&a.1));
+    sides.truncate(count.max(1));
+    sides
+}
+
+/// `n` nearly even unit directions (a Fibonacci lattice).
+fn fibonacci_sphere(n: usize) -> Vec<Vec3<f64>> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let a = golden * i as f64;
+            Vec3::new(r * a.cos(), r * a.sin(), z)
+        })
+        .collect()
+}
+
+/// The rotation turning unit vector `from` onto unit vector `to` by the shortest arc.
+fn turn_onto(from: Vec3<f64>, to: Vec3<f64>) -> Quat<f64> {
+    let c = from.dot(to).clamp(-1.0, 1.0);
+    let axis = from.cross(to);
+    match axis.try_normalize() {
+        Some(a) => Quat::exp(a * c.acos()),
+        None if c > 0.0 => Quat::identity(),
+        // Opposite: half a turn about any axis across `from`.
+        None => {
+            let across = from.cross(Vec3::new(1.0, 0.0, 0.0));
+            let across = across.try_normalize().unwrap_or(Vec3::new(0.0, 1.0, 0.0));
+            Quat::exp(across * std::f64::consts::PI)
+        }
+    }
+}
+
+/// The candidate first poses of `body` in `frame`, best silhouette first (empty when the mask is empty).
+pub fn candidates(body: &RigidBody, scene: &Shape, frame: &FrameTarget, cfg: &FirstPoseSearchConfig) -> Vec<Candidate> {
+    let Some(([mu, mv], area)) = frame.mask_centroid() else {
+        return Vec::new();
+    };
+    let cam = &frame.camera;
+    let ray = cam.ray(mu, mv);
+    let down = Vec3::new(0.0, 0.0, -1.0);
+    // Beyond any tabletop: a ray that misses the scene stops here.
+    let far = 50.0;
+    let mut out = Vec::new();
+    for (side, _) in resting_sides(&body.mesh, cfg.resting_sides) {
+        let tilt = turn_onto(side, down);
+        for k in 0..cfg.yaw_steps.max(1) {
+            let yaw =
+                Quat::exp(Vec3::new(0.0, 0.0, 1.0) * (std::f64::consts::TAU * k as f64 / cfg.yaw_steps.max(1) as f64));
+            let q = (yaw * tilt).normalize_or_identity();
+            let at = |s: f64| Pose::new(q, ray.at(s));
+            // Resting: slid out along the ray until it first touches the scene. Each step is at most the
+            // clearance, which no point of the body can cross.
+            let mut s = body.bounding_radius;
+            let mut resting = None;
+            while s < far {
+                let c = clearance(body, scene, &at(s));
+                if c < 1e-3 {
+                    resting = Some(s);
+                    break;
+                }
+                s += c.max(1e-3);
+            }
+            let mut depths = Vec::new();
+            if let Some(s) = resting {
+                depths.push((s, "resting"));
+            }
+            // In flight: the depth where the silhouette has the mask's area (area falls with depth squared).
+            let s_ref = resting.unwrap_or(1.0);
+            let covered = silhouette(cam, &body.mesh, &at(s_ref)).iter().filter(|&&c| c).count();
+            if covered > 0 {
+                let s = s_ref * (covered as f64 / area as f64).sqrt();
+                if resting.is_none_or(|r| s < r - 0.25 * body.bounding_radius) {
+                    depths.push((s, "size"));
+                }
+            }
+            for (s, from) in depths {
+                let pose = at(s);
+                out.push(Candidate {
+                    pose,
+                    silhouette_iou: coverage_iou(&silhouette(cam, &body.mesh, &pose), &frame.mask),
+                    depth_from: from,
+                    refined_loss: None,
+                });
+            }
+        }
+    }
+    out.sort_by(|a, b| b.silhouette_iou.total_cmp(&a.silhouette_iou));
+    out
+}
+
+/// The best first pose: the candidates' best distinct silhouettes screened by a few steps of the image terms,
+/// the best of those refined, the lowest loss kept; and every candidate (the screened ones with their loss).
+pub fn search_first_pose(
+    body: &RigidBody,
+    scene: &Shape,
+    object: &ObjectModel,
+    scene_rays: &[ComposedRay],
+    frame: &FrameTarget,
+    cfg: &FirstPoseSearchConfig,
+    mut on_step: impl FnMut(),
+) -> Result<(Pose<f64>, Vec<Candidate>), PoseFitError> {
+    let mut all = candidates(body, scene, frame, cfg);
+    if all.is_empty() {
+        return Err(PoseFitError::EmptyMask);
+    }
+    // The best silhouettes that differ: others within 15° and a fifth of the body's size of a chosen one
+    // would refine to the same pose.
+    let mut chosen: Vec<usize> = Vec::new();
+    for i in 0..all.len() {
+        if chosen.len() >= cfg.screened.max(1) {
+            break;
+        }
+        let same = chosen.iter().any(|&j| {
+            rotation_distance(all[i].pose.q, all[j].pose.q) < 15f64.to_radians()
+                && (all[i].pose.t - all[j].pose.t).norm() < 0.2 * body.bounding_radius
+        });
+        if !same {
+            chosen.push(i);
+        }
+    }
+    let mut fits = Vec::new();
+    for &i in &chosen {
+        let start = frame.centred_on_mask(&all[i].pose);
+        fits.push((
+            i,
+            PoseFromImage::new(cfg.refine.clone(), object, scene_rays, frame, start)?,
+        ));
+    }
+    // Successive halving: every one a few steps, the best few to the end.
+    let mut run = |fits: &mut Vec<(usize, PoseFromImage)>, steps: usize, all: &mut [Candidate]| {
+        for (i, fit) in fits.iter_mut() {
+            for _ in 0..steps {
+                fit.step();
+                on_step();
+            }
+            all[*i].refined_loss = Some(fit.evaluate().loss);
+        }
+        let loss = |i: usize| all[i].refined_loss.unwrap_or(f64::INFINITY);
+        fits.sort_by(|a, b| loss(a.0).total_cmp(&loss(b.0)));
+    };
+    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
+    run(&mut fits, screen, &mut all);
+    fits.truncate(cfg.refined.max(1));
+    run(&mut fits, cfg.refine.iterations - screen, &mut all);
+    let pose = fits[0].1.pose;
+    Ok((pose, all))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed box mesh of half-extents `h` centred on the origin.
+    fn cuboid(h: [f64; 3]) -> TriMesh {
+        let v: Vec<[f64; 3]> = (0..8)
+            .map(|k| {
+                [
+                    if k & 1 == 0 { -h[0] } else { h[0] },
+                    if k & 2 == 0 { -h[1] } else { h[1] },
+                    if k & 4 == 0 { -h[2] } else { h[2] },
+                ]
+            })
+            .collect();
+        let faces = vec![
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ];
+        TriMesh::new(v, faces)
+    }
+
+    #[test]
+    fn a_box_rests_on_its_large_faces_most_often() {
+        let sides = resting_sides(&cuboid([0.04, 0.03, 0.015]), 10);
+        // Six faces, no other minimum.
+        assert_eq!(sides.len(), 6, "{sides:?}");
+        for (d, _) in &sides {
+            let axis = d.to_array().iter().map(|c| c.abs()).fold(0.0, f64::max);
+            assert!(axis > 0.99, "a side that is no face normal: {d:?}");
+        }
+        // The two large faces (±z) first, with most of the orientations between them.
+        for (d, _) in &sides[..2] {
+            assert!(d.z.abs() > 0.99, "{sides:?}");
+        }
+        assert!(sides[0].1 + sides[1].1 > 0.5, "{sides:?}");
+        let total: f64 = sides.iter().map(|s| s.1).sum();
+        assert!(total > 0.99, "{sides:?}");
+    }
+
+    #[test]
+    fn turn_onto_turns_a_vector_onto_another() {
+        let down = Vec3::new(0.0, 0.0, -1.0);
+        for from in [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, -1.0),
+            Vec3::new(0.3, -0.5, 0.2).normalize_or(down),
+        ] {
+            let q = turn_onto(from, down);
+            assert!((q.rotate(from) - down).norm() < 1e-12, "{from:?}");
+        }
+    }
+}
