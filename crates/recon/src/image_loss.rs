@@ -78,6 +78,9 @@ pub struct ImageLossWeights {
     pub pull_scale_px: f64,
     /// Pixels around the mask and the body's projection that are rendered. Default 12.
     pub margin_px: u32,
+    /// Samples along each ray through the body, as a multiple of its field's training (steps and cap; the
+    /// renderer's own default for pictures is 2). Default 2.
+    pub ray_steps: f64,
 }
 
 impl Default for ImageLossWeights {
@@ -88,6 +91,7 @@ impl Default for ImageLossWeights {
             pull: 1.0,
             pull_scale_px: 10.0,
             margin_px: 12,
+            ray_steps: 2.0,
         }
     }
 }
@@ -257,7 +261,12 @@ impl<'a> PreparedFrame<'a> {
         let cam = &self.frame.camera;
         let w = cam.width as usize;
         let of = object.route(pose, cam);
-        let layers = [Layer::object(&of.field, &of.capture_from_body, pose, 0)];
+        let mut layer = Layer::object(&of.field, &of.capture_from_body, pose, 0);
+        let trained = &of.field.config;
+        let scaled = |n: usize| ((n as f64 * weights.ray_steps).round() as usize).max(1);
+        layer.settings.steps_per_ray = scaled(trained.steps_per_ray);
+        layer.settings.max_samples_per_ray = scaled(trained.max_samples_per_ray);
+        let layers = [layer];
         let (mut o, mut d, mut under) = (Vec::new(), Vec::new(), Vec::new());
         for &p in pixels {
             let r = cam.ray((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);

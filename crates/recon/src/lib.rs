@@ -19,7 +19,9 @@ pub use fit_physics::{
     CONTACT_STARTS,
 };
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
-pub use physics_from_video::{PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsStats};
+pub use physics_from_video::{
+    PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsResult, VideoPhysicsStats,
+};
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};

@@ -98,7 +98,17 @@ pub struct VideoPhysicsStats {
     pub loss: f64,
 }
 
-/// The stage: `new`, then [`Self::step`] (or [`Self::run`]).
+/// What [`PhysicsFromVideo::finish`] returns.
+pub struct VideoPhysicsResult {
+    /// Every frame's world (the fitted parameters, or the start's).
+    pub world: World,
+    /// Each frame's image terms at its simulated pose.
+    pub losses: Vec<ImageLoss>,
+    /// Whether the start explained the video better than the fit and was kept.
+    pub kept_start: bool,
+}
+
+/// The stage: `new`, then [`Self::step`] (or [`Self::run`]), then [`Self::finish`].
 pub struct PhysicsFromVideo<'a> {
     cfg: VideoPhysicsConfig,
     object: &'a ObjectModel,
@@ -107,6 +117,8 @@ pub struct PhysicsFromVideo<'a> {
     world: World,
     body: usize,
     params: Vec<f64>,
+    /// The parameters it started from (what [`Self::finish`] falls back to).
+    start: Vec<f64>,
     wrt: Vec<usize>,
     /// Whether each fitted parameter is a contact value (kept in (0, 1)).
     bounded: Vec<bool>,
@@ -168,6 +180,7 @@ impl<'a> PhysicsFromVideo<'a> {
             frames: prepared,
             world,
             body,
+            start: params.clone(),
             params,
             wrt,
             bounded,
@@ -301,6 +314,35 @@ impl<'a> PhysicsFromVideo<'a> {
     /// The image terms of every frame (every pixel around the mask and the body) at the simulated poses.
     pub fn evaluate(&mut self) -> Vec<ImageLoss> {
         let w = self.fitted_world();
+        self.evaluate_world(&w)
+    }
+
+    /// The fitted world and its image terms, or the start's where the start explains the video better (the
+    /// steps follow gradients of random pixel batches with no line search; a chaotic landing can lead them
+    /// astray from a launch guess that was right): the lower sum of every frame's full image loss wins.
+    pub fn finish(&mut self) -> VideoPhysicsResult {
+        let fitted = self.fitted_world();
+        let losses = self.evaluate_world(&fitted);
+        let mut start = fitted.clone();
+        start.set_params(&self.start);
+        let start_losses = self.evaluate_world(&start);
+        let total = |l: &[ImageLoss]| l.iter().map(|l| l.loss).sum::<f64>();
+        if total(&start_losses) < total(&losses) {
+            VideoPhysicsResult {
+                world: start,
+                losses: start_losses,
+                kept_start: true,
+            }
+        } else {
+            VideoPhysicsResult {
+                world: fitted,
+                losses,
+                kept_start: false,
+            }
+        }
+    }
+
+    fn evaluate_world(&mut self, w: &World) -> Vec<ImageLoss> {
         let traj = w.simulate(&w.params());
         self.frames
             .iter()

@@ -34,8 +34,12 @@ fn cameras(capture: &Path, n: usize) -> Vec<Camera<f64>> {
         .collect()
 }
 
+fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
+    Pose::new(Quat::cst(p.q), Vec3::cst(p.t))
+}
+
 fn posed(mesh: &TriMesh, p: &pganeus_io::Pose) -> Vec<Vec3<f64>> {
-    let pose = Pose::new(Quat::cst(p.q), Vec3::cst(p.t));
+    let pose = pose_of(p);
     mesh.vertices
         .iter()
         .map(|v| pose.transform_point(Vec3::cst(*v)))
@@ -54,41 +58,6 @@ fn mask_at(mask: &pganeus_io::Image, u: f64, v: f64) -> bool {
     [(0.0, 0.0), (0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)]
         .iter()
         .any(|(du, dv)| mask_pixel(mask, u + du, v + dv))
-}
-
-/// Pixel centres covered by the projected triangles (the silhouette).
-fn rasterise(cam: &Camera<f64>, mesh: &TriMesh, pts: &[Vec3<f64>]) -> Vec<bool> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut cover = vec![false; w * h];
-    let uv: Vec<(f64, f64)> = pts
-        .iter()
-        .map(|p| {
-            let (u, v, _) = cam.project(*p);
-            (u, v)
-        })
-        .collect();
-    for f in &mesh.faces {
-        let [a, b, c] = f.map(|i| uv[i as usize]);
-        let (x0, x1) = (
-            a.0.min(b.0).min(c.0).floor().max(0.0) as usize,
-            (a.0.max(b.0).max(c.0).ceil() as usize).min(w),
-        );
-        let (y0, y1) = (
-            a.1.min(b.1).min(c.1).floor().max(0.0) as usize,
-            (a.1.max(b.1).max(c.1).ceil() as usize).min(h),
-        );
-        let edge = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let p = (x as f64 + 0.5, y as f64 + 0.5);
-                let (e0, e1, e2) = (edge(a, b, p), edge(b, c, p), edge(c, a, p));
-                if (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0) {
-                    cover[y * w + x] = true;
-                }
-            }
-        }
-    }
-    cover
 }
 
 #[test]
@@ -122,7 +91,7 @@ fn static_captures_agree_with_the_posed_mesh() {
                 sc.capture,
                 frac * 100.0
             );
-            let cover = rasterise(cam, &mesh, &pts);
+            let cover = geom::silhouette(cam, &mesh, &pose_of(&sc.pose));
             let raster = cover.iter().filter(|c| **c).count() as f64;
             let masked = mask.data.iter().filter(|m| **m > 127).count() as f64;
             let err = (masked - raster).abs() / raster;
@@ -364,7 +333,7 @@ fn a_body_from_a_mesh_file_renders_through_its_baked_sdf() {
                 "view {i}: raised corner {p:?} at ({u:.1}, {v:.1}) is not within 1.5 px of the mask"
             );
         }
-        let cover = rasterise(cam, &body_mesh, &pts);
+        let cover = geom::silhouette(cam, &body_mesh, &pose_of(&sc.pose));
         let raster = cover.iter().filter(|c| **c).count() as f64;
         let masked = mask.data.iter().filter(|m| **m > 127).count() as f64;
         assert!(

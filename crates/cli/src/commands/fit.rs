@@ -298,10 +298,8 @@ pub fn run(a: FitArgs) -> Result<()> {
     let t_start = Instant::now();
     let (name, object_dir) = parse_object(&a.object)?;
     let cfg: VideoFitConfig = match &a.config {
-        Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-            toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?
-        }
+        // Key by key over the defaults: `[ga.pose] iterations = 60` keeps fit's other GA settings.
+        Some(p) => super::config_over(&VideoFitConfig::default(), p)?,
         None => VideoFitConfig::default(),
     };
     if !(a.density.is_finite() && a.density > 0.0) {
@@ -745,9 +743,11 @@ fn stage_pa(job: &mut Job, first: &FirstPose, run: bool) -> Result<World> {
         for r in rows {
             writeln!(job.log, "{r}")?;
         }
-        let w = pa.fitted_world();
-        let losses = pa.evaluate();
-        (w, losses)
+        let r = pa.finish();
+        if r.kept_start {
+            tracing::warn!("PA: the launch guess explains the video better than PA's fit: kept");
+        }
+        (r.world, r.losses)
     };
     report_stage("PA", &world, &losses);
     write_world(job, &path, &world, &losses, Map::new())?;

@@ -1,4 +1,4 @@
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use neus::{checkpoint, CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::io::Write;
@@ -60,31 +60,12 @@ pub fn capture_kind(given: Option<CaptureSubject>, data: &Dataset) -> CaptureSub
     kind
 }
 
-/// Lay `over` on `base` key by key: a nested table (`[field.grid]`) changes only the keys it names, so a
-/// config file keeps the rest of the preset (a scene's start and background field among them).
-fn merge_tables(base: &mut toml::Table, over: toml::Table) {
-    for (k, v) in over {
-        match (base.get_mut(&k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
-            (_, v) => {
-                base.insert(k, v);
-            }
-        }
-    }
-}
-
 /// A preset for a kind of capture with a config file's fields laid over it.
 pub fn load_config(preset: &str, kind: CaptureSubject, file: Option<&Path>) -> Result<TrainConfig> {
     let base = TrainConfig::preset(preset, kind)
         .ok_or_else(|| anyhow!("--preset: unknown preset \"{preset}\" (fast, quality)"))?;
     let Some(file) = file else { return Ok(base) };
-    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    let over: toml::Table = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", file.display()))?;
-    let mut merged = toml::Table::try_from(&base)?;
-    merge_tables(&mut merged, over);
-    toml::Value::Table(merged)
-        .try_into()
-        .map_err(|e| anyhow!("{}: {e}", file.display()))
+    super::config_over(&base, file)
 }
 
 pub fn run(a: TrainArgs) -> Result<()> {
