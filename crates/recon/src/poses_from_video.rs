@@ -61,8 +61,7 @@ pub struct FramePose {
     /// The image terms over the window at the final pose.
     pub image: ImageLoss,
     pub contact_penalty: f64,
-    /// Whether the contact penalty applied: PA's simulation touched the scene in this frame and points of
-    /// GA's start lay within the contact threshold of the scene.
+    /// Whether PA's simulation touched the scene in this frame (the penalty applied).
     pub in_contact: bool,
     /// False when the frame's mask was empty: the pose is PA's.
     pub fitted: bool,
@@ -77,8 +76,7 @@ pub struct PosesFromVideo<'a> {
     world: &'a World,
     body: usize,
     starts: Vec<Pose<f64>>,
-    /// Whether PA's simulation touched the scene in each frame.
-    touched: Vec<bool>,
+    contacts: Vec<Vec<usize>>,
     /// Without PA: starts carried on at the pace of the last two fitted frames.
     tracking: bool,
     pub results: Vec<FramePose>,
@@ -111,8 +109,20 @@ impl<'a> PosesFromVideo<'a> {
             });
         }
         let starts: Vec<Pose<f64>> = pa.frames.iter().map(|f| f[body].pose).collect();
-        let touched = (0..frames.len())
-            .map(|k| pa.contacts[k].scene.get(body).copied().unwrap_or(false))
+        let contacts = starts
+            .iter()
+            .enumerate()
+            .map(|(k, pose)| {
+                let touched = pa.contacts[k].scene.get(body).copied().unwrap_or(false);
+                if !touched {
+                    return Vec::new();
+                }
+                points_near_scene(&world.bodies[body], pose, &world.scene, world.config.contact_threshold)
+                    .into_iter()
+                    .take(cfg.contact_points)
+                    .map(|p| p.index)
+                    .collect()
+            })
             .collect();
         Ok(Self {
             cfg,
@@ -122,7 +132,7 @@ impl<'a> PosesFromVideo<'a> {
             world,
             body,
             starts,
-            touched,
+            contacts,
             tracking: false,
             results: Vec::new(),
         })
@@ -151,7 +161,7 @@ impl<'a> PosesFromVideo<'a> {
             world,
             body,
             starts: vec![first; frames.len()],
-            touched: vec![false; frames.len()],
+            contacts: vec![Vec::new(); frames.len()],
             tracking: true,
             results: Vec::new(),
         })
@@ -182,20 +192,7 @@ impl<'a> PosesFromVideo<'a> {
             None => self.starts[k],
         };
         let start = self.frames[k].centred_on_mask(&start);
-        // PA tells whether the body touches the scene; which points touch is read at the start, GA's own
-        // estimate: PA's touching points, from its pose, pulled a tumbling landing onto the wrong corner (16 mm
-        // off, IoU 0.88, where a fit without the penalty ended 5 mm off).
-        let contacts: Vec<usize> = if self.touched[k] {
-            let body = &self.world.bodies[self.body];
-            points_near_scene(body, &start, &self.world.scene, self.world.config.contact_threshold)
-                .into_iter()
-                .take(self.cfg.contact_points)
-                .map(|p| p.index)
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let in_contact = !contacts.is_empty();
+        let in_contact = !self.contacts[k].is_empty();
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add(k as u64),
             ..self.cfg.pose.clone()
@@ -215,7 +212,7 @@ impl<'a> PosesFromVideo<'a> {
                     fit.with_contact(ContactTerm {
                         body: &self.world.bodies[self.body],
                         scene: &self.world.scene,
-                        points: contacts,
+                        points: self.contacts[k].clone(),
                         cfg: self.cfg.contact.clone(),
                     })
                 } else {
