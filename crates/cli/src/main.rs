@@ -39,6 +39,8 @@ enum Command {
     Target(commands::target::TargetArgs),
     /// A body's pose in every frame of a fixed-camera video and the physics that explains it (first pose, PA, GA, PGA).
     Fit(commands::fit::FitArgs),
+    /// Score a fit against a scene's truth.json: per-frame position, rotation, ADD(-S), silhouette IoU; launch and contact errors; the object's mesh.
+    Eval(commands::eval::EvalArgs),
     /// Recover v0, omega0, k_n and mu of a body from a pose sequence (Eq. 11).
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
@@ -69,6 +71,7 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Target(a) => commands::target::run(a),
         Command::Fit(a) => commands::fit::run(a),
+        Command::Eval(a) => commands::eval::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),
         Command::BenchSim(a) => commands::bench_sim::run(a),
         Command::BenchCompose(a) => commands::bench_compose::run(a),

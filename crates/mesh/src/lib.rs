@@ -21,6 +21,7 @@ pub mod kdtree;
 mod marching_tetrahedra;
 pub mod merge;
 mod mesh_metrics;
+pub mod pose_metrics;
 mod sample_sdf_grid;
 pub mod visibility;
 mod zero_level_points;
@@ -31,5 +32,6 @@ pub use icp::{icp, icp_auto, icp_evaluate, icp_hypotheses, inlier_fraction, IcpC
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
 pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged, PartialSurface};
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
+pub use pose_metrics::{PoseErrors, SurfacePoints};
 pub use sample_sdf_grid::sample_sdf_grid;
 pub use zero_level_points::{values_and_gradients, zero_level_points, BatchSdf};

@@ -2,6 +2,7 @@ pub mod bench_compose;
 pub mod bench_contact;
 pub mod bench_sim;
 pub mod bench_train;
+pub mod eval;
 pub mod fit;
 pub mod fit_physics;
 pub mod mesh_cmds;

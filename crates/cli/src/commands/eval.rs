@@ -1,0 +1,357 @@
+//! `eval`: a fit scored against the truth of a synthetic or evaluation scene.
+//! The fit's body frame (its object's centre of mass, the axes of its
+//! reference capture) is related to the truth's through `object.reference`
+//! (FORMATS.md): `X = T_capture⁻¹ ∘ P_reference` takes fit-body points to
+//! truth-body points, so the fit's pose of the true body is `F ∘ X⁻¹`.
+
+use super::mesh_cmds::world_cameras;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use geom::{coverage_iou, silhouette, Camera, Pose, Quat, TriMesh, Vec3};
+use mesh::SurfacePoints;
+use pganeus_io::{Trajectory, Truth, TruthBody};
+use serde_json::{json, Value};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus eval fits/slide --truth data/tabletop/truth.json
+  pganeus eval fits/drop --truth data/tabletop/truth.json --out fits/drop/eval.json --csv fits/drop/eval.csv")]
+pub struct EvalArgs {
+    /// A fit folder (`trajectory.json` and, when present, the stages' `pa.json`, `ga.json`, `pga.json`), or a
+    /// trajectory file.
+    pub fit: PathBuf,
+    /// The scene's `truth.json` (its video with the fit's capture name is the reference).
+    #[arg(long)]
+    pub truth: PathBuf,
+    /// The truth's video to compare with (default: the trajectory's `capture`).
+    #[arg(long)]
+    pub video: Option<String>,
+    /// Surface points per body for ADD and ADD-S.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+    /// Where to write the scores (default: `eval.json` in the fit folder, or beside the trajectory file).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Per-frame rows as CSV (default: `eval.csv` beside `--out`).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+/// What one body of the fit is measured with.
+struct BodyRef<'a> {
+    truth: &'a TruthBody,
+    /// Fit body frame → truth body frame.
+    to_truth: Pose<f64>,
+    /// Whether the fit said where its body frame sat (else the frames are taken to be the same).
+    related: bool,
+    mesh: TriMesh,
+    points: SurfacePoints,
+}
+
+fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
+    Pose::new(Quat::cst(p.q).normalize_or_identity(), Vec3::cst(p.t))
+}
+
+fn num(v: f64, scale: f64, digits: i32) -> Value {
+    let k = 10f64.powi(digits);
+    json!((v * scale * k).round() / k)
+}
+
+/// The fit body frame → truth body frame map of one body entry (`extra.object.reference`).
+fn relation(entry: &pganeus_io::VideoBody, truth: &TruthBody, file: &Path) -> Result<(Pose<f64>, bool)> {
+    let Some(r) = entry.extra.get("object").and_then(|o| o.get("reference")) else {
+        return Ok((Pose::identity(), false));
+    };
+    let capture = r["capture"].as_str().ok_or_else(|| {
+        anyhow!(
+            "{}: {}: object.reference.capture is not a string",
+            file.display(),
+            entry.name
+        )
+    })?;
+    let pose: pganeus_io::Pose = serde_json::from_value(r["pose"].clone())
+        .map_err(|e| anyhow!("{}: {}: object.reference.pose: {e}", file.display(), entry.name))?;
+    let stat = truth
+        .static_captures
+        .iter()
+        .find(|s| s.capture == capture)
+        .ok_or_else(|| {
+            anyhow!(
+                "{}: body {:?} is expressed in capture {capture:?}, which the truth does not list for it",
+                file.display(),
+                entry.name
+            )
+        })?;
+    Ok((pose_of(&stat.pose).inverse().compose(&pose_of(&pose)), true))
+}
+
+/// Per-frame scores of `fit`'s poses of every body against the truth's video; the rows and a summary per
+/// body.
+fn score_poses(
+    fit: &Trajectory,
+    video: &Trajectory,
+    refs: &[BodyRef],
+    camera: Option<&Camera<f64>>,
+) -> (Vec<Value>, Value) {
+    let mut rows = Vec::new();
+    let mut summary = serde_json::Map::new();
+    for (entry, r) in fit.bodies.iter().zip(refs) {
+        let Some(truth) = video.body(&entry.name) else {
+            continue;
+        };
+        let from_truth = r.to_truth.inverse();
+        let n = entry.poses.len().min(truth.poses.len());
+        let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
+        for k in 0..n {
+            let est = pose_of(&entry.poses[k]).compose(&from_truth);
+            let tru = pose_of(&truth.poses[k]);
+            let e = r.points.errors(&est, &tru);
+            let iou = camera.map(|c| coverage_iou(&silhouette(c, &r.mesh, &est), &silhouette(c, &r.mesh, &tru)));
+            let mut row = json!({"body": entry.name, "frame": k,
+                "position_mm": num(e.position, 1e3, 3), "rotation_deg": num(e.rotation.to_degrees(), 1.0, 3),
+                "add_mm": num(e.add, 1e3, 3), "add_s_mm": num(e.add_s, 1e3, 3)});
+            if let Some(i) = iou {
+                row["silhouette_iou"] = num(i, 1.0, 4);
+                ious.push(i);
+            }
+            // The fit's own image scores, where it wrote them.
+            if let Some(f) = fit.extra.get("frames").and_then(|f| f.get(k)) {
+                for key in ["psnr", "iou", "pose"] {
+                    if let Some(v) = f.get(key) {
+                        row[format!("fit_{key}")] = v.clone();
+                    }
+                }
+            }
+            rows.push(row);
+            pos.push(e.position * 1e3);
+            rot.push(e.rotation.to_degrees());
+            add.push(e.add * 1e3);
+            adds.push(e.add_s * 1e3);
+        }
+        let stat = |v: &[f64]| {
+            let worst = v.iter().cloned().fold(0.0, f64::max);
+            let at = v.iter().position(|&x| x == worst).unwrap_or(0);
+            json!({"mean": num(v.iter().sum::<f64>() / v.len().max(1) as f64, 1.0, 3), "worst": num(worst, 1.0, 3), "worst_frame": at})
+        };
+        let mut s = json!({"frames": n, "position_mm": stat(&pos), "rotation_deg": stat(&rot),
+            "add_mm": stat(&add), "add_s_mm": stat(&adds)});
+        if !ious.is_empty() {
+            let worst = ious.iter().cloned().fold(1.0, f64::min);
+            s["silhouette_iou"] =
+                json!({"mean": num(ious.iter().sum::<f64>() / ious.len() as f64, 1.0, 4), "worst": num(worst, 1.0, 4)});
+        }
+        summary.insert(entry.name.clone(), s);
+    }
+    (rows, Value::Object(summary))
+}
+
+/// Launch and contact errors of the final trajectory (contact values only where the truth's model is the
+/// project's own).
+fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> Value {
+    let mut out = serde_json::Map::new();
+    for (entry, r) in fit.bodies.iter().zip(refs) {
+        let Some(truth) = video.body(&entry.name) else {
+            continue;
+        };
+        // The velocity of the true body's origin: v + ω × (its offset from the fit's origin, in world axes).
+        let offset = pose_of(&entry.poses[0]).q.rotate(r.to_truth.inverse().t);
+        let omega = Vec3::cst(entry.initial.omega);
+        let v = Vec3::cst(entry.initial.v) + omega.cross(offset);
+        let tv = Vec3::cst(truth.initial.v);
+        let dv = (v - tv).norm();
+        let mut e = json!({
+            "v0": v.to_array(), "v0_true": truth.initial.v,
+            "v0_error_m_s": num(dv, 1.0, 4),
+            "v0_error_percent": num(dv / tv.norm().max(1e-9), 100.0, 2),
+            "omega0_error_rad_s": num((omega - Vec3::cst(truth.initial.omega)).norm(), 1.0, 3),
+        });
+        if video.contact.model == "pganeus" {
+            e["restitution"] = json!(fit.contact.restitution);
+            e["restitution_true"] = json!(video.contact.restitution);
+            e["restitution_error"] = num((fit.contact.restitution - video.contact.restitution).abs(), 1.0, 4);
+            e["friction"] = json!(fit.contact.friction);
+            e["friction_true"] = json!(video.contact.friction);
+            e["friction_error"] = num((fit.contact.friction - video.contact.friction).abs(), 1.0, 4);
+        }
+        out.insert(entry.name.clone(), e);
+    }
+    Value::Object(out)
+}
+
+pub fn run(a: EvalArgs) -> Result<()> {
+    let (dir, file) = if a.fit.is_dir() {
+        (a.fit.clone(), a.fit.join("trajectory.json"))
+    } else {
+        (a.fit.parent().unwrap_or(Path::new(".")).to_path_buf(), a.fit.clone())
+    };
+    let fit = pganeus_io::read_trajectory(&file)?;
+    let truth: Truth = pganeus_io::read_truth(&a.truth)?;
+    let truth_dir = a.truth.parent().unwrap_or(Path::new("."));
+    let name = a.video.clone().unwrap_or_else(|| fit.capture.clone());
+    let video = truth.video(&name).ok_or_else(|| {
+        anyhow!(
+            "{}: no video {name:?} (it has {:?}); name it with --video",
+            a.truth.display(),
+            truth.videos.iter().map(|v| &v.capture).collect::<Vec<_>>()
+        )
+    })?;
+    if fit.bodies.is_empty() {
+        bail!("{}: no bodies", file.display());
+    }
+    let mut refs = Vec::new();
+    for entry in &fit.bodies {
+        let tb = truth.body(&entry.name).ok_or_else(|| {
+            anyhow!(
+                "{}: body {:?} is not in {}",
+                file.display(),
+                entry.name,
+                a.truth.display()
+            )
+        })?;
+        if video.body(&entry.name).is_none() {
+            bail!(
+                "{}: body {:?} does not move in video {name:?}",
+                a.truth.display(),
+                entry.name
+            );
+        }
+        let (to_truth, related) = relation(entry, tb, &file)?;
+        let mesh_path = truth_dir.join(&tb.mesh);
+        let mesh = pganeus_io::read_mesh(&mesh_path).with_context(|| format!("the true mesh of {:?}", tb.name))?;
+        if mesh.vertices.iter().flatten().any(|v| !v.is_finite()) {
+            bail!("{}: a vertex is not finite", mesh_path.display());
+        }
+        let points = SurfacePoints::new(&mesh, a.samples, 7);
+        refs.push(BodyRef {
+            truth: tb,
+            to_truth,
+            related,
+            mesh,
+            points,
+        });
+    }
+    // The video's camera, for the silhouettes of the true mesh at the fitted and the true poses.
+    let camera = match pganeus_io::open_capture(&truth_dir.join(&name)) {
+        Ok(c) => world_cameras(&c)?.first().copied(),
+        Err(e) => {
+            tracing::warn!("no silhouette IoU: {e}");
+            None
+        }
+    };
+    let (rows, summary) = score_poses(&fit, video, &refs, camera.as_ref());
+    let mut report = json!({
+        "fit": file, "truth": a.truth, "video": name, "truth_model": video.contact.model,
+        "summary": summary,
+        "parameters": parameter_errors(&fit, video, &refs),
+        "frames": rows,
+    });
+    // The stages' own poses, where the fit folder has them.
+    let mut stages = serde_json::Map::new();
+    for stage in ["pa", "ga", "pga"] {
+        let p = dir.join(format!("{stage}.json"));
+        if a.fit.is_dir() && p.exists() {
+            let t = pganeus_io::read_trajectory(&p)?;
+            let (_, s) = score_poses(&t, video, &refs, camera.as_ref());
+            stages.insert(stage.into(), s);
+        }
+    }
+    if !stages.is_empty() {
+        report["stages"] = Value::Object(stages);
+    }
+    // The object's mesh against the true one, in the true body frame.
+    let mut meshes = serde_json::Map::new();
+    for (entry, r) in fit.bodies.iter().zip(&refs) {
+        let Some(m) = entry.extra.get("object").and_then(|o| o["mesh"].as_str()) else {
+            continue;
+        };
+        let path = dir.join(m);
+        let Ok(mut ours) = pganeus_io::read_mesh(&path) else {
+            tracing::warn!("{}: not readable: no mesh scores for {}", path.display(), entry.name);
+            continue;
+        };
+        for v in &mut ours.vertices {
+            *v = r.to_truth.transform_point(Vec3::cst(*v)).to_array();
+        }
+        let c = mesh::chamfer(&ours, &r.mesh, 20_000, 3);
+        meshes.insert(
+            entry.name.clone(),
+            json!({"chamfer_mean_mm": num(c.mean, 1e3, 3), "chamfer_p95_mm": num(c.p95, 1e3, 3),
+                "volume_iou": num(mesh::volume_iou(&ours, &r.mesh, 200_000, 5), 1.0, 4)}),
+        );
+    }
+    if !meshes.is_empty() {
+        report["meshes"] = Value::Object(meshes);
+    }
+    let unrelated: Vec<&str> = refs
+        .iter()
+        .filter(|r| !r.related)
+        .map(|r| r.truth.name.as_str())
+        .collect();
+    if !unrelated.is_empty() {
+        tracing::warn!("{unrelated:?}: no object.reference in the fit: its body frame is taken to be the truth's");
+        report["frame_assumed_identical"] = json!(unrelated);
+    }
+
+    let out = a.out.clone().unwrap_or_else(|| dir.join("eval.json"));
+    let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
+    let mut csv =
+        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose\n");
+    for r in &rows {
+        let f = |k: &str| match &r[k] {
+            Value::Null => String::new(),
+            Value::String(s) => s.clone(),
+            v => v.to_string(),
+        };
+        writeln!(
+            csv,
+            "{},{},{},{},{},{},{},{},{},{}",
+            f("body"),
+            f("frame"),
+            f("position_mm"),
+            f("rotation_deg"),
+            f("add_mm"),
+            f("add_s_mm"),
+            f("silhouette_iou"),
+            f("fit_iou"),
+            f("fit_psnr"),
+            f("fit_pose")
+        )?;
+    }
+    pganeus_io::write_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    pganeus_io::write_atomic(&csv_path, csv.as_bytes())?;
+    for (body, s) in report["summary"].as_object().into_iter().flatten() {
+        println!(
+            "{body}: position mm mean {} worst {} (frame {}); rotation ° mean {} worst {} (frame {}); ADD mm mean {}; ADD-S mm mean {}{}",
+            s["position_mm"]["mean"],
+            s["position_mm"]["worst"],
+            s["position_mm"]["worst_frame"],
+            s["rotation_deg"]["mean"],
+            s["rotation_deg"]["worst"],
+            s["rotation_deg"]["worst_frame"],
+            s["add_mm"]["mean"],
+            s["add_s_mm"]["mean"],
+            s.get("silhouette_iou")
+                .map(|i| format!("; silhouette IoU mean {} worst {}", i["mean"], i["worst"]))
+                .unwrap_or_default()
+        );
+        let p = &report["parameters"][body];
+        println!(
+            "{body}: v0 off by {} m/s ({} %), omega0 by {} rad/s{}",
+            p["v0_error_m_s"],
+            p["v0_error_percent"],
+            p["omega0_error_rad_s"],
+            if p.get("restitution_error").is_some() {
+                format!(
+                    "; restitution {} (true {}), friction {} (true {})",
+                    p["restitution"], p["restitution_true"], p["friction"], p["friction_true"]
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
+    println!("wrote {} and {}", out.display(), csv_path.display());
+    Ok(())
+}

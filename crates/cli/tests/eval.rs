@@ -1,0 +1,148 @@
+//! `pganeus eval`: the truth scores as zero error, a 4 mm shift as 4 mm, a fit in another body frame is
+//! related through `object.reference`, and bad inputs are refused.
+
+use geom::{Pose, Quat, Vec3};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pganeus"))
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// The tabletop preset at 64×48 with four frames per video.
+fn dataset(d: &Path) -> PathBuf {
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 64", 1)
+        .replacen("height = 120", "height = 48", 1)
+        .replacen("views = 24", "views = 3", 1)
+        .replace("frames = 30", "frames = 4");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let o = bin()
+        .args(["synth", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(d.join("data"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    d.join("data")
+}
+
+fn pose(p: &Value) -> Pose<f64> {
+    let a = |v: &Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
+    let (t, q) = (a(&p["t"]), a(&p["q"]));
+    Pose::new(Quat::new(q[0], q[1], q[2], q[3]), Vec3::new(t[0], t[1], t[2]))
+}
+
+fn put(p: &Pose<f64>) -> Value {
+    json!({"t": p.t.to_array(), "q": p.q.to_array_re()})
+}
+
+/// Evaluate `fit` (a trajectory file) and return eval.json.
+fn eval(fit: &Value, dir: &Path, truth: &Path) -> Value {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("trajectory.json"), fit.to_string()).unwrap();
+    let o = bin().arg("eval").arg(dir).arg("--truth").arg(truth).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.join("eval.csv").exists());
+    serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
+    let d = testkit::scratch_dir("cli", "eval");
+    let data = dataset(&d);
+    let truth_path = data.join("truth.json");
+    let truth: Value = serde_json::from_str(&std::fs::read_to_string(&truth_path).unwrap()).unwrap();
+    let video = truth["videos"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["capture"] == "drop")
+        .unwrap()
+        .clone();
+    let toy_b = pose(&truth["bodies"][0]["static_captures"][1]["pose"]);
+    assert_eq!(truth["bodies"][0]["static_captures"][1]["capture"], "toy_b");
+
+    // The truth itself, its body frame said to sit where the truth's stood in toy_b.
+    let mut fit = video.clone();
+    fit["bodies"][0]["object"] = json!({"mesh": "none.ply", "reference": {"capture": "toy_b", "pose": put(&toy_b)}});
+    let r = eval(&fit, &d.join("same"), &truth_path);
+    let s = &r["summary"]["toy"];
+    for k in ["position_mm", "rotation_deg", "add_mm", "add_s_mm"] {
+        assert_eq!(s[k]["worst"].as_f64().unwrap(), 0.0, "{k}: {s}");
+    }
+    assert_eq!(s["silhouette_iou"]["worst"].as_f64().unwrap(), 1.0, "{s}");
+    assert_eq!(r["parameters"]["toy"]["v0_error_m_s"].as_f64().unwrap(), 0.0);
+    assert_eq!(r["parameters"]["toy"]["restitution_error"].as_f64().unwrap(), 0.0);
+
+    // Every pose 4 mm off: 4 mm in position and ADD, a silhouette IoU below 1.
+    let mut shifted = fit.clone();
+    for p in shifted["bodies"][0]["poses"].as_array_mut().unwrap() {
+        let moved = pose(p);
+        *p = put(&Pose::new(moved.q, moved.t + Vec3::new(0.0, 0.0024, 0.0032)));
+    }
+    let r = eval(&shifted, &d.join("shifted"), &truth_path);
+    let s = &r["summary"]["toy"];
+    for k in ["position_mm", "add_mm"] {
+        for m in ["mean", "worst"] {
+            assert!((s[k][m].as_f64().unwrap() - 4.0).abs() < 1e-3, "{k} {m}: {s}");
+        }
+    }
+    assert!(s["add_s_mm"]["mean"].as_f64().unwrap() <= 4.0 + 1e-3, "{s}");
+    assert!(s["silhouette_iou"]["worst"].as_f64().unwrap() < 0.99, "{s}");
+
+    // The same motion in another body frame (origin 7 mm off, axes turned): related through
+    // object.reference, it scores as zero again.
+    let y = Pose::new(Quat::exp(Vec3::new(0.3, -0.2, 1.1)), Vec3::new(0.004, -0.003, 0.005));
+    let mut other = fit.clone();
+    other["bodies"][0]["object"]["reference"]["pose"] = put(&toy_b.compose(&y));
+    for p in other["bodies"][0]["poses"].as_array_mut().unwrap() {
+        *p = put(&pose(p).compose(&y));
+    }
+    let r = eval(&other, &d.join("other"), &truth_path);
+    let s = &r["summary"]["toy"];
+    for k in ["position_mm", "rotation_deg", "add_mm"] {
+        assert!(s[k]["worst"].as_f64().unwrap() < 1e-3, "{k}: {s}");
+    }
+
+    // Refused, each naming the problem: a video the truth does not have, a body it does not have.
+    let mut wrong = fit.clone();
+    wrong["capture"] = json!("nothing");
+    std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();
+    let o = bin()
+        .arg("eval")
+        .arg(d.join("same"))
+        .arg("--truth")
+        .arg(&truth_path)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && text(&o).contains("no video \"nothing\""),
+        "{}",
+        text(&o)
+    );
+    let mut wrong = fit.clone();
+    wrong["bodies"][0]["name"] = json!("ghost");
+    std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();
+    let o = bin()
+        .arg("eval")
+        .arg(d.join("same"))
+        .arg("--truth")
+        .arg(&truth_path)
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && text(&o).contains("\"ghost\""), "{}", text(&o));
+    let _ = std::fs::remove_dir_all(&d);
+}
