@@ -23,6 +23,6 @@ pub use physics_from_video::{
     PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsResult, VideoPhysicsStats,
 };
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
-pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError};
+pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use video_fit::VideoFitConfig;

@@ -172,6 +172,28 @@ impl<'a> PoseFromImage<'a> {
         (0..self.cfg.iterations).map(|_| self.step()).collect()
     }
 
+    /// The pixels this fit renders around the mask and the body at its current pose, `[x0, y0, x1, y1]`.
+    pub fn window(&self) -> Option<[u32; 4]> {
+        self.frame.window(self.object, &self.pose, self.cfg.weights.margin_px)
+    }
+
+    /// The image terms (no gradient) at the current pose on `count` random pixels of `window` drawn with
+    /// `seed`: fits of one frame from other starts scored on the same pixels are compared fairly.
+    pub fn score(&mut self, window: [u32; 4], count: usize, seed: u64) -> ImageLoss {
+        let pixels = self.frame.pixels(window, count, &mut SplitMix64::new(seed));
+        self.frame
+            .loss(
+                &mut self.composer,
+                self.object,
+                self.scene,
+                &self.pose,
+                &pixels,
+                &self.cfg.weights,
+                false,
+            )
+            .0
+    }
+
     /// The image terms over every pixel around the mask and the body at the current pose.
     pub fn evaluate(&mut self) -> ImageLoss {
         self.frame.evaluate(

@@ -11,11 +11,11 @@
 use crate::contact_penalty::{ContactPenaltyConfig, ContactTerm};
 use crate::image_loss::{FrameTarget, ImageLoss};
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
-use geom::Pose;
+use geom::{Pose, Vec3};
 use neus::compose::ComposedRay;
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
-use sim::{points_near_scene, Trajectory, World};
+use sim::{points_near_scene, BodyState, Trajectory, World};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -27,6 +27,20 @@ pub struct PosesFromVideoConfig {
     pub contact: ContactPenaltyConfig,
     /// At most this many of PA's contact points per frame (the deepest). Default 16.
     pub contact_points: usize,
+    /// Besides PA's pose, start each frame from the previous fitted frames too: carried on at their pace,
+    /// and moved one frame on by the simulator from the last one (a bounce). Where they differ from PA's
+    /// start, each is fitted for a share of the steps, scored on the same pixels, and the best goes on.
+    /// PA's start alone follows PA's simulation where it lost the body (a tumbling landing: 90° off for
+    /// the rest of the video); the others follow the images. Default true.
+    pub hypotheses: bool,
+    /// The share of the steps each start gets before the best is chosen. Default 0.3.
+    pub screen_fraction: f64,
+    /// Starts that are not a trusted PA pose (from the previous frames, or PA's where it lost the body) take
+    /// steps up to this many times larger, in proportion to how fast the body moved over the last frame
+    /// (full at 15° or 15 mm): a tumbling body turns 15–30° a frame and its next pose is a rough guess,
+    /// while from 40 steps of 0.01 rad decaying tenfold a fit moves at most about 9°; a body at rest keeps
+    /// GA's small steps (with large ones its resting pose wandered by 5–10°). Default 3.
+    pub wide_step_scale: f64,
 }
 
 impl Default for PosesFromVideoConfig {
@@ -40,6 +54,9 @@ impl Default for PosesFromVideoConfig {
             },
             contact: ContactPenaltyConfig::default(),
             contact_points: 16,
+            hypotheses: true,
+            screen_fraction: 0.3,
+            wide_step_scale: 3.0,
         }
     }
 }
@@ -65,7 +82,48 @@ pub struct FramePose {
     pub in_contact: bool,
     /// False when the frame's mask was empty: the pose is PA's.
     pub fitted: bool,
+    /// Where the fit that won started.
+    pub start: StartFrom,
 }
+
+/// Where a frame's pose fit started.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartFrom {
+    /// PA's pose moved by the previous frame's correction (or, tracking, the previous frames carried on).
+    Physics,
+    /// The previous fitted frames carried on at their pace.
+    Tracked,
+    /// The last fitted frame moved one frame on by the simulator, at the pace of the last two.
+    Simulated,
+}
+
+impl StartFrom {
+    pub fn name(self) -> &'static str {
+        match self {
+            StartFrom::Physics => "physics",
+            StartFrom::Tracked => "tracked",
+            StartFrom::Simulated => "simulated",
+        }
+    }
+}
+
+/// A start for one frame's fit and the contact points its penalty holds.
+struct Start {
+    pose: Pose<f64>,
+    contacts: Vec<usize>,
+    from: StartFrom,
+    /// Far from a converged PA's pose: larger steps.
+    wide: bool,
+}
+
+/// Starts closer than this (m, rad) to an earlier one are not fitted again.
+const SAME_START: (f64, f64) = (0.0015, 0.035);
+/// PA's touching points hold in a frame whose start is within this (m, rad) of PA's pose: a body's size
+/// and a turn that keeps the same face down.
+const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
+/// Another start replaces PA's only with a score this much lower (a share of PA's score).
+const SWITCH_MARGIN: f64 = 0.1;
 
 /// The stage.
 pub struct PosesFromVideo<'a> {
@@ -172,13 +230,21 @@ impl<'a> PosesFromVideo<'a> {
         self.results.len() == self.frames.len()
     }
 
-    /// Fit the next frame; its outcome (`None` once every frame is done).
-    pub fn step(&mut self) -> Result<Option<&FramePose>, PosesFromVideoError> {
-        let k = self.results.len();
-        if k == self.frames.len() {
-            return Ok(None);
-        }
-        let start = match self.results.last() {
+    /// The contact points of the body near the scene at `pose` (the penalty of a start that is not PA's).
+    fn touching(&self, pose: &Pose<f64>) -> Vec<usize> {
+        let w = self.world;
+        points_near_scene(&w.bodies[self.body], pose, &w.scene, w.config.contact_threshold)
+            .into_iter()
+            .take(self.cfg.contact_points)
+            .map(|p| p.index)
+            .collect()
+    }
+
+    /// The starts of frame `k`: PA's (or, tracking, the carried-on one) first, then with `hypotheses` the
+    /// ones from the previous fitted frames that differ from it.
+    fn starts_of(&self, k: usize) -> Vec<Start> {
+        let frame = &self.frames[k];
+        let physics = match self.results.last() {
             Some(prev) if self.tracking && k >= 2 => carried_on(&self.results[k - 2].pose, &prev.pose),
             // The previous frame's correction: p_GA = R_c p_PA + … , carried over.
             Some(prev) => {
@@ -191,42 +257,173 @@ impl<'a> PosesFromVideo<'a> {
             }
             None => self.starts[k],
         };
-        let start = self.frames[k].centred_on_mask(&start);
-        let in_contact = !self.contacts[k].is_empty();
+        let physics = frame.centred_on_mask(&physics);
+        // PA's touching points name points of the body: where the images put the body far from PA's pose
+        // (PA lost it: a tumble that went another way), they are the wrong points, and the penalty would pin
+        // a wrong face to the board; the points touching at the start are used instead.
+        let pa = &self.starts[k];
+        let trusted = self.tracking
+            || ((physics.t - pa.t).norm() <= PA_TRUSTED.0 && geom::rotation_distance(physics.q, pa.q) <= PA_TRUSTED.1);
+        let mut out = vec![Start {
+            pose: physics,
+            contacts: if trusted {
+                self.contacts[k].clone()
+            } else {
+                self.touching(&physics)
+            },
+            from: StartFrom::Physics,
+            wide: !trusted,
+        }];
+        if !self.cfg.hypotheses || self.tracking || k < 2 {
+            return out;
+        }
+        let (a, b) = (&self.results[k - 2], &self.results[k - 1]);
+        if !(a.fitted && b.fitted) {
+            return out;
+        }
+        let add = |pose: Pose<f64>, from: StartFrom, out: &mut Vec<Start>| {
+            let pose = frame.centred_on_mask(&pose);
+            let new = out.iter().all(|s| {
+                (s.pose.t - pose.t).norm() > SAME_START.0 || geom::rotation_distance(s.pose.q, pose.q) > SAME_START.1
+            });
+            if new {
+                out.push(Start {
+                    contacts: self.touching(&pose),
+                    pose,
+                    from,
+                    wide: true,
+                });
+            }
+        };
+        add(carried_on(&a.pose, &b.pose), StartFrom::Tracked, &mut out);
+        add(self.one_frame_on(&a.pose, &b.pose), StartFrom::Simulated, &mut out);
+        out
+    }
+
+    /// The step scale of a wide start in frame `k`: 1 for a body that stood still over the last fitted
+    /// frames, up to `wide_step_scale` for one that turned 15° or moved 15 mm.
+    fn wide_scale(&self, k: usize) -> f64 {
+        let pace = match k {
+            0 | 1 => 1.0,
+            _ => {
+                let (a, b) = (&self.results[k - 2].pose, &self.results[k - 1].pose);
+                let turn = geom::rotation_distance(a.q, b.q) / 15f64.to_radians();
+                let moved = (b.t - a.t).norm() / 0.015;
+                turn.max(moved).min(1.0)
+            }
+        };
+        1.0 + (self.cfg.wide_step_scale - 1.0).max(0.0) * pace
+    }
+
+    /// The body at `b` moved one frame on by the simulator (PA's contact values), at the pace from `a` to
+    /// `b` (one frame apart): the mid-frame velocity plus half a frame of gravity, the mean turn rate.
+    fn one_frame_on(&self, a: &Pose<f64>, b: &Pose<f64>) -> Pose<f64> {
+        let mut w = self.world.clone();
+        let fps = w.config.fps;
+        let dt = 1.0 / fps;
+        let g = Vec3::cst(w.config.gravity);
+        let v = (b.t - a.t) * fps + g * (0.5 * dt);
+        let omega = (b.q * a.q.conj()).normalize_or_identity().log() * fps;
+        w.config.frames = 2;
+        w.initial[self.body] = BodyState::new(b.t.to_array(), b.q.to_array_re(), v.to_array(), omega.to_array());
+        let traj = w.simulate(&w.params());
+        traj.frames[1][self.body].pose
+    }
+
+    /// Fit the next frame; its outcome (`None` once every frame is done).
+    pub fn step(&mut self) -> Result<Option<&FramePose>, PosesFromVideoError> {
+        let k = self.results.len();
+        if k == self.frames.len() {
+            return Ok(None);
+        }
+        let starts = self.starts_of(k);
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add(k as u64),
             ..self.cfg.pose.clone()
         };
-        let fit = PoseFromImage::new(cfg, self.object, self.scene, &self.frames[k], start);
-        let result = match fit {
-            Err(PoseFitError::EmptyMask) => FramePose {
-                pose: start,
-                image: ImageLoss::default(),
-                contact_penalty: 0.0,
-                in_contact,
-                fitted: false,
-            },
-            Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
-            Ok(fit) => {
-                let mut fit = if in_contact {
-                    fit.with_contact(ContactTerm {
-                        body: &self.world.bodies[self.body],
-                        scene: &self.world.scene,
-                        points: self.contacts[k].clone(),
-                        cfg: self.cfg.contact.clone(),
-                    })
-                } else {
-                    fit
-                };
-                fit.run();
-                FramePose {
-                    pose: fit.pose,
-                    image: fit.evaluate(),
-                    contact_penalty: fit.contact_penalty(),
-                    in_contact,
-                    fitted: true,
+        let mut fits = Vec::with_capacity(starts.len());
+        for s in &starts {
+            let scale = if s.wide { self.wide_scale(k) } else { 1.0 };
+            let cfg_s = PoseFitConfig {
+                lr_translation: cfg.lr_translation * scale,
+                lr_rotation: cfg.lr_rotation * scale,
+                ..cfg.clone()
+            };
+            let fit = match PoseFromImage::new(cfg_s, self.object, self.scene, &self.frames[k], s.pose) {
+                Err(PoseFitError::EmptyMask) => {
+                    let first = &starts[0];
+                    self.results.push(FramePose {
+                        pose: first.pose,
+                        image: ImageLoss::default(),
+                        contact_penalty: 0.0,
+                        in_contact: !first.contacts.is_empty(),
+                        fitted: false,
+                        start: first.from,
+                    });
+                    return Ok(self.results.last());
+                }
+                Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
+                Ok(fit) => fit,
+            };
+            fits.push(if s.contacts.is_empty() {
+                fit
+            } else {
+                fit.with_contact(ContactTerm {
+                    body: &self.world.bodies[self.body],
+                    scene: &self.world.scene,
+                    points: s.contacts.clone(),
+                    cfg: self.cfg.contact.clone(),
+                })
+            });
+        }
+        let mut best = 0;
+        if fits.len() > 1 {
+            // Each start a share of the steps, then all scored on the same pixels of their windows' union.
+            let screen = ((cfg.iterations as f64 * self.cfg.screen_fraction).ceil() as usize).clamp(1, cfg.iterations);
+            let mut window: Option<[u32; 4]> = None;
+            for f in &mut fits {
+                for _ in 0..screen {
+                    f.step();
+                }
+                if let Some(w) = f.window() {
+                    window = Some(match window {
+                        None => w,
+                        Some(u) => [u[0].min(w[0]), u[1].min(w[1]), u[2].max(w[2]), u[3].max(w[3])],
+                    });
                 }
             }
+            if let Some(window) = window {
+                let seed = cfg.seed ^ 0x9e37_79b9_7f4a_7c15;
+                let scores: Vec<f64> = fits
+                    .iter_mut()
+                    .map(|f| f.score(window, cfg.rays_per_step.max(256) * 2, seed).loss)
+                    .collect();
+                // Another start must beat a trusted PA's clearly: on a small body, depth moves the score
+                // little, and a near tie is noise in the pixel batch, not a lost track. Where PA lost the body
+                // its start is one guess among the others.
+                let margin = if starts[0].wide { 0.0 } else { SWITCH_MARGIN };
+                let other = (1..fits.len())
+                    .min_by(|&i, &j| scores[i].total_cmp(&scores[j]))
+                    .unwrap_or(0);
+                if scores[other] < scores[0] * (1.0 - margin) {
+                    best = other;
+                }
+            }
+            let f = &mut fits[best];
+            for _ in screen..cfg.iterations {
+                f.step();
+            }
+        } else {
+            fits[0].run();
+        }
+        let fit = &mut fits[best];
+        let result = FramePose {
+            pose: fit.pose,
+            image: fit.evaluate(),
+            contact_penalty: fit.contact_penalty(),
+            in_contact: !starts[best].contacts.is_empty(),
+            fitted: true,
+            start: starts[best].from,
         };
         self.results.push(result);
         Ok(self.results.last())
