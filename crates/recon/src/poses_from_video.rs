@@ -4,7 +4,10 @@
 //! of frame k moved by the correction GA made to frame k − 1 (PA's errors
 //! grow smoothly along the video, so the last correction is the best guess of
 //! the next; from PA's pose alone, a launch 15 % slow left the last frames
-//! 2–4 cm away, too far for small steps). One frame per
+//! 2–4 cm away, too far for small steps). Where PA lost the body, frames also
+//! start from the images' own track (the last frames carried on, or moved on
+//! by the simulator), and a pass back over the video refits the frames
+//! explained worst from the frames after them. One frame per
 //! [`PosesFromVideo::step`]; frames whose mask is empty keep their start and
 //! say so.
 
@@ -96,6 +99,8 @@ pub enum StartFrom {
     Tracked,
     /// The last fitted frame moved one frame on by the simulator, at the pace of the last two.
     Simulated,
+    /// The pass back over the video: the next two fitted frames carried back at their pace.
+    Backward,
 }
 
 impl StartFrom {
@@ -104,6 +109,7 @@ impl StartFrom {
             StartFrom::Physics => "physics",
             StartFrom::Tracked => "tracked",
             StartFrom::Simulated => "simulated",
+            StartFrom::Backward => "backward",
         }
     }
 }
@@ -122,6 +128,8 @@ const SAME_START: (f64, f64) = (0.0015, 0.035);
 /// PA's touching points hold in a frame whose start is within this (m, rad) of PA's pose: a body's size
 /// and a turn that keeps the same face down.
 const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
+/// The pass back revisits frames whose image loss is over this many times the median frame's.
+const BACKWARD_LOSS_RATIO: f64 = 1.5;
 /// Another start replaces PA's only with a score this much lower (a share of PA's score).
 const SWITCH_MARGIN: f64 = 0.1;
 
@@ -138,6 +146,8 @@ pub struct PosesFromVideo<'a> {
     /// Without PA: starts carried on at the pace of the last two fitted frames.
     tracking: bool,
     pub results: Vec<FramePose>,
+    /// The pass back over the video (with `hypotheses`): the frames left to revisit, last first.
+    backward: Vec<usize>,
 }
 
 /// The pose after `b` at the pace from `a` to `b` (constant velocity and spin).
@@ -193,6 +203,7 @@ impl<'a> PosesFromVideo<'a> {
             contacts,
             tracking: false,
             results: Vec::new(),
+            backward: Vec::new(),
         })
     }
 
@@ -222,12 +233,106 @@ impl<'a> PosesFromVideo<'a> {
             contacts: vec![Vec::new(); frames.len()],
             tracking: true,
             results: Vec::new(),
+            backward: Vec::new(),
         })
     }
 
-    /// Whether every frame is done.
+    /// Whether every frame is done (and, with `hypotheses`, the pass back over the poorly explained ones).
     pub fn done(&self) -> bool {
-        self.results.len() == self.frames.len()
+        self.results.len() == self.frames.len() && self.backward.is_empty()
+    }
+
+    /// Steps left: frames to fit, then frames to revisit (a bound for progress bars).
+    pub fn steps_left(&self) -> usize {
+        let left = self.frames.len() - self.results.len();
+        let back = if self.cfg.hypotheses && !self.tracking && left > 0 {
+            self.frames.len().saturating_sub(1)
+        } else {
+            self.backward.len()
+        };
+        left + back
+    }
+
+    /// The frames the pass back revisits, last first: fitted, with an image loss over
+    /// [`BACKWARD_LOSS_RATIO`] times the median fitted frame's (a bounce the forward starts missed).
+    fn frames_to_revisit(&self) -> Vec<usize> {
+        let mut losses: Vec<f64> = self.results.iter().filter(|r| r.fitted).map(|r| r.image.loss).collect();
+        if losses.is_empty() {
+            return Vec::new();
+        }
+        losses.sort_by(f64::total_cmp);
+        let median = losses[losses.len() / 2];
+        let n = self.results.len();
+        (0..n.saturating_sub(1))
+            .filter(|&k| {
+                let r = &self.results[k];
+                r.fitted && self.results[k + 1].fitted && r.image.loss > BACKWARD_LOSS_RATIO * median
+            })
+            .collect()
+    }
+
+    /// Frame `k` fitted again from the next two frames carried back; kept if it explains the image better.
+    fn revisit(&mut self, k: usize) -> Result<(), PosesFromVideoError> {
+        let n = self.results.len();
+        let next = self.results[k + 1].pose;
+        let start = if k + 2 < n && self.results[k + 2].fitted {
+            carried_on(&self.results[k + 2].pose, &next)
+        } else {
+            next
+        };
+        let start = self.frames[k].centred_on_mask(&start);
+        let now = self.results[k].pose;
+        if (start.t - now.t).norm() <= SAME_START.0 && geom::rotation_distance(start.q, now.q) <= SAME_START.1 {
+            return Ok(());
+        }
+        let pace = {
+            let b = if k + 2 < n { self.results[k + 2].pose } else { next };
+            let turn = geom::rotation_distance(next.q, b.q) / 15f64.to_radians();
+            turn.max((b.t - next.t).norm() / 0.015).min(1.0)
+        };
+        let scale = 1.0 + (self.cfg.wide_step_scale - 1.0).max(0.0) * pace;
+        let cfg = PoseFitConfig {
+            seed: self.cfg.pose.seed.wrapping_add((n + k) as u64),
+            lr_translation: self.cfg.pose.lr_translation * scale,
+            lr_rotation: self.cfg.pose.lr_rotation * scale,
+            ..self.cfg.pose.clone()
+        };
+        let frame = &self.frames[k];
+        let contacts = self.touching(&start);
+        let term = |points: Vec<usize>| ContactTerm {
+            body: &self.world.bodies[self.body],
+            scene: &self.world.scene,
+            points,
+            cfg: self.cfg.contact.clone(),
+        };
+        let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
+            .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?;
+        let mut new = if contacts.is_empty() {
+            new
+        } else {
+            new.with_contact(term(contacts.clone()))
+        };
+        new.run();
+        let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, now)
+            .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?;
+        let window = match (new.window(), old.window()) {
+            (Some(a), Some(b)) => [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])],
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => return Ok(()),
+        };
+        let seed = cfg.seed ^ 0x9e37_79b9_7f4a_7c15;
+        let count = cfg.rays_per_step.max(256) * 2;
+        if new.score(window, count, seed).loss < old.score(window, count, seed).loss {
+            self.results[k] = FramePose {
+                pose: new.pose,
+                image: new.evaluate(),
+                contact_penalty: new.contact_penalty(),
+                in_contact: !contacts.is_empty(),
+                fitted: true,
+                start: StartFrom::Backward,
+            };
+        }
+        Ok(())
     }
 
     /// The contact points of the body near the scene at `pose` (the penalty of a start that is not PA's).
@@ -334,7 +439,13 @@ impl<'a> PosesFromVideo<'a> {
     pub fn step(&mut self) -> Result<Option<&FramePose>, PosesFromVideoError> {
         let k = self.results.len();
         if k == self.frames.len() {
-            return Ok(None);
+            return match self.backward.pop() {
+                Some(j) => {
+                    self.revisit(j)?;
+                    Ok(Some(&self.results[j]))
+                }
+                None => Ok(None),
+            };
         }
         let starts = self.starts_of(k);
         let cfg = PoseFitConfig {
@@ -426,6 +537,10 @@ impl<'a> PosesFromVideo<'a> {
             start: starts[best].from,
         };
         self.results.push(result);
+        if self.results.len() == self.frames.len() && self.cfg.hypotheses && !self.tracking {
+            // Popped from the end: the last frames first, so each revisit starts from revisited ones.
+            self.backward = self.frames_to_revisit();
+        }
         Ok(self.results.last())
     }
 
