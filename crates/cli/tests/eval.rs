@@ -118,31 +118,22 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     }
 
     // Refused, each naming the problem: a video the truth does not have, a body it does not have.
+    let refused = |wrong: &Value, needle: &str| {
+        std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();
+        let o = bin()
+            .arg("eval")
+            .arg(d.join("same"))
+            .arg("--truth")
+            .arg(&truth_path)
+            .output()
+            .unwrap();
+        assert!(!o.status.success() && text(&o).contains(needle), "{}", text(&o));
+    };
     let mut wrong = fit.clone();
     wrong["capture"] = json!("nothing");
-    std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();
-    let o = bin()
-        .arg("eval")
-        .arg(d.join("same"))
-        .arg("--truth")
-        .arg(&truth_path)
-        .output()
-        .unwrap();
-    assert!(
-        !o.status.success() && text(&o).contains("no video \"nothing\""),
-        "{}",
-        text(&o)
-    );
+    refused(&wrong, "no video \"nothing\"");
     let mut wrong = fit.clone();
     wrong["bodies"][0]["name"] = json!("ghost");
-    std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();
-    let o = bin()
-        .arg("eval")
-        .arg(d.join("same"))
-        .arg("--truth")
-        .arg(&truth_path)
-        .output()
-        .unwrap();
-    assert!(!o.status.success() && text(&o).contains("\"ghost\""), "{}", text(&o));
+    refused(&wrong, "\"ghost\"");
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -125,6 +125,22 @@ struct Start {
 
 /// Starts closer than this (m, rad) to an earlier one are not fitted again.
 const SAME_START: (f64, f64) = (0.0015, 0.035);
+/// Whether two starts are close enough that the second need not be fitted ([`SAME_START`]).
+fn same_start(a: &Pose<f64>, b: &Pose<f64>) -> bool {
+    (a.t - b.t).norm() <= SAME_START.0 && geom::rotation_distance(a.q, b.q) <= SAME_START.1
+}
+
+/// How fast the body moved from `a` to `b` (one frame apart), 0–1: full at 15° or 15 mm.
+fn pace(a: &Pose<f64>, b: &Pose<f64>) -> f64 {
+    let turn = geom::rotation_distance(a.q, b.q) / 15f64.to_radians();
+    turn.max((b.t - a.t).norm() / 0.015).min(1.0)
+}
+
+/// The smallest window holding both.
+fn union(a: [u32; 4], b: [u32; 4]) -> [u32; 4] {
+    [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+}
+
 /// PA's touching points hold in a frame whose start is within this (m, rad) of PA's pose: a body's size
 /// and a turn that keeps the same face down.
 const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
@@ -282,15 +298,11 @@ impl<'a> PosesFromVideo<'a> {
         };
         let start = self.frames[k].centred_on_mask(&start);
         let now = self.results[k].pose;
-        if (start.t - now.t).norm() <= SAME_START.0 && geom::rotation_distance(start.q, now.q) <= SAME_START.1 {
+        if same_start(&start, &now) {
             return Ok(());
         }
-        let pace = {
-            let b = if k + 2 < n { self.results[k + 2].pose } else { next };
-            let turn = geom::rotation_distance(next.q, b.q) / 15f64.to_radians();
-            turn.max((b.t - next.t).norm() / 0.015).min(1.0)
-        };
-        let scale = 1.0 + (self.cfg.wide_step_scale - 1.0).max(0.0) * pace;
+        let after = if k + 2 < n { self.results[k + 2].pose } else { next };
+        let scale = self.step_scale(pace(&next, &after));
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add((n + k) as u64),
             lr_translation: self.cfg.pose.lr_translation * scale,
@@ -316,7 +328,7 @@ impl<'a> PosesFromVideo<'a> {
         let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, now)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?;
         let window = match (new.window(), old.window()) {
-            (Some(a), Some(b)) => [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])],
+            (Some(a), Some(b)) => union(a, b),
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => return Ok(()),
         };
@@ -388,10 +400,7 @@ impl<'a> PosesFromVideo<'a> {
         }
         let add = |pose: Pose<f64>, from: StartFrom, out: &mut Vec<Start>| {
             let pose = frame.centred_on_mask(&pose);
-            let new = out.iter().all(|s| {
-                (s.pose.t - pose.t).norm() > SAME_START.0 || geom::rotation_distance(s.pose.q, pose.q) > SAME_START.1
-            });
-            if new {
+            if !out.iter().any(|s| same_start(&s.pose, &pose)) {
                 out.push(Start {
                     contacts: self.touching(&pose),
                     pose,
@@ -408,16 +417,16 @@ impl<'a> PosesFromVideo<'a> {
     /// The step scale of a wide start in frame `k`: 1 for a body that stood still over the last fitted
     /// frames, up to `wide_step_scale` for one that turned 15° or moved 15 mm.
     fn wide_scale(&self, k: usize) -> f64 {
-        let pace = match k {
+        let p = match k {
             0 | 1 => 1.0,
-            _ => {
-                let (a, b) = (&self.results[k - 2].pose, &self.results[k - 1].pose);
-                let turn = geom::rotation_distance(a.q, b.q) / 15f64.to_radians();
-                let moved = (b.t - a.t).norm() / 0.015;
-                turn.max(moved).min(1.0)
-            }
+            _ => pace(&self.results[k - 2].pose, &self.results[k - 1].pose),
         };
-        1.0 + (self.cfg.wide_step_scale - 1.0).max(0.0) * pace
+        self.step_scale(p)
+    }
+
+    /// The step scale at pace `p` (0–1).
+    fn step_scale(&self, p: f64) -> f64 {
+        1.0 + (self.cfg.wide_step_scale - 1.0).max(0.0) * p
     }
 
     /// The body at `b` moved one frame on by the simulator (PA's contact values), at the pace from `a` to
@@ -497,10 +506,7 @@ impl<'a> PosesFromVideo<'a> {
                     f.step();
                 }
                 if let Some(w) = f.window() {
-                    window = Some(match window {
-                        None => w,
-                        Some(u) => [u[0].min(w[0]), u[1].min(w[1]), u[2].max(w[2]), u[3].max(w[3])],
-                    });
+                    window = Some(window.map_or(w, |u| union(u, w)));
                 }
             }
             if let Some(window) = window {
