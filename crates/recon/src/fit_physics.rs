@@ -11,7 +11,7 @@
 use crate::least_squares::{lm_step, Bounds, Linearization};
 use geom::{Pose, Quat};
 use serde::{Deserialize, Serialize};
-use sim::{simulate_with_gradients, World};
+use sim::{simulate_with_gradients, World, BODY_PARAMS};
 
 /// Settings of the physics fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -30,6 +30,13 @@ pub struct PhysicsFitConfig {
     pub fit_restitution: bool,
     /// Fit mu against the scene. Default true.
     pub fit_friction: bool,
+    /// With several bodies: one k_n and one mu against the scene for all of them (one board), not one per
+    /// body. Default true.
+    pub share_scene_contact: bool,
+    /// With several bodies: fit each pair's restitution. Default true.
+    pub fit_pair_restitution: bool,
+    /// With several bodies: fit each pair's friction. Default true.
+    pub fit_pair_friction: bool,
     /// Also refine the initial pose (otherwise it is the first observed pose). Default false.
     pub fit_initial_pose: bool,
     /// The last window (the whole sequence) is done when an accepted step
@@ -61,6 +68,9 @@ impl Default for PhysicsFitConfig {
             fit_angular_velocity: true,
             fit_restitution: true,
             fit_friction: true,
+            share_scene_contact: true,
+            fit_pair_restitution: true,
+            fit_pair_friction: true,
             fit_initial_pose: false,
             tolerance: 1e-6,
             window_tolerance: 1e-3,
@@ -111,15 +121,37 @@ pub struct PoseError {
     pub rotation_deg: f64,
 }
 
+/// One body's observed poses (one per frame, frame 0 first) and their weights (default 1), for a fit of
+/// several bodies at once.
+#[derive(Clone, Debug)]
+pub struct Observed {
+    pub body: usize,
+    pub poses: Vec<Pose<f64>>,
+    pub weights: Option<Vec<f64>>,
+}
+
+/// A fitted value and the parameters of the world it sets (several when tied: one scene friction shared
+/// by every body).
+#[derive(Clone, Debug)]
+struct Unknown {
+    members: Vec<usize>,
+    /// The pattern search's first step ([`probe_scale`]).
+    probe: f64,
+}
+
 /// The fit as a stage: `new`, then `step()` until `converged`.
 pub struct PhysicsFit {
     cfg: PhysicsFitConfig,
     world: World,
-    body: usize,
-    poses: Vec<Pose<f64>>,
-    weights: Vec<f64>,
+    /// The observed bodies, their poses and weights (every body the same number of frames).
+    bodies: Vec<usize>,
+    poses: Vec<Vec<Pose<f64>>>,
+    weights: Vec<Vec<f64>>,
+    frames: usize,
     params: Vec<f64>,
-    wrt: Vec<usize>,
+    unknowns: Vec<Unknown>,
+    /// Every member of every unknown: the Jacobian's columns.
+    columns: Vec<usize>,
     bounds: Bounds,
     lambda: f64,
     loss: f64,
@@ -153,32 +185,62 @@ impl PhysicsFit {
     /// initial pose is replaced by `poses[0]` and frames by `poses.len()`.
     pub fn new(
         cfg: PhysicsFitConfig,
-        mut world: World,
+        world: World,
         body: usize,
         poses: Vec<Pose<f64>>,
         weights: Option<Vec<f64>>,
     ) -> Result<Self, FitError> {
-        if body >= world.bodies.len() {
-            return Err(FitError::NoSuchBody(body));
+        Self::new_bodies(cfg, world, vec![Observed { body, poses, weights }])
+    }
+
+    /// Several bodies of one video at once: each observed body's initial pose is replaced by its first
+    /// observed pose; its launch and the contact values against the scene are fitted as the switches say
+    /// (one pair of scene values shared by every observed body with `share_scene_contact`), and so are the
+    /// values of each pair of observed bodies (`fit_pair_*`). Bodies of the world not observed keep theirs.
+    pub fn new_bodies(cfg: PhysicsFitConfig, mut world: World, observed: Vec<Observed>) -> Result<Self, FitError> {
+        let frames = observed.first().map_or(0, |o| o.poses.len());
+        let mut bodies = Vec::new();
+        let mut poses = Vec::new();
+        let mut weights = Vec::new();
+        for o in observed {
+            if o.body >= world.bodies.len() || bodies.contains(&o.body) {
+                return Err(FitError::NoSuchBody(o.body));
+            }
+            if o.poses.len() < 2 {
+                return Err(FitError::TooFewPoses(o.poses.len()));
+            }
+            if o.poses.len() != frames {
+                return Err(FitError::Config(format!(
+                    "body {} has {} poses, body {} {frames}: one video, one frame count",
+                    o.body,
+                    o.poses.len(),
+                    bodies[0]
+                )));
+            }
+            let w = o.weights.unwrap_or_else(|| vec![1.0; frames]);
+            if w.len() != frames {
+                return Err(FitError::WeightCount {
+                    poses: frames,
+                    weights: w.len(),
+                });
+            }
+            if let Some(i) = w.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+                return Err(FitError::BadWeight(i));
+            }
+            if let Some(i) = o
+                .poses
+                .iter()
+                .position(|p| !(p.t.is_finite() && p.q.to_array().iter().all(|v| v.is_finite())))
+            {
+                return Err(FitError::BadPose(i));
+            }
+            world.initial[o.body].pose = Pose::new(o.poses[0].q.normalize_or_identity(), o.poses[0].t);
+            bodies.push(o.body);
+            poses.push(o.poses);
+            weights.push(w);
         }
-        if poses.len() < 2 {
-            return Err(FitError::TooFewPoses(poses.len()));
-        }
-        let weights = weights.unwrap_or_else(|| vec![1.0; poses.len()]);
-        if weights.len() != poses.len() {
-            return Err(FitError::WeightCount {
-                poses: poses.len(),
-                weights: weights.len(),
-            });
-        }
-        if let Some(i) = weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
-            return Err(FitError::BadWeight(i));
-        }
-        if let Some(i) = poses
-            .iter()
-            .position(|p| !(p.t.is_finite() && p.q.to_array().iter().all(|v| v.is_finite())))
-        {
-            return Err(FitError::BadPose(i));
+        if bodies.is_empty() {
+            return Err(FitError::TooFewPoses(0));
         }
         if !(cfg.rotation_weight.is_finite() && cfg.rotation_weight >= 0.0) {
             return Err(FitError::Config(format!(
@@ -186,32 +248,71 @@ impl PhysicsFit {
                 cfg.rotation_weight
             )));
         }
-        world.config.frames = poses.len();
-        world.initial[body].pose = Pose::new(poses[0].q.normalize_or_identity(), poses[0].t);
+        world.config.frames = frames;
+        let mut unknowns: Vec<Unknown> = Vec::new();
+        let single = |m: usize, k: usize| Unknown {
+            members: vec![m],
+            probe: probe_scale(k),
+        };
+        for &b in &bodies {
+            let o = world.body_param_offset(b);
+            let mut ks: Vec<usize> = Vec::new();
+            if cfg.fit_initial_pose {
+                ks.extend(0..6);
+            }
+            if cfg.fit_velocity {
+                ks.extend(6..9);
+            }
+            if cfg.fit_angular_velocity {
+                ks.extend(9..12);
+            }
+            unknowns.extend(ks.into_iter().map(|k| single(o + k, k)));
+        }
+        // The scene's values: one per body, or one tied to every body's copy.
+        for (k, on) in [(12, cfg.fit_restitution), (13, cfg.fit_friction)] {
+            if !on {
+                continue;
+            }
+            let members: Vec<usize> = bodies.iter().map(|&b| world.body_param_offset(b) + k).collect();
+            if cfg.share_scene_contact {
+                // Tied values start equal: the first body's.
+                let first = world.params()[members[0]];
+                let mut p = world.params();
+                for &m in &members {
+                    p[m] = first;
+                }
+                world.set_params(&p);
+                unknowns.push(Unknown {
+                    members,
+                    probe: probe_scale(k),
+                });
+            } else {
+                unknowns.extend(members.into_iter().map(|m| single(m, k)));
+            }
+        }
+        for (pi, &(i, j)) in world.pairs().iter().enumerate() {
+            if !(bodies.contains(&i) && bodies.contains(&j)) {
+                continue;
+            }
+            let o = world.pair_param_offset(pi);
+            for (k, on) in [(0, cfg.fit_pair_restitution), (1, cfg.fit_pair_friction)] {
+                if on {
+                    unknowns.push(single(o + k, 12 + k));
+                }
+            }
+        }
         world.validate().map_err(|e| FitError::Config(e.to_string()))?;
-        let o = world.body_param_offset(body);
-        let mut wrt = Vec::new();
-        if cfg.fit_initial_pose {
-            wrt.extend(o..o + 6);
-        }
-        if cfg.fit_velocity {
-            wrt.extend(o + 6..o + 9);
-        }
-        if cfg.fit_angular_velocity {
-            wrt.extend(o + 9..o + 12);
-        }
-        if cfg.fit_restitution {
-            wrt.push(o + 12);
-        }
-        if cfg.fit_friction {
-            wrt.push(o + 13);
-        }
-        if wrt.is_empty() {
+        if unknowns.is_empty() {
             return Err(FitError::NothingToFit);
         }
-        let mut bounds = Bounds::unbounded(wrt.len());
-        for (i, &p) in wrt.iter().enumerate() {
-            if p == o + 12 || p == o + 13 {
+        let columns: Vec<usize> = unknowns.iter().flat_map(|u| u.members.iter().copied()).collect();
+        let contact_value = |m: usize| {
+            let body_part = BODY_PARAMS * world.bodies.len();
+            m >= body_part || matches!(m % BODY_PARAMS, 12 | 13)
+        };
+        let mut bounds = Bounds::unbounded(unknowns.len());
+        for (i, u) in unknowns.iter().enumerate() {
+            if contact_value(u.members[0]) {
                 bounds.lo[i] = cfg.bound_margin;
                 bounds.hi[i] = 1.0 - cfg.bound_margin;
             }
@@ -220,11 +321,13 @@ impl PhysicsFit {
         let mut fit = Self {
             cfg,
             world,
-            body,
+            bodies,
             poses,
             weights,
+            frames,
             params,
-            wrt,
+            unknowns,
+            columns,
             bounds,
             lambda: 1e-3,
             loss: f64::INFINITY,
@@ -239,7 +342,7 @@ impl PhysicsFit {
 
     /// Fit frames `0..window` (clamped to the sequence); recomputes the loss.
     fn set_window(&mut self, window: usize) {
-        let n = self.poses.len();
+        let n = self.frames;
         self.window = if window < 2 { n } else { window.min(n) };
         self.world.config.frames = self.window;
         self.lambda = 1e-3;
@@ -264,50 +367,81 @@ impl PhysicsFit {
         std::array::from_fn(|i| a[i] - s * b[i])
     }
 
+    /// The unknowns' current values.
+    fn values(&self) -> Vec<f64> {
+        self.unknowns.iter().map(|u| self.params[u.members[0]]).collect()
+    }
+
+    /// The parameters with the unknowns set to `x` (every member of a tied one).
+    fn with_values(&self, x: &[f64]) -> Vec<f64> {
+        let mut p = self.params.clone();
+        for (u, v) in self.unknowns.iter().zip(x) {
+            for &m in &u.members {
+                p[m] = *v;
+            }
+        }
+        p
+    }
+
     fn loss_at(&self, p: &[f64]) -> f64 {
         self.loss_in(&self.world, p)
     }
 
-    /// Eq. 11's loss of parameters `p` over the frames `world` simulates.
+    /// Eq. 11's loss of parameters `p` over the frames `world` simulates, summed over the observed bodies.
     fn loss_in(&self, world: &World, p: &[f64]) -> f64 {
         let traj = world.simulate(p);
         let lq = self.cfg.rotation_weight;
         let mut loss = 0.0;
         // Frame 0 counts too: it is the initial pose, fitted with `fit_initial_pose` (without it, a constant).
         for (k, f) in traj.frames.iter().enumerate() {
-            let s = f[self.body];
-            let et = (s.pose.t - self.poses[k].t).norm();
-            let eq = Self::quat_error(s.pose.q, self.poses[k].q)
-                .iter()
-                .map(|v| v * v)
-                .sum::<f64>()
-                .sqrt()
-                * lq;
-            loss += self.weights[k] * (et + eq);
+            for (i, &b) in self.bodies.iter().enumerate() {
+                let s = f[b];
+                let obs = &self.poses[i][k];
+                let et = (s.pose.t - obs.t).norm();
+                let eq = Self::quat_error(s.pose.q, obs.q)
+                    .iter()
+                    .map(|v| v * v)
+                    .sum::<f64>()
+                    .sqrt()
+                    * lq;
+                loss += self.weights[i][k] * (et + eq);
+            }
         }
         loss
     }
 
     /// Residual rows (reweighted for L1) and their Jacobian at the current parameters.
     fn linearize(&self) -> Linearization {
-        let g = simulate_with_gradients(&self.world, &self.params, &self.wrt);
+        let g = simulate_with_gradients(&self.world, &self.params, &self.columns);
         let lq = self.cfg.rotation_weight;
         let mut residuals = Vec::new();
         let mut jac = Vec::new();
-        for k in 0..g.frames.len() {
-            let s = g.frames[k][self.body];
-            let et: Vec<f64> = (s.pose.t - self.poses[k].t).to_array().to_vec();
-            let eq: Vec<f64> = Self::quat_error(s.pose.q, self.poses[k].q)
+        // A tied unknown's column is the sum of its members'.
+        let column_of = |row: &[f64]| -> Vec<f64> {
+            let mut c = 0;
+            self.unknowns
                 .iter()
-                .map(|v| v * lq)
-                .collect();
-            for (block, comps, scale) in [(et, 0..3, 1.0), (eq, 3..7, lq)] {
-                let norm = block.iter().map(|v| v * v).sum::<f64>().sqrt();
-                // IRLS: w |e|² / |e| has the gradient of w |e| at this point.
-                let c = (self.weights[k] / norm.max(1e-7)).sqrt();
-                for (e, comp) in block.iter().zip(comps) {
-                    residuals.push(c * e);
-                    jac.push(g.row(k, self.body, comp).iter().map(|d| c * scale * d).collect());
+                .map(|u| {
+                    let s: f64 = row[c..c + u.members.len()].iter().sum();
+                    c += u.members.len();
+                    s
+                })
+                .collect()
+        };
+        for k in 0..g.frames.len() {
+            for (i, &b) in self.bodies.iter().enumerate() {
+                let s = g.frames[k][b];
+                let obs = &self.poses[i][k];
+                let et: Vec<f64> = (s.pose.t - obs.t).to_array().to_vec();
+                let eq: Vec<f64> = Self::quat_error(s.pose.q, obs.q).iter().map(|v| v * lq).collect();
+                for (block, comps, scale) in [(et, 0..3, 1.0), (eq, 3..7, lq)] {
+                    let norm = block.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    // IRLS: w |e|² / |e| has the gradient of w |e| at this point.
+                    let c = (self.weights[i][k] / norm.max(1e-7)).sqrt();
+                    for (e, comp) in block.iter().zip(comps) {
+                        residuals.push(c * e);
+                        jac.push(column_of(g.row(k, b, comp)).iter().map(|d| c * scale * d).collect());
+                    }
                 }
             }
         }
@@ -326,22 +460,19 @@ impl PhysicsFit {
                 self.lambda *= 10.0;
                 continue;
             };
-            let mut x: Vec<f64> = self.wrt.iter().map(|&i| self.params[i]).collect();
+            let mut x = self.values();
             for (xi, d) in x.iter_mut().zip(&delta) {
                 *xi += d;
             }
             self.bounds.project(&mut x);
-            let mut trial = self.params.clone();
-            for (&i, v) in self.wrt.iter().zip(&x) {
-                trial[i] = *v;
-            }
+            let trial = self.with_values(&x);
             let loss = self.loss_at(&trial);
             if loss < self.loss {
                 let gain = (self.loss - loss) / self.loss.max(1e-300);
                 self.params = trial;
                 self.loss = loss;
                 self.lambda = (self.lambda / 3.0).max(1e-12);
-                let tolerance = if self.window >= self.poses.len() {
+                let tolerance = if self.window >= self.frames {
                     self.cfg.tolerance
                 } else {
                     self.cfg.window_tolerance
@@ -363,20 +494,16 @@ impl PhysicsFit {
         self.stats(accepted)
     }
 
-    /// Probe each fitted parameter at ± its scale × the current step; keep the best if it lowers the loss,
+    /// Probe each fitted value at ± its scale × the current step; keep the best if it lowers the loss,
     /// else halve the step.
     fn pattern_step(&mut self) -> bool {
-        let o = self.world.body_param_offset(self.body);
         let mut best: Option<(f64, Vec<f64>)> = None;
-        for (j, &i) in self.wrt.iter().enumerate() {
+        for (j, u) in self.unknowns.iter().enumerate() {
             for sign in [-1.0, 1.0] {
-                let mut x: Vec<f64> = self.wrt.iter().map(|&w| self.params[w]).collect();
-                x[j] += sign * self.probe * probe_scale(i - o);
+                let mut x = self.values();
+                x[j] += sign * self.probe * u.probe;
                 self.bounds.project(&mut x);
-                let mut trial = self.params.clone();
-                for (&w, v) in self.wrt.iter().zip(&x) {
-                    trial[w] = *v;
-                }
+                let trial = self.with_values(&x);
                 let loss = self.loss_at(&trial);
                 if loss < best.as_ref().map_or(self.loss, |b| b.0) {
                     best = Some((loss, trial));
@@ -399,7 +526,7 @@ impl PhysicsFit {
 
     /// The fit on the current window has converged: widen it, or finish.
     fn window_done(&mut self) {
-        if self.window >= self.poses.len() {
+        if self.window >= self.frames {
             self.converged = true;
         } else {
             self.set_window(2 * self.window);
@@ -433,34 +560,40 @@ impl PhysicsFit {
     /// The loss of the current parameters over the whole sequence (whatever the window).
     pub fn full_loss(&self) -> f64 {
         let mut w = self.world.clone();
-        w.config.frames = self.poses.len();
+        w.config.frames = self.frames;
         self.loss_in(&w, &self.params)
     }
 
     /// The world with the fitted parameters in place, over the whole sequence.
     pub fn fitted_world(&self) -> World {
         let mut w = self.world.clone();
-        w.config.frames = self.poses.len();
+        w.config.frames = self.frames;
         w.set_params(&self.params);
         w
     }
 
-    /// The fitted parameters of the body: `[v(3), omega(3), restitution, friction]`.
+    /// The fitted parameters of the first observed body: `[v(3), omega(3), restitution, friction]`.
     pub fn fitted_body_params(&self) -> [f64; 8] {
-        let o = self.world.body_param_offset(self.body);
+        let o = self.world.body_param_offset(self.bodies[0]);
         std::array::from_fn(|i| self.params[o + 6 + i])
     }
 
-    /// Per-frame errors of the fitted trajectory.
+    /// Per-frame errors of the first observed body's fitted trajectory.
     pub fn pose_errors(&self) -> Vec<PoseError> {
+        self.pose_errors_of(0)
+    }
+
+    /// Per-frame errors of the `i`-th observed body's fitted trajectory.
+    pub fn pose_errors_of(&self, i: usize) -> Vec<PoseError> {
         let mut w = self.world.clone();
-        w.config.frames = self.poses.len();
+        w.config.frames = self.frames;
         let traj = w.simulate(&self.params);
+        let b = self.bodies[i];
         traj.frames
             .iter()
-            .zip(&self.poses)
+            .zip(&self.poses[i])
             .map(|(f, obs)| {
-                let s = f[self.body].pose;
+                let s = f[b].pose;
                 PoseError {
                     translation: (s.t - obs.t).norm(),
                     rotation_deg: geom::rotation_distance(s.q, obs.q).to_degrees(),
@@ -506,6 +639,15 @@ pub struct MultiStart {
     pub history: Vec<FitStats>,
 }
 
+/// Which contact values the starts of [`fit_multi_start_bodies`] set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartsOn {
+    /// Every observed body's values against the scene.
+    Scene,
+    /// The values of pair `p` ([`World::pairs`]).
+    Pair(usize),
+}
+
 /// A full windowed fit from the world's own contact values and from each `(restitution, friction)` of
 /// `starts` (other parameters from the world); the lowest loss over the whole sequence wins. `on_start` is
 /// told each start's result as it ends.
@@ -518,10 +660,29 @@ pub fn fit_multi_start(
     starts: &[(f64, f64)],
     on_start: &mut dyn FnMut(usize, &StartResult),
 ) -> Result<MultiStart, FitError> {
-    if body >= world.bodies.len() {
-        return Err(FitError::NoSuchBody(body));
+    let observed = vec![Observed { body, poses, weights }];
+    fit_multi_start_bodies(cfg, world, observed, starts, StartsOn::Scene, on_start)
+}
+
+/// [`fit_multi_start`] for several bodies: the starts set the values `on` names.
+pub fn fit_multi_start_bodies(
+    cfg: PhysicsFitConfig,
+    world: World,
+    observed: Vec<Observed>,
+    starts: &[(f64, f64)],
+    on: StartsOn,
+    on_start: &mut dyn FnMut(usize, &StartResult),
+) -> Result<MultiStart, FitError> {
+    if let Some(o) = observed.iter().find(|o| o.body >= world.bodies.len()) {
+        return Err(FitError::NoSuchBody(o.body));
     }
-    let own = world.scene_contact[body];
+    let own = match on {
+        StartsOn::Scene => world.scene_contact[observed.first().map_or(0, |o| o.body)],
+        StartsOn::Pair(p) => *world
+            .pair_contact
+            .get(p)
+            .ok_or_else(|| FitError::Config(format!("no body pair {p}")))?,
+    };
     let all: Vec<(f64, f64)> = std::iter::once((own.restitution, own.friction))
         .chain(starts.iter().copied())
         .collect();
@@ -529,8 +690,16 @@ pub fn fit_multi_start(
     let mut results = Vec::new();
     for (i, &(restitution, friction)) in all.iter().enumerate() {
         let mut w = world.clone();
-        w.scene_contact[body] = sim::ContactParams { restitution, friction };
-        let mut fit = PhysicsFit::new(cfg.clone(), w, body, poses.clone(), weights.clone())?;
+        let c = sim::ContactParams { restitution, friction };
+        match on {
+            StartsOn::Scene => {
+                for o in &observed {
+                    w.scene_contact[o.body] = c;
+                }
+            }
+            StartsOn::Pair(p) => w.pair_contact[p] = c,
+        }
+        let mut fit = PhysicsFit::new_bodies(cfg.clone(), w, observed.clone())?;
         let history = fit.run();
         let r = StartResult {
             restitution,

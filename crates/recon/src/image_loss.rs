@@ -13,6 +13,10 @@
 //!   the mask: a pose that misses most of its mask still gets a gradient from
 //!   every pixel it covers, where `(o − m)²` alone only sees its border.
 //!
+//! With several bodies in the video, the others are drawn too, where they
+//! stand ([`Occluder`]): a body in front hides the fitted one as it does in
+//! the frame, whose per-body masks are what each body shows.
+//!
 //! The pose gradient is on the tangent `(δt, δω)`: world axes, rotation about
 //! the body origin (the composed renderer's convention).
 
@@ -153,9 +157,17 @@ impl ImageLoss {
     }
 }
 
-/// A frame ready for the loss: its mask's distance transform and box.
+/// Another body in the frame, drawn at its pose (not fitted here): it hides what it stands in front of.
+#[derive(Clone, Copy)]
+pub struct Occluder<'a> {
+    pub object: &'a ObjectModel,
+    pub pose: Pose<f64>,
+}
+
+/// A frame ready for the loss: its mask's distance transform and box, and the other bodies in it.
 pub struct PreparedFrame<'a> {
     pub frame: &'a FrameTarget,
+    pub occluders: Vec<Occluder<'a>>,
     /// Pixels from the mask (Euclidean, by a two-pass chamfer transform).
     mask_distance: Vec<f32>,
     /// `[x0, y0, x1, y1]` of the mask, or `None` when it is empty (the body is out of view or hidden).
@@ -187,6 +199,7 @@ impl<'a> PreparedFrame<'a> {
         }
         Ok(Self {
             frame,
+            occluders: Vec::new(),
             mask_distance: distance_to_mask(&frame.mask, w, h),
             mask_box: bounding_box(&frame.mask, w),
         })
@@ -260,13 +273,21 @@ impl<'a> PreparedFrame<'a> {
     ) -> (ImageLoss, [f64; 6]) {
         let cam = &self.frame.camera;
         let w = cam.width as usize;
-        let of = object.route(pose, cam);
-        let mut layer = Layer::object(&of.field, &of.capture_from_body, pose, 0);
-        let trained = &of.field.config;
-        let scaled = |n: usize| ((n as f64 * weights.ray_steps).round() as usize).max(1);
-        layer.settings.steps_per_ray = scaled(trained.steps_per_ray);
-        layer.settings.max_samples_per_ray = scaled(trained.max_samples_per_ray);
-        let layers = [layer];
+        // The fitted body is object 0; the others follow it.
+        let placed = std::iter::once((object, *pose)).chain(self.occluders.iter().map(|o| (o.object, o.pose)));
+        let layers: Vec<Layer> = placed
+            .enumerate()
+            .map(|(i, (object, pose))| {
+                let of = object.route(&pose, cam);
+                let mut layer = Layer::object(&of.field, &of.capture_from_body, &pose, i);
+                let trained = &of.field.config;
+                let scaled = |n: usize| ((n as f64 * weights.ray_steps).round() as usize).max(1);
+                layer.settings.steps_per_ray = scaled(trained.steps_per_ray);
+                layer.settings.max_samples_per_ray = scaled(trained.max_samples_per_ray);
+                layer
+            })
+            .collect();
+        let objects = layers.len();
         let (mut o, mut d, mut under) = (Vec::new(), Vec::new(), Vec::new());
         for &p in pixels {
             let r = cam.ray((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
@@ -274,7 +295,7 @@ impl<'a> PreparedFrame<'a> {
             d.push(r.dir);
             under.push(scene[p].clone());
         }
-        composer.forward(&layers, 1, Behind::Scene(&under), &o, &d);
+        composer.forward(&layers, objects, Behind::Scene(&under), &o, &d);
         let n = pixels.len().max(1) as f64;
         let mut out = ImageLoss {
             pixels: pixels.len(),
@@ -283,7 +304,7 @@ impl<'a> PreparedFrame<'a> {
         let mut grads = Vec::with_capacity(if grad { pixels.len() } else { 0 });
         for (j, &p) in pixels.iter().enumerate() {
             let rendered = &composer.out[j];
-            let op = composer.object_opacity[j] as f64;
+            let op = composer.object_opacity[j * objects] as f64;
             let inside = self.frame.mask[p];
             let m = if inside { 1.0 } else { 0.0 };
             let dist = self.mask_distance[p] as f64 / weights.pull_scale_px;

@@ -1,6 +1,7 @@
 //! Inverse problems on the differentiable simulator: the PGA step of Eq. 11
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
+pub mod colliding_bodies;
 pub mod contact_penalty;
 pub mod first_pose_search;
 pub mod fit_physics;
@@ -12,11 +13,12 @@ pub mod poses_from_video;
 pub mod target;
 pub mod video_fit;
 
+pub use colliding_bodies::{first_contacts, fit_colliding_bodies, CollidingFit, ScheduleStep};
 pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{
-    fit_multi_start, FitError, FitStats, MultiStart, PhysicsFit, PhysicsFitConfig, PoseError, StartResult,
-    CONTACT_STARTS,
+    fit_multi_start, fit_multi_start_bodies, FitError, FitStats, MultiStart, Observed, PhysicsFit, PhysicsFitConfig,
+    PoseError, StartResult, StartsOn, CONTACT_STARTS,
 };
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use physics_from_video::{

@@ -6,7 +6,7 @@
 //! stage of `fit`. A pose tangent needs no norm penalty on the quaternion.
 
 use crate::contact_penalty::ContactTerm;
-use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
 use geom::{Pose, Quat, SplitMix64, Vec3};
 use neus::compose::{ComposedRay, Composer};
 use neus::ObjectModel;
@@ -124,6 +124,12 @@ impl<'a> PoseFromImage<'a> {
             rng,
             contact: None,
         })
+    }
+
+    /// The other bodies of the frame, drawn where they stand (several bodies in the video).
+    pub fn with_occluders(mut self, occluders: Vec<Occluder<'a>>) -> Self {
+        self.frame.occluders = occluders;
+        self
     }
 
     /// Add the frame's contact penalty (GA).

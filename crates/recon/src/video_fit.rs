@@ -8,7 +8,7 @@
 
 use crate::first_pose_search::FirstPoseSearchConfig;
 use crate::fit_physics::{fit_multi_start, FitError, MultiStart, PhysicsFitConfig, CONTACT_STARTS};
-use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
 use crate::physics_from_video::VideoPhysicsConfig;
 use crate::pose_from_image::PoseFitConfig;
 use crate::poses_from_video::PosesFromVideoConfig;
@@ -137,20 +137,27 @@ pub fn launch_guess(poses: &[Pose<f64>], fps: f64, gravity: [f64; 3], touching: 
 }
 
 /// The image terms of every frame with the body at `poses[k]` (every pixel of each frame's window; frames
-/// whose mask is empty give the default, zero pixels).
+/// whose mask is empty give the default, zero pixels). `others`: the video's other bodies and their poses,
+/// drawn where they stand.
 pub fn evaluate_poses(
     object: &ObjectModel,
     scene: &[ComposedRay],
     frames: &[FrameTarget],
     poses: &[Pose<f64>],
+    others: &[(&ObjectModel, &[Pose<f64>])],
     weights: &ImageLossWeights,
 ) -> Result<Vec<ImageLoss>, FrameError> {
     let mut composer = Composer::default();
     frames
         .iter()
         .zip(poses)
-        .map(|(f, pose)| {
-            let prepared = PreparedFrame::new(f, scene)?;
+        .enumerate()
+        .map(|(k, (f, pose))| {
+            let mut prepared = PreparedFrame::new(f, scene)?;
+            prepared.occluders = others
+                .iter()
+                .filter_map(|(object, poses)| poses.get(k).map(|&pose| Occluder { object, pose }))
+                .collect();
             Ok(if prepared.has_mask() {
                 prepared.evaluate(&mut composer, object, scene, pose, weights)
             } else {

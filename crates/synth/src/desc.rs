@@ -134,7 +134,11 @@ pub struct VideoDesc {
     pub frames: usize,
     pub substeps: usize,
     pub camera: VideoCamera,
+    /// Contact between the bodies and the scene.
     pub contact: ContactParams,
+    /// Contact between two bodies (every pair); default: `contact`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pair_contact: Option<ContactParams>,
     pub bodies: Vec<VideoBodyDesc>,
 }
 

@@ -13,7 +13,7 @@ use pganeus_io::{
     BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Contact, Image, PlyEncoding, PlyMesh,
     Pose as IoPose, StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
 };
-use sim::{BodyState, ContactParams, SimConfig, World};
+use sim::{BodyState, SimConfig, World};
 use std::path::{Path, PathBuf};
 
 /// The share of each image side left free around a scene's board and
@@ -74,6 +74,20 @@ fn simulate_built(
         v.contact
             .validate(&format!("{f}.contact"))
             .map_err(|e| field(e.field, e.msg))?;
+        let pair_contact = v.pair_contact.unwrap_or(v.contact);
+        if let Some(p) = &v.pair_contact {
+            p.validate(&format!("{f}.pair_contact"))
+                .map_err(|e| field(e.field, e.msg))?;
+            // Rapier averages its colliders' values: the scene's side is `2 contact − pair_contact`.
+            if scene.physics == Physics::Rapier
+                && (2.0 * v.contact.restitution < p.restitution || 2.0 * v.contact.friction < p.friction)
+            {
+                return Err(field(
+                    format!("{f}.pair_contact"),
+                    "physics = \"rapier\" averages each collider's values: a pair value may be at most twice the scene's",
+                ));
+            }
+        }
         let mut world = World::new(cfg, stat.shape.clone());
         if v.bodies.is_empty() {
             return Err(field(format!("{f}.bodies"), "a video needs at least one body"));
@@ -98,7 +112,7 @@ fn simulate_built(
             }
             let q = unit_quat(&format!("{bf}.q"), vb.q)?;
             let state = BodyState::new(vb.t, q.to_array_re(), vb.v, vb.omega);
-            world.add_body(bodies.bodies[k].clone(), state, v.contact, v.contact);
+            world.add_body(bodies.bodies[k].clone(), state, v.contact, pair_contact);
         }
         check_start(&world, &f)?;
         let traj = match scene.physics {
@@ -351,7 +365,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             mask_bodies: ids.clone(),
             per_body_masks: true,
         });
-        truth_videos.push(video_truth(&vdesc.name, world, traj, vdesc.contact, scene.physics));
+        truth_videos.push(video_truth(&vdesc.name, world, traj, scene.physics));
     }
     let truth = Truth {
         gravity: SimConfig::default().gravity,
@@ -378,13 +392,8 @@ fn io_pose(p: &Pose<f64>) -> IoPose {
     }
 }
 
-fn video_truth(
-    name: &str,
-    world: &World,
-    traj: &sim::Trajectory<f64>,
-    contact: ContactParams,
-    physics: Physics,
-) -> Trajectory {
+fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, physics: Physics) -> Trajectory {
+    let contact = world.scene_contact.first().copied().unwrap_or_default();
     let bodies = world
         .bodies
         .iter()
@@ -417,10 +426,31 @@ fn video_truth(
             restitution: contact.restitution,
             friction: contact.friction,
             model: physics.model().into(),
-            extra: Default::default(),
+            extra: pair_entries(world),
         },
         extra,
     }
+}
+
+/// `contact.pairs` of a video with several bodies (FORMATS.md): each pair's names and values.
+fn pair_entries(world: &World) -> serde_json::Map<String, serde_json::Value> {
+    let mut extra = serde_json::Map::new();
+    let pairs: Vec<serde_json::Value> = world
+        .pairs()
+        .iter()
+        .zip(&world.pair_contact)
+        .map(|(&(i, j), c)| {
+            serde_json::json!({
+                "bodies": [world.bodies[i].name, world.bodies[j].name],
+                "restitution": c.restitution,
+                "friction": c.friction,
+            })
+        })
+        .collect();
+    if !pairs.is_empty() {
+        extra.insert("pairs".into(), serde_json::Value::Array(pairs));
+    }
+    extra
 }
 
 fn concat(meshes: &[TriMesh]) -> TriMesh {

@@ -81,8 +81,16 @@ pub(crate) fn simulate_with_rapier(
     // Tabletop objects are centimetres across: Rapier's tolerances (its slop, its prediction distance) are
     // tuned for metre-sized ones and scale with this.
     pw.integration_parameters.length_unit = LENGTH_UNIT;
-    let (e, mu) = (video.contact.restitution, video.contact.friction);
+    // Rapier gives a contact the mean of its two colliders' values: bodies carry the pair's values and the
+    // scene `2 c − p`, so a body meets the scene with `c` and another body with `p`.
+    let (c, p) = (video.contact, video.pair_contact.unwrap_or(video.contact));
+    let scene_side = |c: f64, p: f64| (2.0 * c - p).max(0.0);
+    let (e, mu) = (
+        scene_side(c.restitution, p.restitution),
+        scene_side(c.friction, p.friction),
+    );
     let with_contact = |c: ColliderBuilder| c.restitution(e).friction(mu).density(0.0);
+    let with_pair_contact = |c: ColliderBuilder| c.restitution(p.restitution).friction(p.friction).density(0.0);
 
     // The static scene: the board, the table, the obstacles.
     let b = &scene.board;
@@ -140,7 +148,7 @@ pub(crate) fn simulate_with_rapier(
             .gyroscopic_forces_enabled(true)
             .can_sleep(false);
         let h = pw.insert_body(rb);
-        let c = pw.insert_collider(with_contact(body_collider(body, &desc.shape)), Some(h));
+        let c = pw.insert_collider(with_pair_contact(body_collider(body, &desc.shape)), Some(h));
         handles.push((h, c));
     }
 

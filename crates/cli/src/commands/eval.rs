@@ -116,8 +116,9 @@ fn score_poses(
                 row["silhouette_iou"] = num(i, 1.0, 4);
                 ious.push(i);
             }
-            // The fit's own image scores, where it wrote them.
-            if let Some(f) = fit.extra.get("frames").and_then(|f| f.get(k)) {
+            // The fit's own image scores, where it wrote them (per body with several bodies).
+            let own = entry.extra.get("frames").or_else(|| fit.extra.get("frames"));
+            if let Some(f) = own.and_then(|f| f.get(k)) {
                 for key in ["psnr", "iou", "pose"] {
                     if let Some(v) = f.get(key) {
                         row[format!("fit_{key}")] = v.clone();
@@ -178,6 +179,41 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
         out.insert(entry.name.clone(), e);
     }
     Value::Object(out)
+}
+
+/// Each pair's contact values against the truth's, matched by the bodies' names (where the truth's model is
+/// the project's own and both files name pairs).
+fn pair_errors(fit: &Trajectory, video: &Trajectory) -> Option<Value> {
+    if video.contact.model != "pganeus" {
+        return None;
+    }
+    let pairs = |t: &Trajectory| -> Vec<(Vec<String>, f64, f64)> {
+        let list = t
+            .contact
+            .extra
+            .get("pairs")
+            .and_then(|p| p.as_array())
+            .cloned()
+            .unwrap_or_default();
+        list.iter()
+            .filter_map(|p| {
+                let mut names: Vec<String> = serde_json::from_value(p["bodies"].clone()).ok()?;
+                names.sort();
+                Some((names, p["restitution"].as_f64()?, p["friction"].as_f64()?))
+            })
+            .collect()
+    };
+    let ours = pairs(fit);
+    let out: Vec<Value> = pairs(video)
+        .into_iter()
+        .filter_map(|(names, e, mu)| {
+            let (_, fe, fmu) = ours.iter().find(|(n, _, _)| *n == names)?;
+            Some(json!({"bodies": names, "restitution": fe, "restitution_true": e,
+                "restitution_error": num((fe - e).abs(), 1.0, 4), "friction": fmu, "friction_true": mu,
+                "friction_error": num((fmu - mu).abs(), 1.0, 4)}))
+        })
+        .collect();
+    (!out.is_empty()).then(|| json!(out))
 }
 
 pub fn run(a: EvalArgs) -> Result<()> {
@@ -247,6 +283,9 @@ pub fn run(a: EvalArgs) -> Result<()> {
         "parameters": parameter_errors(&fit, video, &refs),
         "frames": rows,
     });
+    if let Some(p) = pair_errors(&fit, video) {
+        report["pairs"] = p;
+    }
     // The stages' own poses, where the fit folder has them.
     let mut stages = serde_json::Map::new();
     for stage in ["pa", "ga", "pga"] {
@@ -350,6 +389,12 @@ pub fn run(a: EvalArgs) -> Result<()> {
             } else {
                 String::new()
             }
+        );
+    }
+    for p in report["pairs"].as_array().into_iter().flatten() {
+        println!(
+            "{} and {}: restitution {} (true {}), friction {} (true {})",
+            p["bodies"][0], p["bodies"][1], p["restitution"], p["restitution_true"], p["friction"], p["friction_true"]
         );
     }
     println!("wrote {} and {}", out.display(), csv_path.display());

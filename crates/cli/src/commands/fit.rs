@@ -102,7 +102,7 @@ pub enum Stage {
 /// An `init.json` entry.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Guess {
+pub(super) struct Guess {
     capture: String,
     t: [f64; 3],
     q: [f64; 4],
@@ -111,23 +111,24 @@ struct Guess {
 /// What a fit folder was made with; a resumed run must match it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct FitRecord {
-    inputs: RecordInputs,
+pub(super) struct FitRecord {
+    pub(super) inputs: RecordInputs,
     #[serde(default)]
-    fit: VideoFitConfig,
+    pub(super) fit: VideoFitConfig,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct RecordInputs {
-    video: PathBuf,
-    scene: PathBuf,
-    object: String,
-    init: PathBuf,
-    frames: usize,
-    fps: f64,
-    no_pa: bool,
-    no_ga: bool,
+pub(super) struct RecordInputs {
+    pub(super) video: PathBuf,
+    pub(super) scene: PathBuf,
+    /// `NAME=DIR`, comma-separated with several bodies.
+    pub(super) object: String,
+    pub(super) init: PathBuf,
+    pub(super) frames: usize,
+    pub(super) fps: f64,
+    pub(super) no_pa: bool,
+    pub(super) no_ga: bool,
 }
 
 /// The first stage's result.
@@ -170,24 +171,34 @@ impl Job {
     }
 }
 
-fn parse_object(list: &[String]) -> Result<(String, PathBuf)> {
-    match list {
-        [one] => {
-            let (n, d) = one
-                .split_once('=')
-                .ok_or_else(|| anyhow!("--object {one:?}: expected NAME=DIR (a merge output or a run folder)"))?;
-            if n.is_empty() {
-                bail!("--object {one:?}: the name is empty");
-            }
-            Ok((n.to_string(), PathBuf::from(d)))
-        }
-        [] => bail!("give the body with --object NAME=DIR"),
-        _ => bail!("fit takes one body per video for now (got {} --object)", list.len()),
+/// The `--object NAME=DIR` entries, in order (names unique).
+pub(super) fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
+    if list.is_empty() {
+        bail!("give the body with --object NAME=DIR");
     }
+    let mut out: Vec<(String, PathBuf)> = Vec::new();
+    for one in list {
+        let (n, d) = one
+            .split_once('=')
+            .ok_or_else(|| anyhow!("--object {one:?}: expected NAME=DIR (a merge output or a run folder)"))?;
+        if n.is_empty() {
+            bail!("--object {one:?}: the name is empty");
+        }
+        if out.iter().any(|(o, _)| o == n) {
+            bail!("--object {one:?}: body {n:?} is given twice");
+        }
+        out.push((n.to_string(), PathBuf::from(d)));
+    }
+    Ok(out)
 }
 
 /// The video's frames for body `name`: images, the body's masks and the one fixed camera.
-fn read_video(dir: &Path, name: &str, single: bool, limit: Option<usize>) -> Result<(Vec<FrameTarget>, Option<f64>)> {
+pub(super) fn read_video(
+    dir: &Path,
+    name: &str,
+    single: bool,
+    limit: Option<usize>,
+) -> Result<(Vec<FrameTarget>, Option<f64>)> {
     let c = pganeus_io::open_capture(dir)?;
     let cameras = world_cameras(&c)?;
     let m0 = cameras[0].world_mat();
@@ -246,7 +257,7 @@ fn read_video(dir: &Path, name: &str, single: bool, limit: Option<usize>) -> Res
 }
 
 /// Where the body frame sat in capture `capture` (the object's reference capture or, for a merge, its other).
-fn capture_from_body(model: &ObjectModel, capture: &str) -> Option<Pose<f64>> {
+pub(super) fn capture_from_body(model: &ObjectModel, capture: &str) -> Option<Pose<f64>> {
     let name_of = |f: &neus::object_model::ObjectField| {
         f.field
             .capture
@@ -264,39 +275,62 @@ fn capture_from_body(model: &ObjectModel, capture: &str) -> Option<Pose<f64>> {
         .map(|o| o.capture_from_body)
 }
 
-fn read_guess(path: &Path, name: &str, model: &ObjectModel) -> Result<Pose<f64>> {
+/// Each body's pose in frame 0 from an `init.json` with one entry per body (and none for a body the fit
+/// does not have).
+pub(super) fn read_guesses(path: &Path, bodies: &[(&str, &ObjectModel)]) -> Result<Vec<Pose<f64>>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let all: BTreeMap<String, Guess> = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    if let Some(other) = all.keys().find(|k| *k != name) {
+    if let Some(other) = all.keys().find(|k| !bodies.iter().any(|(n, _)| n == *k)) {
         bail!(
             "{}: a guess for body {other:?}, which the fit has no --object and the video no mask for",
             path.display()
         );
     }
-    let g = all
-        .get(name)
-        .ok_or_else(|| anyhow!("{}: no guess for body {name:?}", path.display()))?;
-    if !(g.t.iter().chain(&g.q).all(|v| v.is_finite()) && g.q.iter().map(|v| v * v).sum::<f64>() > 1e-12) {
+    bodies
+        .iter()
+        .map(|&(name, model)| {
+            let g = all
+                .get(name)
+                .ok_or_else(|| anyhow!("{}: no guess for body {name:?}", path.display()))?;
+            if !(g.t.iter().chain(&g.q).all(|v| v.is_finite()) && g.q.iter().map(|v| v * v).sum::<f64>() > 1e-12) {
+                bail!(
+                    "{}: {name}: t must be finite and q a non-zero quaternion",
+                    path.display()
+                );
+            }
+            let from = capture_from_body(model, &g.capture).ok_or_else(|| {
+                anyhow!(
+                    "{}: {name}: capture {:?} is not one the object {} was built from ({})",
+                    path.display(),
+                    g.capture,
+                    model.source.display(),
+                    model.reference_capture
+                )
+            })?;
+            Ok(pose_from_guess(&from, g.t, g.q))
+        })
+        .collect()
+}
+
+/// Refuse a guess whose centre projects outside the image.
+pub(super) fn check_guess_in_view(cam: &geom::Camera<f64>, guess: &Pose<f64>, name: &str, init: &Path) -> Result<()> {
+    let (u, v, z) = cam.project(guess.t);
+    if !(z > 0.0 && (0.0..cam.width as f64).contains(&u) && (0.0..cam.height as f64).contains(&v)) {
         bail!(
-            "{}: {name}: t must be finite and q a non-zero quaternion",
-            path.display()
+            "{}: the guess for {name:?} puts its centre outside the image (pixel ({u:.0}, {v:.0}), depth {z:.3} m)",
+            init.display()
         );
     }
-    let from = capture_from_body(model, &g.capture).ok_or_else(|| {
-        anyhow!(
-            "{}: {name}: capture {:?} is not one the object {} was built from ({})",
-            path.display(),
-            g.capture,
-            model.source.display(),
-            model.reference_capture
-        )
-    })?;
-    Ok(pose_from_guess(&from, g.t, g.q))
+    Ok(())
 }
 
 pub fn run(a: FitArgs) -> Result<()> {
     let t_start = Instant::now();
-    let (name, object_dir) = parse_object(&a.object)?;
+    let objects = parse_objects(&a.object)?;
+    if objects.len() > 1 {
+        return super::fit_bodies::run(a, objects, t_start);
+    }
+    let (name, object_dir) = objects.into_iter().next().expect("one body");
     let cfg: VideoFitConfig = match &a.config {
         // Key by key over the defaults: `[ga.pose] iterations = 60` keeps fit's other GA settings.
         Some(p) => super::config_over(&VideoFitConfig::default(), p)?,
@@ -320,17 +354,11 @@ pub fn run(a: FitArgs) -> Result<()> {
     let guess = if a.init.as_os_str() == "auto" {
         None
     } else {
-        Some(read_guess(&a.init, &name, &object)?)
+        Some(read_guesses(&a.init, &[(name.as_str(), &object)])?[0])
     };
     let cam = frames[0].camera;
-    if let Some(guess) = guess {
-        let (u, v, z) = cam.project(guess.t);
-        if !(z > 0.0 && (0.0..cam.width as f64).contains(&u) && (0.0..cam.height as f64).contains(&v)) {
-            bail!(
-                "{}: the guess for {name:?} puts its centre outside the image (pixel ({u:.0}, {v:.0}), depth {z:.3} m)",
-                a.init.display()
-            );
-        }
+    if let Some(guess) = &guess {
+        check_guess_in_view(&cam, guess, &name, &a.init)?;
     }
     let scene_field =
         load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
@@ -372,47 +400,8 @@ pub fn run(a: FitArgs) -> Result<()> {
         fit: cfg.clone(),
     };
 
-    // The output folder: a new one, or the same fit resumed.
-    let record_path = a.out.join("config.toml");
-    let record_text = toml::to_string(&record)?;
-    if record_path.exists() && !a.force {
-        let old = std::fs::read_to_string(&record_path)?;
-        let same = toml::from_str::<FitRecord>(&old).is_ok_and(|r| r == record);
-        if !same {
-            bail!(
-                "{} holds a fit with other inputs or settings: give another --out, or --force to start over",
-                a.out.display()
-            );
-        }
-        tracing::info!("resuming the fit in {}", a.out.display());
-    } else {
-        if a.force {
-            for f in ["first_pose.json", "pa.json", "ga.json", "pga.json", "trajectory.json"] {
-                let _ = std::fs::remove_file(a.out.join(f));
-            }
-        }
-        std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-        pganeus_io::write_atomic(&record_path, record_text.as_bytes())?;
-    }
-    let grid = match grid {
-        Some(g) => g,
-        None => {
-            let path = a.out.join("scene_grid.bin");
-            if path.exists() {
-                SdfGrid::load(&path)?
-            } else {
-                let t = Instant::now();
-                let g = bake_scene(&scene_field, &a.scene)?;
-                g.save(&path)?;
-                tracing::info!(
-                    "baked the scene's grid in {:.1} s: {}",
-                    t.elapsed().as_secs_f64(),
-                    path.display()
-                );
-                g
-            }
-        }
-    };
+    open_output(&a, &record)?;
+    let grid = scene_grid(grid, &scene_field, &a)?;
     let sim_cfg = SimConfig {
         fps,
         frames: frames.len(),
@@ -511,6 +500,57 @@ pub fn run(a: FitArgs) -> Result<()> {
     finish(&mut job, &final_world, Some(&final_ga), &timings, t_start)
 }
 
+/// The output folder: a new one (or, with `--force`, one emptied of stage results), or the same fit resumed;
+/// `config.toml` records what it was made with.
+pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
+    let record_path = a.out.join("config.toml");
+    let record_text = toml::to_string(record)?;
+    if record_path.exists() && !a.force {
+        let old = std::fs::read_to_string(&record_path)?;
+        let same = toml::from_str::<FitRecord>(&old).is_ok_and(|r| r == *record);
+        if !same {
+            bail!(
+                "{} holds a fit with other inputs or settings: give another --out, or --force to start over",
+                a.out.display()
+            );
+        }
+        tracing::info!("resuming the fit in {}", a.out.display());
+    } else {
+        if a.force {
+            for f in ["first_pose.json", "pa.json", "ga.json", "pga.json", "trajectory.json"] {
+                let _ = std::fs::remove_file(a.out.join(f));
+            }
+        }
+        std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+        pganeus_io::write_atomic(&record_path, record_text.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// The scene's collision grid: `--scene-grid`'s, or baked from the scene run into the output folder once.
+pub(super) fn scene_grid(
+    given: Option<SdfGrid>,
+    scene_field: &neus::checkpoint::LoadedField,
+    a: &FitArgs,
+) -> Result<SdfGrid> {
+    if let Some(g) = given {
+        return Ok(g);
+    }
+    let path = a.out.join("scene_grid.bin");
+    if path.exists() {
+        return Ok(SdfGrid::load(&path)?);
+    }
+    let t = Instant::now();
+    let g = bake_scene(scene_field, &a.scene)?;
+    g.save(&path)?;
+    tracing::info!(
+        "baked the scene's grid in {:.1} s: {}",
+        t.elapsed().as_secs_f64(),
+        path.display()
+    );
+    Ok(g)
+}
+
 /// The world at the first pose with the launch guess (PA's start, or PGA's with `--no-pa`).
 fn launch_world(job: &Job, first: &FirstPose) -> World {
     let mut w = job.world.clone();
@@ -518,7 +558,7 @@ fn launch_world(job: &Job, first: &FirstPose) -> World {
     w
 }
 
-fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
+pub(super) fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
     Pose::new(Quat::cst(q).normalize_or_identity(), Vec3::cst(t))
 }
 
@@ -693,7 +733,7 @@ fn world_from_file(job: &Job, path: &Path) -> Result<World> {
 }
 
 /// Per-frame image terms as JSON rows.
-fn metric_rows(losses: &[ImageLoss]) -> Value {
+pub(super) fn metric_rows(losses: &[ImageLoss]) -> Value {
     json!(losses
         .iter()
         .enumerate()
@@ -712,7 +752,7 @@ fn write_world(job: &Job, path: &Path, world: &World, losses: &[ImageLoss], extr
     let mut e = extra;
     e.insert("frames".into(), metric_rows(losses));
     let mut t = trajectory_json(&job.capture, world, &traj, e);
-    t.bodies[0].extra.extend(object_entry(job));
+    t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
     pganeus_io::write_trajectory(path, &t)?;
     Ok(())
 }
@@ -754,7 +794,7 @@ fn stage_pa(job: &mut Job, first: &FirstPose, run: bool) -> Result<World> {
     Ok(world)
 }
 
-fn report_stage(stage: &str, world: &World, losses: &[ImageLoss]) {
+pub(super) fn report_stage(stage: &str, world: &World, losses: &[ImageLoss]) {
     let seen: Vec<&ImageLoss> = losses.iter().filter(|l| l.pixels > 0).collect();
     let mean_iou = seen.iter().map(|l| l.iou()).sum::<f64>() / seen.len().max(1) as f64;
     let min_iou = seen.iter().map(|l| l.iou()).fold(f64::INFINITY, f64::min);
@@ -866,7 +906,7 @@ fn write_ga(job: &Job, path: &Path, results: &[FramePose]) -> Result<()> {
                 omega: [0.0; 3],
             },
             poses: results.iter().map(|r| p(&r.pose)).collect(),
-            extra: object_entry(job),
+            extra: object_entry(&job.object, "object.ply"),
         }],
         contact: pganeus_io::Contact {
             restitution: 0.0,
@@ -932,6 +972,7 @@ fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> 
             &job.scene_pre,
             &job.frames,
             &poses,
+            &[],
             &weights_cfg,
         )?);
         job.log(json!({"stage": "pga", "round": "pa", "image_loss": total}))?;
@@ -973,7 +1014,7 @@ fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> 
         let world = fit.best.fitted_world();
         let traj = world.simulate(&world.params());
         let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
-        let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &weights_cfg)?;
+        let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights_cfg)?;
         let total = total_loss(&sim_losses);
         report_stage(&format!("PGA round {}", round + 1), &world, &sim_losses);
         job.log(json!({"stage": "pga", "round": round, "winner": fit.winner, "image_loss": total}))?;
@@ -998,13 +1039,13 @@ fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> 
 }
 
 /// `"object"` of a body entry: the mesh and where the body frame sat in the reference capture.
-fn object_entry(job: &Job) -> Map<String, Value> {
-    let p = job.object.reference_pose;
+pub(super) fn object_entry(object: &ObjectModel, mesh: &str) -> Map<String, Value> {
+    let p = object.reference_pose;
     let mut e = Map::new();
     e.insert(
         "object".into(),
-        json!({"mesh": "object.ply", "source": job.object.source,
-            "reference": {"capture": job.object.reference_capture,
+        json!({"mesh": mesh, "source": object.source,
+            "reference": {"capture": object.reference_capture,
                 "pose": {"t": p.t.to_array(), "q": p.q.to_array_re()}}}),
     );
     e
@@ -1014,13 +1055,13 @@ fn object_entry(job: &Job) -> Map<String, Value> {
 /// body's IoU differs by several hundredths between poses millimetres apart, and GA, fitting the silhouette
 /// alone, wins it by moving in depth (a 14 px ball: 0.88 simulated against 0.96 by GA, the simulated pose
 /// 2 mm closer to the truth), so only a clear miss counts.
-const SIMULATION_MISSES_BY: f64 = 0.1;
+pub(super) const SIMULATION_MISSES_BY: f64 = 0.1;
 /// A frame whose image loss (colour, silhouette and pull, per pixel) under the simulation is more than this
 /// many times GA's is one the simulation misses too, even with its silhouette in place: a tumble the
 /// simulator turned another way (the tabletop drop's bounces: 10–15° off, at 1.5–4 times GA's loss). Where
 /// both explain the image alike, the simulation's pose is kept (depth from physics, not from a silhouette's
 /// size).
-const SIMULATION_LOSS_RATIO: f64 = 1.5;
+pub(super) const SIMULATION_LOSS_RATIO: f64 = 1.5;
 
 /// The final trajectory (simulated, where it explains the video; GA's pose where it clearly does not),
 /// renders, the strip and the animation.
@@ -1035,7 +1076,7 @@ fn finish(
     let n = job.frames.len();
     let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
     let weights = job.cfg.pa.weights.clone();
-    let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &weights)?;
+    let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights)?;
     // The reported pose is the simulated one (Eq. 11) wherever it explains the frame: GA's poses follow
     // each image alone and, where the image cannot tell depth (a small object far off), wander by
     // centimetres that the physics does not. Where the simulation clearly misses the body's silhouette
@@ -1110,7 +1151,7 @@ fn finish(
             q: r.q.to_array_re(),
         };
     }
-    t.bodies[0].extra.extend(object_entry(job));
+    t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
     // The object's mesh beside the trajectory, in the body frame.
     pganeus_io::write_ply(
         &job.out.join("object.ply"),
@@ -1123,7 +1164,9 @@ fn finish(
     )?;
     if ga.is_some() {
         let mut simulated = trajectory_json(&job.capture, world, &traj, Map::new());
-        simulated.bodies[0].extra.extend(object_entry(job));
+        simulated.bodies[0]
+            .extra
+            .extend(object_entry(&job.object, "object.ply"));
         pganeus_io::write_trajectory(&job.out.join("pga.json"), &simulated)?;
     }
     pganeus_io::write_trajectory(&job.out.join("trajectory.json"), &t)?;
@@ -1149,7 +1192,7 @@ fn finish(
 }
 
 /// Up to `count` frames, evenly spaced, one above the other.
-fn strip(pairs: &[Image], count: usize) -> Image {
+pub(super) fn strip(pairs: &[Image], count: usize) -> Image {
     let n = pairs.len();
     let picks: Vec<usize> = if n <= count {
         (0..n).collect()

@@ -4,6 +4,7 @@ pub mod bench_sim;
 pub mod bench_train;
 pub mod eval;
 pub mod fit;
+pub mod fit_bodies;
 pub mod fit_physics;
 pub mod mesh_cmds;
 pub mod render;

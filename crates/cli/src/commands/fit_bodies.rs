@@ -1,0 +1,762 @@
+//! `fit` with several bodies (Sec. 3.4, "Reconstruction of multiple rigid
+//! bodies", Fig. 8). One body hits another, the collision lasts about a
+//! frame, and a launch that is off puts it at the wrong time, where it gives
+//! no useful gradient. So, as the paper's schedule (made robust):
+//!
+//! 1. every body's first pose from its guess (or `--init auto`), each against
+//!    its own mask with the others drawn where they stand;
+//! 2. GA: every body's pose in every frame from the images, tracked frame by
+//!    frame, the bodies in turn, each against its own mask and the others
+//!    drawn at their current poses (mutual occlusion), with the contact
+//!    penalty on the points that touch the scene at the frame's start;
+//! 3. PGA on GA's poses, in order: the launches on the frames before the
+//!    first contact between bodies (found from GA's poses), then for each
+//!    pair that meets, its restitution and friction from a grid of starts,
+//!    fitted with every other value over the whole video from the frames of
+//!    the collision on (the scene's values shared by all bodies).
+//!
+//! PA (physics from rendered frames) is not run: before GA has found where
+//! each body is, a launch guess puts the collision at the wrong frame and the
+//! image loss has nothing to say about the pair; the paper's own multi-body
+//! schedule starts from the tracked poses too.
+
+use super::checkpoint_of;
+use super::fit::{
+    check_guess_in_view, metric_rows, object_entry, open_output, pose_of, read_guesses, read_video, scene_grid, strip,
+    FitArgs, FitRecord, RecordInputs, Stage, SIMULATION_LOSS_RATIO, SIMULATION_MISSES_BY,
+};
+use super::render_trajectory::{beside, to8};
+use crate::output::trajectory_json;
+use anyhow::{anyhow, bail, Context, Result};
+use geom::Pose;
+use neus::checkpoint::load_field;
+use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
+use neus::ObjectModel;
+use pganeus_io::Image;
+use recon::image_loss::Occluder;
+use recon::video_fit::{evaluate_poses, ga_weights, lift_out};
+use recon::{
+    fit_colliding_bodies, FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PoseFromImage, PosesFromVideo,
+    VideoFitConfig, CONTACT_STARTS,
+};
+use serde_json::{json, Map, Value};
+use sim::sdf::SdfGrid;
+use sim::{BodyState, ContactSampling, MassSpec, RigidBody, SimConfig, World};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// One body of the video.
+struct Body {
+    name: String,
+    object: ObjectModel,
+    /// The video's frames with this body's masks.
+    frames: Vec<FrameTarget>,
+}
+
+/// Everything the stages read.
+struct Multi {
+    bodies: Vec<Body>,
+    scene_pre: Vec<ComposedRay>,
+    world: World,
+    fps: f64,
+    capture: String,
+    video: PathBuf,
+    cfg: VideoFitConfig,
+    out: PathBuf,
+}
+
+/// `log.jsonl`, one JSON object per line.
+struct Log {
+    file: std::fs::File,
+    path: PathBuf,
+}
+
+impl Log {
+    fn write(&mut self, v: Value) -> Result<()> {
+        writeln!(self.file, "{v}").with_context(|| format!("cannot write {}", self.path.display()))
+    }
+}
+
+pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Result<()> {
+    if a.no_ga {
+        bail!("--no-ga: with several bodies fit starts from GA's poses (the paper's multi-body schedule); PA alone is for one body");
+    }
+    if a.stages.as_ref().is_some_and(|s| s.contains(&Stage::Pa)) {
+        bail!("--stages pa: with several bodies there is no PA stage (first, ga, pga)");
+    }
+    let cfg: VideoFitConfig = match &a.config {
+        Some(p) => super::config_over(&VideoFitConfig::default(), p)?,
+        None => VideoFitConfig::default(),
+    };
+    if !(a.density.is_finite() && a.density > 0.0) {
+        bail!("--density must be positive, got {}", a.density);
+    }
+    // Every input is read and checked before anything is written.
+    let mut bodies = Vec::new();
+    let mut video_fps = None;
+    for (name, dir) in &objects {
+        let (frames, fps) = read_video(&a.video, name, false, a.frames)?;
+        video_fps = video_fps.or(fps);
+        let object = ObjectModel::load(dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
+        bodies.push(Body {
+            name: name.clone(),
+            object,
+            frames,
+        });
+    }
+    let n = bodies[0].frames.len();
+    let fps = match (a.fps, video_fps) {
+        (Some(f), _) if f.is_finite() && f > 0.0 => f,
+        (Some(f), _) => bail!("--fps must be positive, got {f}"),
+        (None, Some(f)) => f,
+        (None, None) => bail!(
+            "{}: capture.json gives no fps: add it there or pass --fps",
+            a.video.display()
+        ),
+    };
+    let guesses: Vec<Option<Pose<f64>>> = if a.init.as_os_str() == "auto" {
+        vec![None; bodies.len()]
+    } else {
+        let named: Vec<(&str, &ObjectModel)> = bodies.iter().map(|b| (b.name.as_str(), &b.object)).collect();
+        read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
+    };
+    let cam = bodies[0].frames[0].camera;
+    for (b, g) in bodies.iter().zip(&guesses) {
+        if let Some(g) = g {
+            check_guess_in_view(&cam, g, &b.name, &a.init)?;
+        }
+    }
+    let scene_field =
+        load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
+    let grid = match &a.scene_grid {
+        Some(p) => Some(SdfGrid::load(p).map_err(|e| anyhow!("--scene-grid: {e}"))?),
+        None => None,
+    };
+    let mut rigid = Vec::new();
+    for (b, (_, dir)) in bodies.iter().zip(&objects) {
+        let body = RigidBody::from_mesh(
+            &b.name,
+            &b.object.mesh,
+            MassSpec::Density(a.density),
+            ContactSampling::default(),
+            None,
+        )
+        .map_err(|e| anyhow!("--object {}: {}: its mesh: {e}", b.name, dir.display()))?;
+        if body.mesh_offset.norm() > 1e-5 {
+            bail!(
+                "--object {}: the mesh's centre of mass is {:?} from the body origin",
+                b.name,
+                body.mesh_offset.to_array()
+            );
+        }
+        rigid.push(body);
+    }
+    let record = FitRecord {
+        inputs: RecordInputs {
+            video: a.video.clone(),
+            scene: a.scene.clone(),
+            object: objects
+                .iter()
+                .map(|(n, d)| format!("{n}={}", d.display()))
+                .collect::<Vec<_>>()
+                .join(","),
+            init: a.init.clone(),
+            frames: n,
+            fps,
+            no_pa: a.no_pa,
+            no_ga: a.no_ga,
+        },
+        fit: cfg.clone(),
+    };
+    open_output(&a, &record)?;
+    let grid = scene_grid(grid, &scene_field, &a)?;
+    let sim_cfg = SimConfig {
+        fps,
+        frames: n,
+        ..cfg.sim.clone()
+    };
+    let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
+    for body in rigid {
+        // Placeholders: every stage starts from the first poses.
+        let rest = BodyState::new([0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+        world.add_body(body, rest, cfg.start_contact, cfg.start_contact);
+    }
+    world
+        .validate()
+        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
+    let t = Instant::now();
+    let scene_pre = prerender_scene(&scene_field, &cam, &mut Composer::default());
+    tracing::info!(
+        "the scene rendered through the video's camera in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    let log_path = a.out.join("log.jsonl");
+    let mut log = Log {
+        file: std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log_path)
+            .with_context(|| format!("cannot open {}", log_path.display()))?,
+        path: log_path,
+    };
+    let m = Multi {
+        bodies,
+        scene_pre,
+        world,
+        fps,
+        capture: a
+            .video
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "video".into()),
+        video: a.video.clone(),
+        cfg,
+        out: a.out.clone(),
+    };
+    let wanted = a
+        .stages
+        .clone()
+        .unwrap_or_else(|| vec![Stage::First, Stage::Ga, Stage::Pga]);
+    let mut timings = Map::new();
+    let mut time = |stage: &str, t: Instant| {
+        let s = t.elapsed().as_secs_f64();
+        timings.insert(stage.into(), json!((s * 10.0).round() / 10.0));
+        tracing::info!("{stage}: {s:.1} s");
+    };
+    let t = Instant::now();
+    let first = stage_first(&m, &mut log, &guesses, wanted.contains(&Stage::First))?;
+    time("first_pose", t);
+    if !wanted.iter().any(|s| *s > Stage::First) {
+        return Ok(());
+    }
+    let t = Instant::now();
+    let ga = stage_ga(&m, &mut log, &first, wanted.contains(&Stage::Ga))?;
+    time("ga", t);
+    if !wanted.contains(&Stage::Pga) {
+        return Ok(());
+    }
+    let t = Instant::now();
+    let world = stage_pga(&m, &mut log, &ga)?;
+    time("pga", t);
+    finish(&m, &world, &ga, &timings, t_start)
+}
+
+/// The other bodies as occluders of body `b`, at `pose_of(o)`.
+fn others<'a>(m: &'a Multi, b: usize, pose_of: impl Fn(usize) -> Pose<f64>) -> Vec<Occluder<'a>> {
+    (0..m.bodies.len())
+        .filter(|&o| o != b)
+        .map(|o| Occluder {
+            object: &m.bodies[o].object,
+            pose: pose_of(o),
+        })
+        .collect()
+}
+
+/// Stage 1: each body's pose in frame 0 from its guess (lifted out of the scene), the bodies in turn, each
+/// with the others drawn at their fitted pose (or, not yet fitted, their guess).
+fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: bool) -> Result<Vec<Pose<f64>>> {
+    let path = m.out.join("first_pose.json");
+    if path.exists() {
+        tracing::info!("first poses: from {}", path.display());
+        let text = std::fs::read_to_string(&path)?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        return m
+            .bodies
+            .iter()
+            .map(|b| {
+                let e = &v["bodies"][&b.name];
+                let t: [f64; 3] = serde_json::from_value(e["t"].clone())?;
+                let q: [f64; 4] = serde_json::from_value(e["q"].clone())?;
+                Ok(pose_of(t, q))
+            })
+            .collect::<Result<_>>()
+            .map_err(|e: anyhow::Error| anyhow!("{}: {e}", path.display()));
+    }
+    if !run {
+        bail!("stage first has not run: {} is missing", path.display());
+    }
+    let cfg = &m.cfg.first_pose;
+    let mut starts = Vec::new();
+    for (b, (body, guess)) in m.bodies.iter().zip(guesses).enumerate() {
+        let guess = match guess {
+            Some(g) => *g,
+            None => auto_guess(m, log, b)?,
+        };
+        let (start, lift) = lift_out(&m.world.bodies[b], &m.world.scene, guess);
+        if lift > 0.0 {
+            tracing::info!(
+                "{}: the guess sank {:.1} mm into the scene: lifted out",
+                body.name,
+                lift * 1e3
+            );
+        }
+        starts.push((body.frames[0].centred_on_mask(&start), lift));
+    }
+    let pb = super::progress((cfg.iterations * m.bodies.len()) as u64, "first poses");
+    let mut fitted: Vec<Pose<f64>> = Vec::new();
+    let mut entries = Map::new();
+    for (b, body) in m.bodies.iter().enumerate() {
+        let occluders = others(m, b, |o| fitted.get(o).copied().unwrap_or(starts[o].0));
+        let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &body.frames[0], starts[b].0) {
+            Ok(f) => f.with_occluders(occluders),
+            Err(recon::PoseFitError::EmptyMask) => bail!(
+                "{}: body {:?}'s mask is empty in frame 0: its first pose cannot be fitted",
+                m.video.display(),
+                body.name
+            ),
+            Err(e) => bail!("{}: frame 0: {e}", body.name),
+        };
+        for i in 0..cfg.iterations {
+            let l = fit.step();
+            if i % 10 == 0 {
+                log.write(json!({"stage": "first_pose", "body": body.name, "iteration": i, "loss": l.loss}))?;
+            }
+            pb.inc(1);
+        }
+        let e = fit.evaluate();
+        tracing::info!("{}: first pose IoU {:.3}", body.name, e.iou());
+        entries.insert(
+            body.name.clone(),
+            json!({"t": fit.pose.t.to_array(), "q": fit.pose.q.to_array_re(), "lift": starts[b].1,
+                   "iou": e.iou(), "loss": e.loss}),
+        );
+        fitted.push(fit.pose);
+    }
+    pb.finish_and_clear();
+    let doc = json!({ "bodies": entries });
+    pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    log.write(json!({"stage": "first_pose", "done": true}))?;
+    Ok(fitted)
+}
+
+/// `--init auto` for body `b`: the first pose searched from its own mask in frame 0 and its resting sides.
+fn auto_guess(m: &Multi, log: &mut Log, b: usize) -> Result<Pose<f64>> {
+    let body = &m.bodies[b];
+    let cfg = m.cfg.auto_init.clone();
+    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
+    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
+    let pb = super::progress(steps as u64, &format!("first pose search: {}", body.name));
+    let found = recon::search_first_pose(
+        &m.world.bodies[b],
+        &m.world.scene,
+        &body.object,
+        &m.scene_pre,
+        &body.frames[0],
+        &cfg,
+        || pb.inc(1),
+    );
+    pb.finish_and_clear();
+    let (pose, candidates) = match found {
+        Ok(f) => f,
+        Err(recon::PoseFitError::EmptyMask) => bail!(
+            "{}: body {:?}'s mask is empty in frame 0: its first pose cannot be searched",
+            m.video.display(),
+            body.name
+        ),
+        Err(e) => bail!("{}: frame 0: {e}", body.name),
+    };
+    for c in &candidates {
+        log.write(
+            json!({"stage": "first_pose_search", "body": body.name, "t": c.pose.t.to_array(),
+            "q": c.pose.q.to_array_re(), "silhouette_iou": c.silhouette_iou, "refined_loss": c.refined_loss}),
+        )?;
+    }
+    // Written as a guess relative to the object's reference capture, like a hand-made init.json entry.
+    let path = m.out.join("init_auto.json");
+    let mut all: Map<String, Value> = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or_default();
+    let g = pose.compose(&body.object.primary.capture_from_body.inverse());
+    all.insert(
+        body.name.clone(),
+        json!({"capture": body.object.reference_capture, "t": g.t.to_array(), "q": g.q.to_array_re()}),
+    );
+    pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&all)?.as_bytes())?;
+    Ok(pose)
+}
+
+/// Stage 2, GA: every frame of every body, tracked frame by frame; in each frame the bodies in turn, each
+/// with the others drawn at their poses of that frame (fitted, or their start).
+fn stage_ga(m: &Multi, log: &mut Log, first: &[Pose<f64>], run: bool) -> Result<Vec<Vec<FramePose>>> {
+    let path = m.out.join("ga.json");
+    let n = m.bodies[0].frames.len();
+    if path.exists() {
+        tracing::info!("GA: from {}", path.display());
+        return read_ga(m, &path, n);
+    }
+    if !run {
+        bail!("stage ga has not run: {} is missing", path.display());
+    }
+    let mut world = m.world.clone();
+    for (b, p) in first.iter().enumerate() {
+        world.initial[b].pose = *p;
+    }
+    let mut gas = m
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(b, body)| {
+            PosesFromVideo::tracking(
+                m.cfg.ga.clone(),
+                &body.object,
+                &m.scene_pre,
+                &body.frames,
+                &world,
+                b,
+                first[b],
+            )
+            .map(PosesFromVideo::holding_contacts)
+            .map_err(|e| anyhow!("GA: {}: {e}", body.name))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let pb = super::progress((n * m.bodies.len()) as u64, "GA");
+    for k in 0..n {
+        for b in 0..m.bodies.len() {
+            let occluders = others(m, b, |o| gas[o].current_pose(k));
+            gas[b].set_occluders(k, occluders);
+            gas[b].step().map_err(|e| anyhow!("GA: {}: {e}", m.bodies[b].name))?;
+            pb.inc(1);
+        }
+    }
+    pb.finish_and_clear();
+    let results: Vec<Vec<FramePose>> = gas.into_iter().map(|g| g.results).collect();
+    for (body, rs) in m.bodies.iter().zip(&results) {
+        for (k, r) in rs.iter().enumerate() {
+            log.write(
+                json!({"stage": "ga", "body": body.name, "frame": k, "loss": r.image.loss,
+                "iou": r.image.iou(), "fitted": r.fitted}),
+            )?;
+        }
+        let seen: Vec<f64> = rs.iter().filter(|r| r.fitted).map(|r| r.image.iou()).collect();
+        tracing::info!(
+            "GA: {}: IoU mean {:.3}, worst {:.3}",
+            body.name,
+            seen.iter().sum::<f64>() / seen.len().max(1) as f64,
+            seen.iter().cloned().fold(f64::INFINITY, f64::min)
+        );
+    }
+    write_ga(m, &path, &results)?;
+    Ok(results)
+}
+
+fn io_pose(p: &Pose<f64>) -> pganeus_io::Pose {
+    pganeus_io::Pose {
+        t: p.t.to_array(),
+        q: p.q.to_array_re(),
+    }
+}
+
+/// GA's poses of every body as a trajectory file (poses only).
+fn write_ga(m: &Multi, path: &Path, results: &[Vec<FramePose>]) -> Result<()> {
+    let bodies = m
+        .bodies
+        .iter()
+        .zip(results)
+        .map(|(body, rs)| {
+            let mut extra = object_entry(&body.object, &format!("object_{}.ply", body.name));
+            extra.insert(
+                "frames".into(),
+                metric_rows(&rs.iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
+            );
+            extra.insert(
+                "ga".into(),
+                json!(rs
+                    .iter()
+                    .map(
+                        |r| json!({"fitted": r.fitted, "loss": r.image.loss, "intersection": r.image.intersection,
+                        "union": r.image.union, "pixels": r.image.pixels, "mse": r.image.mse})
+                    )
+                    .collect::<Vec<_>>()),
+            );
+            pganeus_io::VideoBody {
+                name: body.name.clone(),
+                initial: pganeus_io::BodyState {
+                    t: rs[0].pose.t.to_array(),
+                    q: rs[0].pose.q.to_array_re(),
+                    v: [0.0; 3],
+                    omega: [0.0; 3],
+                },
+                poses: rs.iter().map(|r| io_pose(&r.pose)).collect(),
+                extra,
+            }
+        })
+        .collect();
+    let t = pganeus_io::Trajectory {
+        capture: m.capture.clone(),
+        fps: m.fps,
+        bodies,
+        contact: pganeus_io::Contact {
+            restitution: 0.0,
+            friction: 0.0,
+            model: "none".into(),
+            extra: Map::new(),
+        },
+        extra: Map::new(),
+    };
+    pganeus_io::write_trajectory(path, &t)?;
+    Ok(())
+}
+
+fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>> {
+    let t = pganeus_io::read_trajectory(path)?;
+    m.bodies
+        .iter()
+        .map(|body| {
+            let b = t
+                .bodies
+                .iter()
+                .find(|b| b.name == body.name)
+                .ok_or_else(|| anyhow!("{}: no body {:?}", path.display(), body.name))?;
+            let rows = b
+                .extra
+                .get("ga")
+                .and_then(|v| v.as_array())
+                .cloned()
+                .unwrap_or_default();
+            if b.poses.len() != frames || rows.len() != frames {
+                bail!(
+                    "{}: {}: {} poses for {frames} frames",
+                    path.display(),
+                    body.name,
+                    b.poses.len()
+                );
+            }
+            Ok(b.poses
+                .iter()
+                .zip(&rows)
+                .map(|(p, r)| {
+                    let f = |k: &str| r[k].as_f64().unwrap_or(0.0);
+                    let u = |k: &str| r[k].as_u64().unwrap_or(0) as usize;
+                    FramePose {
+                        pose: pose_of(p.t, p.q),
+                        image: ImageLoss {
+                            loss: f("loss"),
+                            mse: f("mse"),
+                            intersection: u("intersection"),
+                            union: u("union"),
+                            pixels: u("pixels"),
+                            ..ImageLoss::default()
+                        },
+                        contact_penalty: 0.0,
+                        in_contact: false,
+                        fitted: r["fitted"].as_bool().unwrap_or(false),
+                        start: recon::StartFrom::Physics,
+                    }
+                })
+                .collect())
+        })
+        .collect()
+}
+
+/// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
+/// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]).
+fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>]) -> Result<World> {
+    let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
+    let weights: Vec<Vec<f64>> = ga
+        .iter()
+        .map(|rs| {
+            let losses: Vec<ImageLoss> = rs.iter().map(|r| r.image.clone()).collect();
+            let fitted: Vec<bool> = rs.iter().map(|r| r.fitted).collect();
+            ga_weights(&losses, &fitted)
+        })
+        .collect();
+    // Rotations in metres at the bodies' mean radius, as the one-body fit weighs them.
+    let radius = m.world.bodies.iter().map(|b| b.bounding_radius).sum::<f64>() / m.world.bodies.len() as f64;
+    let cfg = PhysicsFitConfig {
+        rotation_weight: m.cfg.pga.rotation_weight * radius,
+        ..m.cfg.pga.clone()
+    };
+    let pairs = m.world.pairs();
+    let contacts = recon::first_contacts(&m.world, &poses);
+    let steps = 1 + contacts.len().max(1);
+    let per_step = if m.cfg.pga_multi_start {
+        1 + CONTACT_STARTS.len()
+    } else {
+        1
+    };
+    let pb = super::progress((steps * per_step) as u64, "PGA");
+    let mut rows = Vec::new();
+    let fit = fit_colliding_bodies(
+        &cfg,
+        m.cfg.pga_multi_start,
+        m.world.clone(),
+        poses,
+        weights,
+        m.cfg.launch_frames,
+        &mut |label, i, r| {
+            rows.push(
+                json!({"stage": "pga", "step": label, "start": i, "restitution": r.restitution,
+                "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
+            );
+            pb.inc(1);
+        },
+    )
+    .map_err(|e| anyhow!("PGA: {e}"))?;
+    pb.finish_and_clear();
+    for &(p, k) in &fit.contacts {
+        let (i, j) = pairs[p];
+        tracing::info!("GA: {} and {} meet in frame {k}", m.bodies[i].name, m.bodies[j].name);
+        log.write(json!({"stage": "pga", "pair": [m.bodies[i].name, m.bodies[j].name], "first_contact": k}))?;
+    }
+    for r in rows {
+        log.write(r)?;
+    }
+    for s in &fit.steps {
+        log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
+    }
+    Ok(fit.world)
+}
+
+/// The final trajectory of every body (simulated where it explains the video, GA's pose where it clearly
+/// does not), renders with every body, the strip and the animation.
+fn finish(
+    m: &Multi,
+    world: &World,
+    ga: &[Vec<FramePose>],
+    timings: &Map<String, Value>,
+    t_start: Instant,
+) -> Result<()> {
+    let n = m.bodies[0].frames.len();
+    let nb = m.bodies.len();
+    let traj = world.simulate(&world.params());
+    let sim_poses: Vec<Vec<Pose<f64>>> = (0..nb)
+        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
+        .collect();
+    let weights = m.cfg.pa.weights.clone();
+    let mut reported = sim_poses.clone();
+    let mut source = vec![vec!["simulated"; n]; nb];
+    let mut sim_losses = Vec::new();
+    for (b, body) in m.bodies.iter().enumerate() {
+        let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
+            .filter(|&o| o != b)
+            .map(|o| (&m.bodies[o].object, sim_poses[o].as_slice()))
+            .collect();
+        let losses = evaluate_poses(
+            &body.object,
+            &m.scene_pre,
+            &body.frames,
+            &sim_poses[b],
+            &others,
+            &weights,
+        )?;
+        for k in 0..n {
+            let g = &ga[b][k];
+            let silhouette_missed = losses[k].iou() < g.image.iou() - SIMULATION_MISSES_BY;
+            let image_missed = losses[k].loss > SIMULATION_LOSS_RATIO * g.image.loss;
+            if g.fitted && losses[k].pixels > 0 && (silhouette_missed || image_missed) {
+                reported[b][k] = g.pose;
+                source[b][k] = "ga";
+            }
+        }
+        sim_losses.push(losses);
+    }
+    // Renders of the reported poses, every body over the pre-rendered scene.
+    let cam = m.bodies[0].frames[0].camera;
+    let (w, h) = (cam.width, cam.height);
+    std::fs::create_dir_all(m.out.join("render"))?;
+    let pb = super::progress(n as u64, "render");
+    let mut composer = Composer::default();
+    let mut rows: Vec<Vec<Value>> = vec![Vec::with_capacity(n); nb];
+    let mut strips = Vec::with_capacity(n);
+    for k in 0..n {
+        let layers: Vec<Layer> = m
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(b, body)| {
+                let pose = reported[b][k];
+                let routed = body.object.route(&pose, &cam);
+                Layer::object(&routed.field, &routed.capture_from_body, &pose, b)
+            })
+            .collect();
+        let img = render_composed(&layers, nb, Behind::Scene(&m.scene_pre), &cam, &mut composer);
+        let frame_rgb = &m.bodies[0].frames[k].rgb;
+        let psnr = neus::render_view::psnr(&img.rgb, frame_rgb, None) as f64;
+        for (b, body) in m.bodies.iter().enumerate() {
+            let mask = &body.frames[k].mask;
+            let ours = |p: usize| img.object_opacity[p * nb + b] > 0.5;
+            let inter = (0..mask.len()).filter(|&p| ours(p) && mask[p]).count();
+            let union = (0..mask.len()).filter(|&p| ours(p) || mask[p]).count();
+            let iou = if union == 0 { 1.0 } else { inter as f64 / union as f64 };
+            rows[b].push(json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0,
+                "iou": (iou * 1e4).round() / 1e4, "pose": source[b][k]}));
+        }
+        let mut rgb = Image::new(w, h, 3);
+        let mut input = Image::new(w, h, 3);
+        for (p, (c, f)) in img.rgb.iter().zip(frame_rgb).enumerate() {
+            rgb.data[p * 3..p * 3 + 3].copy_from_slice(&c.map(to8));
+            input.data[p * 3..p * 3 + 3].copy_from_slice(&f.map(to8));
+        }
+        pganeus_io::write_png(&m.out.join("render").join(format!("{k:03}.png")), &rgb)?;
+        strips.push(beside(&input, &rgb));
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    pganeus_io::write_apng(&m.out.join("animation.png"), &strips, m.fps)?;
+    pganeus_io::write_png(&m.out.join("strip.png"), &strip(&strips, 6))?;
+
+    let mut extra = Map::new();
+    extra.insert("timings_s".into(), Value::Object(timings.clone()));
+    extra.insert("video".into(), json!(m.video));
+    let mut t = trajectory_json(&m.capture, world, &traj, extra);
+    let mut simulated = trajectory_json(&m.capture, world, &traj, Map::new());
+    for (b, body) in m.bodies.iter().enumerate() {
+        let mesh = format!("object_{}.ply", body.name);
+        let tb = &mut t.bodies[b];
+        for (pose, r) in tb.poses.iter_mut().zip(&reported[b]) {
+            *pose = io_pose(r);
+        }
+        tb.extra.extend(object_entry(&body.object, &mesh));
+        tb.extra.insert("frames".into(), json!(rows[b]));
+        let mut stages = Map::new();
+        stages.insert("simulated".into(), metric_rows(&sim_losses[b]));
+        stages.insert(
+            "ga".into(),
+            metric_rows(&ga[b].iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
+        );
+        tb.extra.insert("stages".into(), Value::Object(stages));
+        simulated.bodies[b].extra.extend(object_entry(&body.object, &mesh));
+        pganeus_io::write_ply(
+            &m.out.join(&mesh),
+            &pganeus_io::PlyMesh {
+                mesh: body.object.mesh.clone(),
+                colors: None,
+                normals: None,
+            },
+            pganeus_io::PlyEncoding::BinaryLittleEndian,
+        )?;
+    }
+    pganeus_io::write_trajectory(&m.out.join("pga.json"), &simulated)?;
+    pganeus_io::write_trajectory(&m.out.join("trajectory.json"), &t)?;
+    let mut summary = Vec::new();
+    for (b, body) in m.bodies.iter().enumerate() {
+        let s = &world.initial[b];
+        let ious: Vec<f64> = rows[b].iter().filter_map(|r| r["iou"].as_f64()).collect();
+        summary.push(format!(
+            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA",
+            body.name,
+            s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
+            ious.iter().cloned().fold(f64::INFINITY, f64::min),
+            source[b].iter().filter(|s| **s == "ga").count()
+        ));
+    }
+    for (p, (i, j)) in world.pairs().into_iter().enumerate() {
+        let c = world.pair_contact[p];
+        summary.push(format!(
+            "{} and {}: restitution {:.3}, friction {:.3}",
+            m.bodies[i].name, m.bodies[j].name, c.restitution, c.friction
+        ));
+    }
+    println!(
+        "fitted {n} frames of {nb} bodies in {:.1} s; scene restitution {:.3}, friction {:.3}; {}; wrote {}",
+        t_start.elapsed().as_secs_f64(),
+        world.scene_contact[0].restitution,
+        world.scene_contact[0].friction,
+        summary.join("; "),
+        m.out.join("trajectory.json").display()
+    );
+    Ok(())
+}

@@ -1,0 +1,262 @@
+//! PGA for several bodies that collide (Sec. 3.4, "Reconstruction of multiple
+//! rigid bodies"): a collision lasts about a frame, and a launch that is off
+//! puts it at the wrong time, where the pair's values get no useful gradient.
+//! So the fit follows the paper's schedule, made robust:
+//!
+//! 1. the frame each pair first meets, from the observed poses
+//!    ([`first_contacts`]);
+//! 2. the launches (and the scene's values) on the frames before the first
+//!    collision, where no pair value matters;
+//! 3. each body's state after the first collision and the scene's values,
+//!    on the frames from there to the next collision (how the bodies slide
+//!    and settle tells the board's values better than a short launch);
+//! 4. for each pair that meets, in order, its restitution and friction from
+//!    a grid of starts, with the scene's values held, each a fit over the
+//!    whole video whose first window ends just past the collision (the
+//!    momentum exchange is in the first loss it sees);
+//! 5. every value at once, from there.
+//!
+//! Every step is a [`fit_multi_start_bodies`]; the scene's values are shared
+//! by the bodies (`share_scene_contact`).
+
+use crate::fit_physics::{fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartResult, StartsOn};
+use crate::poses_from_video::carried_on;
+use crate::video_fit::{clearance, launch_guess, TOUCHING};
+use crate::CONTACT_STARTS;
+use geom::Pose;
+use sim::sdf::Sdf;
+use sim::{BodyState, World};
+
+/// Two bodies closer than this (m) in the observed poses are taken to touch: the frame of their collision.
+/// Observed poses are a few millimetres off, and a collision closes the gap within a frame.
+pub const PAIR_TOUCH: f64 = 0.004;
+
+/// The smallest signed distance between bodies `i` and `j` at poses `pi`, `pj` (each one's contact points
+/// against the other's SDF; negative: overlapping).
+fn gap(world: &World, i: usize, pi: &Pose<f64>, j: usize, pj: &Pose<f64>) -> f64 {
+    let one_way = |a: usize, pa: &Pose<f64>, b: usize, pb: &Pose<f64>| {
+        world.bodies[a]
+            .contact_points
+            .iter()
+            .map(|r| world.bodies[b].sdf.distance(pb, pa.transform_point(*r)))
+            .fold(f64::INFINITY, f64::min)
+    };
+    one_way(i, pi, j, pj).min(one_way(j, pj, i, pi))
+}
+
+/// The frame `k` in which each pair of bodies first meets in `poses` (`poses[b][k]`, one sequence per body of
+/// `world`), for the pairs that do: `(pair index, frame)`, earliest first. A pair meets in frame `k` when its
+/// bodies are within [`PAIR_TOUCH`] there, or when, carried on from frame `k − 1` at their pace, they would
+/// have come within it on the way to `k`: a collision lasts a fraction of a frame, and bodies that bounce
+/// apart may never be seen touching.
+pub fn first_contacts(world: &World, poses: &[Vec<Pose<f64>>]) -> Vec<(usize, usize)> {
+    let meets = |i: usize, j: usize, k: usize| {
+        if gap(world, i, &poses[i][k], j, &poses[j][k]) < PAIR_TOUCH {
+            return true;
+        }
+        if k == 0 {
+            return false;
+        }
+        let ahead = |b: usize, s: f64| {
+            let last = poses[b][k - 1];
+            let step = if k >= 2 {
+                carried_on(&poses[b][k - 2], &last)
+            } else {
+                last
+            };
+            // Halfway: the translation only (a turn of half a frame matters less than the gap).
+            if s < 1.0 {
+                Pose::new(last.q, last.t + (step.t - last.t) * s)
+            } else {
+                step
+            }
+        };
+        [0.5, 1.0]
+            .iter()
+            .any(|&s| gap(world, i, &ahead(i, s), j, &ahead(j, s)) < PAIR_TOUCH)
+    };
+    let mut out: Vec<(usize, usize)> = world
+        .pairs()
+        .iter()
+        .enumerate()
+        .filter_map(|(p, &(i, j))| (0..poses[i].len()).find(|&k| meets(i, j, k)).map(|k| (p, k)))
+        .collect();
+    out.sort_by_key(|&(_, k)| k);
+    out
+}
+
+/// One step of the schedule and how it ended.
+#[derive(Clone, Debug)]
+pub struct ScheduleStep {
+    /// What the step fits, e.g. `launch, frames 0-3` or `pair 0`.
+    pub label: String,
+    pub starts: Vec<StartResult>,
+    pub winner: usize,
+    /// Eq. 11's loss of the winner over the step's frames.
+    pub loss: f64,
+}
+
+/// The schedule's result.
+pub struct CollidingFit {
+    /// The world with every fitted value, over the whole sequence.
+    pub world: World,
+    /// `(pair, frame)` of each pair's first contact in the observed poses.
+    pub contacts: Vec<(usize, usize)>,
+    pub steps: Vec<ScheduleStep>,
+}
+
+/// The schedule over `poses[b]` (every body of `world`, one pose per frame) with per-frame `weights[b]`:
+/// launch guesses from the first `1 + launch_frames` frames before any collision, then the steps of the
+/// module's docs. `multi_start`: each step from [`CONTACT_STARTS`] too (on the scene's values for the
+/// launch, on the pair's after). `on_start` hears each start's end.
+pub fn fit_colliding_bodies(
+    cfg: &PhysicsFitConfig,
+    multi_start: bool,
+    world: World,
+    poses: Vec<Vec<Pose<f64>>>,
+    weights: Vec<Vec<f64>>,
+    launch_frames: usize,
+    on_start: &mut dyn FnMut(&str, usize, &StartResult),
+) -> Result<CollidingFit, FitError> {
+    if poses.len() != world.bodies.len() || weights.len() != poses.len() {
+        return Err(FitError::Config(format!(
+            "{} bodies, {} pose sequences, {} weight sequences",
+            world.bodies.len(),
+            poses.len(),
+            weights.len()
+        )));
+    }
+    let n = poses.first().map_or(0, |p| p.len());
+    if n < 2 {
+        return Err(FitError::TooFewPoses(n));
+    }
+    let contacts = first_contacts(&world, &poses);
+    // Frames before the first collision: the launches.
+    let free = contacts.first().map_or(n, |c| c.1).clamp(2, n);
+    let mut world = world;
+    world.config.frames = n;
+    for (b, ps) in poses.iter().enumerate() {
+        let touching = clearance(&world.bodies[b], &world.scene, &ps[0]) < TOUCHING;
+        let launch = &ps[..(1 + launch_frames).min(free)];
+        let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
+        world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
+    }
+    let observed = |upto: usize| -> Vec<Observed> {
+        (0..poses.len())
+            .map(|b| Observed {
+                body: b,
+                poses: poses[b][..upto].to_vec(),
+                weights: Some(weights[b][..upto].to_vec()),
+            })
+            .collect()
+    };
+    let grid: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
+    let mut steps = Vec::new();
+    let mut run = |label: String,
+                   cfg: PhysicsFitConfig,
+                   world: World,
+                   obs: Vec<Observed>,
+                   on: StartsOn,
+                   grid: &[(f64, f64)]|
+     -> Result<(World, f64), FitError> {
+        let fit = fit_multi_start_bodies(cfg, world, obs, grid, on, &mut |i, r| on_start(&label, i, r))?;
+        let loss = fit.best.full_loss();
+        steps.push(ScheduleStep {
+            label,
+            starts: fit.starts.clone(),
+            winner: fit.winner,
+            loss,
+        });
+        let mut w = fit.best.fitted_world();
+        w.config.frames = n;
+        Ok((w, loss))
+    };
+    let no_pairs = PhysicsFitConfig {
+        fit_pair_restitution: false,
+        fit_pair_friction: false,
+        ..cfg.clone()
+    };
+    if contacts.is_empty() {
+        world = run(
+            "no contact between bodies".into(),
+            cfg.clone(),
+            world,
+            observed(n),
+            StartsOn::Scene,
+            grid,
+        )?
+        .0;
+        return Ok(CollidingFit { world, contacts, steps });
+    }
+    if free >= 3 {
+        // No body has met another yet: no pair value matters.
+        let label = format!("launch, frames 0-{}", free - 1);
+        world = run(label, no_pairs.clone(), world, observed(free), StartsOn::Scene, grid)?.0;
+    }
+    // After the first collision, until the next: each body's state there, fitted afresh, and the scene's
+    // values from how the bodies slide and settle. A launch's few frames tell the board's friction from a
+    // deceleration that the launch speed can trade against (the tabletop collision: 0.36 for 0.25), and
+    // with the board's values off, the pair's compensate them (a struck block that slides less is one
+    // struck harder): the fit over the whole video then stalls in that valley.
+    let (from, to) = ((contacts[0].1 + 2).min(n), contacts.get(1).map_or(n, |c| c.1));
+    if to >= from + 4 {
+        let mut after = world.clone();
+        after.config.frames = to - from;
+        for (b, ps) in poses.iter().enumerate() {
+            let seg = &ps[from..to];
+            let touching = clearance(&after.bodies[b], &after.scene, &seg[0]) < TOUCHING;
+            let launch = &seg[..(1 + launch_frames).min(seg.len())];
+            let (v, omega) = launch_guess(launch, after.config.fps, after.config.gravity, touching);
+            after.initial[b] = BodyState::new(seg[0].t.to_array(), seg[0].q.to_array_re(), v, omega);
+        }
+        let obs: Vec<Observed> = (0..poses.len())
+            .map(|b| Observed {
+                body: b,
+                poses: poses[b][from..to].to_vec(),
+                weights: Some(weights[b][from..to].to_vec()),
+            })
+            .collect();
+        let label = format!("after the first collision, frames {from}-{}", to - 1);
+        let (fitted, _) = run(label, no_pairs.clone(), after, obs, StartsOn::Scene, grid)?;
+        world.scene_contact = fitted.scene_contact;
+    }
+    // Each pair where its bodies meet, with the scene's values held: the pair's alone explain the exchange.
+    let held = PhysicsFitConfig {
+        fit_restitution: false,
+        fit_friction: false,
+        ..cfg.clone()
+    };
+    let mut loss = f64::INFINITY;
+    for &(p, k) in &contacts {
+        let pair_cfg = PhysicsFitConfig {
+            initial_window: (k + 2).min(n),
+            ..held.clone()
+        };
+        (world, loss) = run(
+            format!("pair {p}"),
+            pair_cfg,
+            world,
+            observed(n),
+            StartsOn::Pair(p),
+            grid,
+        )?;
+    }
+    // Everything at once from there, kept if it explains the poses better (each fit restarts from the
+    // observed first poses).
+    let polish = PhysicsFitConfig {
+        initial_window: 0,
+        ..cfg.clone()
+    };
+    let (polished, polished_loss) = run(
+        "all values".into(),
+        polish,
+        world.clone(),
+        observed(n),
+        StartsOn::Scene,
+        &[],
+    )?;
+    if polished_loss < loss {
+        world = polished;
+    }
+    Ok(CollidingFit { world, contacts, steps })
+}
