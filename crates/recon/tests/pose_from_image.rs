@@ -151,3 +151,100 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
         Some(PoseFitError::Frame(FrameError::ImageSize { got: 47, want: 48 }))
     );
 }
+
+/// A second ball between the camera and the toy, hiding part of it: the toy's mask is what shows. Drawn
+/// where it stands (an occluder), it lets the toy's true pose explain the frame and the fit find it again;
+/// without it, the hidden part of the toy covers pixels its mask leaves out.
+#[test]
+fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
+    use recon::image_loss::Occluder;
+    let (w, h) = (96, 72);
+    let cam = camera(w, h);
+    let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+    let toy = toy();
+    let ball = ObjectModel {
+        source: PathBuf::from("untrained"),
+        primary: ObjectField {
+            field: untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 5),
+            capture_from_body: Pose::from_translation(Vec3::new(0.0, 0.0, 0.03)),
+        },
+        other: None,
+        mesh: bounds_mesh(0.03),
+        volume: 1e-4,
+        reference_capture: "ball_b".into(),
+        reference_pose: Pose::identity(),
+    };
+    let mut composer = Composer::default();
+    let behind = prerender_scene(&scene, &cam, &mut composer);
+    let truth = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.01, 0.02, 0.0));
+    // A quarter of the way to the camera, shifted sideways by most of the toy's width.
+    let c = sphere_centre(&toy, &truth);
+    let to_cam = cam.center() - c;
+    let side = to_cam
+        .cross(Vec3::new(0.0, 0.0, 1.0))
+        .normalize_or(Vec3::new(1.0, 0.0, 0.0))
+        * 0.035;
+    let ball_pose = Pose::from_translation(c + to_cam * 0.25 + side);
+    let layers = [
+        Layer::object(&toy.primary.field, &toy.primary.capture_from_body, &truth, 0),
+        Layer::object(&ball.primary.field, &ball.primary.capture_from_body, &ball_pose, 1),
+    ];
+    let img = render_composed(&layers, 2, Behind::Scene(&behind), &cam, &mut composer);
+    let frame = FrameTarget {
+        camera: cam,
+        rgb: img.rgb.clone(),
+        mask: (0..(w * h) as usize).map(|p| img.object_opacity[p * 2] > 0.5).collect(),
+    };
+    let shown = frame.mask.iter().filter(|&&m| m).count();
+    let ball_shown = (0..(w * h) as usize)
+        .filter(|&p| img.object_opacity[p * 2 + 1] > 0.5)
+        .count();
+    assert!(shown > 150 && ball_shown > 150, "{shown} {ball_shown}");
+    let occluders = vec![Occluder {
+        object: &ball,
+        pose: ball_pose,
+    }];
+    let cfg = PoseFitConfig {
+        iterations: 120,
+        rays_per_step: 512,
+        ..PoseFitConfig::default()
+    };
+    // At the truth, the frame is explained only with the ball drawn.
+    let at_truth = |with: bool| {
+        let f = PoseFromImage::new(cfg.clone(), &toy, &behind, &frame, truth).unwrap();
+        let mut f = if with { f.with_occluders(occluders.clone()) } else { f };
+        f.evaluate()
+    };
+    let (with, without) = (at_truth(true), at_truth(false));
+    eprintln!(
+        "at the truth: loss {:.4} (IoU {:.3}) with the ball drawn, {:.4} (IoU {:.3}) without",
+        with.loss,
+        with.iou(),
+        without.loss,
+        without.iou()
+    );
+    assert!(
+        with.iou() > 0.97 && without.iou() < 0.9,
+        "{} {}",
+        with.iou(),
+        without.iou()
+    );
+    let guess = Pose::new(
+        Quat::exp(Vec3::new(0.05, -0.1, 0.4 + 0.15)),
+        truth.t + Vec3::new(0.01, -0.008, 0.006),
+    );
+    let err = |p: &Pose<f64>| (sphere_centre(&toy, p) - sphere_centre(&toy, &truth)).norm();
+    let mut fit = PoseFromImage::new(cfg.clone(), &toy, &behind, &frame, guess)
+        .unwrap()
+        .with_occluders(occluders.clone());
+    fit.run();
+    let e_with = err(&fit.pose);
+    // Measured (2026-11-25): 14.4 mm off at the guess, 0.41 mm after; the same fit without the ball drawn
+    // ended 6.8 mm off (the hidden half pulled toward the visible one).
+    eprintln!(
+        "sphere centre off by {:.1} mm from the guess, {:.2} mm after",
+        err(&guess) * 1e3,
+        e_with * 1e3
+    );
+    assert!(e_with < 2e-3, "{e_with} m");
+}

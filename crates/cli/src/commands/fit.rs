@@ -517,7 +517,15 @@ pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
         tracing::info!("resuming the fit in {}", a.out.display());
     } else {
         if a.force {
-            for f in ["first_pose.json", "pa.json", "ga.json", "pga.json", "trajectory.json"] {
+            for f in [
+                "first_pose.json",
+                "pa.json",
+                "ga.json",
+                "pga.json",
+                "ga_tracked.json",
+                "pga_tracked.json",
+                "trajectory.json",
+            ] {
                 let _ = std::fs::remove_file(a.out.join(f));
             }
         }

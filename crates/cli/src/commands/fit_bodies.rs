@@ -5,15 +5,18 @@
 //!
 //! 1. every body's first pose from its guess (or `--init auto`), each against
 //!    its own mask with the others drawn where they stand;
-//! 2. GA: every body's pose in every frame from the images, tracked frame by
+//! 2. GA (tracked): every body's pose in every frame from the images, tracked frame by
 //!    frame, the bodies in turn, each against its own mask and the others
 //!    drawn at their current poses (mutual occlusion), with the contact
 //!    penalty on the points that touch the scene at the frame's start;
-//! 3. PGA on GA's poses, in order: the launches on the frames before the
-//!    first contact between bodies (found from GA's poses), then for each
-//!    pair that meets, its restitution and friction from a grid of starts,
-//!    fitted with every other value over the whole video from the frames of
-//!    the collision on (the scene's values shared by all bodies).
+//! 3. PGA on GA's poses by the collision schedule of
+//!    [`recon::colliding_bodies`] (the collision frame from the poses, the
+//!    launches before it, the board's values after it, each pair's values
+//!    where its bodies meet, then everything);
+//! 4. GA again, each body started at that simulation's poses with the
+//!    contact penalty where it touches the scene (the one-body fit's GA from
+//!    PA), and PGA on those poses; the round whose simulation explains the
+//!    images better is kept.
 //!
 //! PA (physics from rendered frames) is not run: before GA has found where
 //! each body is, a launch guess puts the collision at the wrong frame and the
@@ -232,15 +235,66 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         return Ok(());
     }
     let t = Instant::now();
-    let ga = stage_ga(&m, &mut log, &first, wanted.contains(&Stage::Ga))?;
-    time("ga", t);
+    let tracked = stage_ga(
+        &m,
+        &mut log,
+        &first,
+        None,
+        "ga_tracked.json",
+        wanted.contains(&Stage::Ga),
+    )?;
+    time("ga_tracked", t);
     if !wanted.contains(&Stage::Pga) {
         return Ok(());
     }
     let t = Instant::now();
-    let world = stage_pga(&m, &mut log, &ga)?;
+    let from_tracked = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
+    time("pga_tracked", t);
+    // GA again from that simulation (the one-body fit's GA from PA), then PGA on its poses; the round whose
+    // simulation explains the images better is kept.
+    let t = Instant::now();
+    let ga = stage_ga(&m, &mut log, &first, Some(&from_tracked), "ga.json", true)?;
+    time("ga", t);
+    let t = Instant::now();
+    let world = stage_pga(&m, &mut log, &ga, "pga.json")?;
     time("pga", t);
-    finish(&m, &world, &ga, &timings, t_start)
+    let (first_round, second_round) = (simulated_losses(&m, &from_tracked)?, simulated_losses(&m, &world)?);
+    let total = |l: &[Vec<ImageLoss>]| l.iter().map(|b| recon::video_fit::total_loss(b)).sum::<f64>();
+    let (before, after) = (total(&first_round), total(&second_round));
+    log.write(json!({"stage": "pga", "image_loss_tracked": before, "image_loss": after}))?;
+    if after <= before {
+        finish(&m, &world, &ga, second_round, &timings, t_start)
+    } else {
+        tracing::info!(
+            "PGA on GA from the simulation explains the images worse ({after:.4} > {before:.4}): kept the first round"
+        );
+        finish(&m, &from_tracked, &tracked, first_round, &timings, t_start)
+    }
+}
+
+/// The image terms of every body's frames under `world`'s simulation, the others drawn where it puts them.
+fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
+    let traj = world.simulate(&world.params());
+    let nb = m.bodies.len();
+    let poses: Vec<Vec<Pose<f64>>> = (0..nb)
+        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
+        .collect();
+    let mut all = Vec::with_capacity(nb);
+    for (b, body) in m.bodies.iter().enumerate() {
+        let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
+            .filter(|&o| o != b)
+            .map(|o| (&m.bodies[o].object, poses[o].as_slice()))
+            .collect();
+        all.push(evaluate_poses(
+            &body.object,
+            &m.scene_pre,
+            &body.frames,
+            &poses[b],
+            &others,
+            &m.cfg.pa.weights,
+        )?);
+    }
+    Ok(all)
 }
 
 /// The other bodies as occluders of body `b`, at `pose_of(o)`.
@@ -378,10 +432,19 @@ fn auto_guess(m: &Multi, log: &mut Log, b: usize) -> Result<Pose<f64>> {
     Ok(pose)
 }
 
-/// Stage 2, GA: every frame of every body, tracked frame by frame; in each frame the bodies in turn, each
-/// with the others drawn at their poses of that frame (fitted, or their start).
-fn stage_ga(m: &Multi, log: &mut Log, first: &[Pose<f64>], run: bool) -> Result<Vec<Vec<FramePose>>> {
-    let path = m.out.join("ga.json");
+/// Stage 2, GA: every frame of every body; in each frame the bodies in turn, each with the others drawn at
+/// their poses of that frame (fitted, or their start). Tracked frame by frame from the first poses, or,
+/// given `from` (PGA's world), started at its simulation's poses with the contact penalty where it touches
+/// the scene, as the one-body GA starts from PA's (then its pass back over the frames explained worst).
+fn stage_ga(
+    m: &Multi,
+    log: &mut Log,
+    first: &[Pose<f64>],
+    from: Option<&World>,
+    file: &str,
+    run: bool,
+) -> Result<Vec<Vec<FramePose>>> {
+    let path = m.out.join(file);
     let n = m.bodies[0].frames.len();
     if path.exists() {
         tracing::info!("GA: from {}", path.display());
@@ -390,34 +453,40 @@ fn stage_ga(m: &Multi, log: &mut Log, first: &[Pose<f64>], run: bool) -> Result<
     if !run {
         bail!("stage ga has not run: {} is missing", path.display());
     }
-    let mut world = m.world.clone();
-    for (b, p) in first.iter().enumerate() {
-        world.initial[b].pose = *p;
+    let mut world = from.cloned().unwrap_or_else(|| m.world.clone());
+    if from.is_none() {
+        for (b, p) in first.iter().enumerate() {
+            world.initial[b].pose = *p;
+        }
     }
+    let traj = world.simulate(&world.params());
     let mut gas = m
         .bodies
         .iter()
         .enumerate()
         .map(|(b, body)| {
-            PosesFromVideo::tracking(
-                m.cfg.ga.clone(),
-                &body.object,
-                &m.scene_pre,
-                &body.frames,
-                &world,
-                b,
-                first[b],
-            )
-            .map(PosesFromVideo::holding_contacts)
+            let (object, frames) = (&body.object, &body.frames);
+            match from {
+                None => PosesFromVideo::tracking(m.cfg.ga.clone(), object, &m.scene_pre, frames, &world, b, first[b])
+                    .map(PosesFromVideo::holding_contacts),
+                Some(_) => PosesFromVideo::new(m.cfg.ga.clone(), object, &m.scene_pre, frames, &world, b, &traj),
+            }
             .map_err(|e| anyhow!("GA: {}: {e}", body.name))
         })
         .collect::<Result<Vec<_>>>()?;
-    let pb = super::progress((n * m.bodies.len()) as u64, "GA");
+    let pb = super::progress(gas.iter().map(|g| g.steps_left()).sum::<usize>() as u64, "GA");
     for k in 0..n {
         for b in 0..m.bodies.len() {
             let occluders = others(m, b, |o| gas[o].current_pose(k));
             gas[b].set_occluders(k, occluders);
             gas[b].step().map_err(|e| anyhow!("GA: {}: {e}", m.bodies[b].name))?;
+            pb.inc(1);
+        }
+    }
+    // The pass back over each body's frames explained worst (the others where the forward pass left them).
+    for (b, g) in gas.iter_mut().enumerate() {
+        while !g.done() {
+            g.step().map_err(|e| anyhow!("GA: {}: {e}", m.bodies[b].name))?;
             pb.inc(1);
         }
     }
@@ -553,7 +622,12 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
 
 /// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
 /// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]).
-fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>]) -> Result<World> {
+fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<World> {
+    let path = m.out.join(file);
+    if path.exists() {
+        tracing::info!("PGA: from {}", path.display());
+        return world_from_file(m, &path);
+    }
     let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
     let weights: Vec<Vec<f64>> = ga
         .iter()
@@ -607,7 +681,54 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>]) -> Result<World> {
     for s in &fit.steps {
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
+    let traj = fit.world.simulate(&fit.world.params());
+    let mut t = trajectory_json(&m.capture, &fit.world, &traj, Map::new());
+    for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
+        tb.extra
+            .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
+    }
+    pganeus_io::write_trajectory(&path, &t)?;
     Ok(fit.world)
+}
+
+/// The world of a PGA file this command wrote: each body's initial state, the scene's and the pairs' values.
+fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
+    let t = pganeus_io::read_trajectory(path)?;
+    let mut w = m.world.clone();
+    for (b, body) in m.bodies.iter().enumerate() {
+        let e = t
+            .bodies
+            .iter()
+            .find(|x| x.name == body.name)
+            .ok_or_else(|| anyhow!("{}: no body {:?}", path.display(), body.name))?;
+        let i = &e.initial;
+        w.initial[b] = BodyState::new(i.t, i.q, i.v, i.omega);
+        w.scene_contact[b] = sim::ContactParams {
+            restitution: t.contact.restitution,
+            friction: t.contact.friction,
+        };
+    }
+    let pairs = t
+        .contact
+        .extra
+        .get("pairs")
+        .and_then(|p| p.as_array())
+        .cloned()
+        .unwrap_or_default();
+    for (p, (i, j)) in w.pairs().into_iter().enumerate() {
+        let names = [&m.bodies[i].name, &m.bodies[j].name];
+        let entry = pairs.iter().find(|e| {
+            let n: Vec<String> = serde_json::from_value(e["bodies"].clone()).unwrap_or_default();
+            n.len() == 2 && names.iter().all(|x| n.contains(x))
+        });
+        if let Some(e) = entry {
+            w.pair_contact[p] = sim::ContactParams {
+                restitution: e["restitution"].as_f64().unwrap_or(0.5),
+                friction: e["friction"].as_f64().unwrap_or(0.5),
+            };
+        }
+    }
+    Ok(w)
 }
 
 /// The final trajectory of every body (simulated where it explains the video, GA's pose where it clearly
@@ -616,6 +737,7 @@ fn finish(
     m: &Multi,
     world: &World,
     ga: &[Vec<FramePose>],
+    sim_losses: Vec<Vec<ImageLoss>>,
     timings: &Map<String, Value>,
     t_start: Instant,
 ) -> Result<()> {
@@ -625,23 +747,9 @@ fn finish(
     let sim_poses: Vec<Vec<Pose<f64>>> = (0..nb)
         .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
         .collect();
-    let weights = m.cfg.pa.weights.clone();
     let mut reported = sim_poses.clone();
     let mut source = vec![vec!["simulated"; n]; nb];
-    let mut sim_losses = Vec::new();
-    for (b, body) in m.bodies.iter().enumerate() {
-        let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
-            .filter(|&o| o != b)
-            .map(|o| (&m.bodies[o].object, sim_poses[o].as_slice()))
-            .collect();
-        let losses = evaluate_poses(
-            &body.object,
-            &m.scene_pre,
-            &body.frames,
-            &sim_poses[b],
-            &others,
-            &weights,
-        )?;
+    for (b, losses) in sim_losses.iter().enumerate() {
         for k in 0..n {
             let g = &ga[b][k];
             let silhouette_missed = losses[k].iou() < g.image.iou() - SIMULATION_MISSES_BY;
@@ -651,7 +759,6 @@ fn finish(
                 source[b][k] = "ga";
             }
         }
-        sim_losses.push(losses);
     }
     // Renders of the reported poses, every body over the pre-rendered scene.
     let cam = m.bodies[0].frames[0].camera;
@@ -702,7 +809,6 @@ fn finish(
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(m.video));
     let mut t = trajectory_json(&m.capture, world, &traj, extra);
-    let mut simulated = trajectory_json(&m.capture, world, &traj, Map::new());
     for (b, body) in m.bodies.iter().enumerate() {
         let mesh = format!("object_{}.ply", body.name);
         let tb = &mut t.bodies[b];
@@ -718,7 +824,6 @@ fn finish(
             metric_rows(&ga[b].iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
         );
         tb.extra.insert("stages".into(), Value::Object(stages));
-        simulated.bodies[b].extra.extend(object_entry(&body.object, &mesh));
         pganeus_io::write_ply(
             &m.out.join(&mesh),
             &pganeus_io::PlyMesh {
@@ -729,7 +834,6 @@ fn finish(
             pganeus_io::PlyEncoding::BinaryLittleEndian,
         )?;
     }
-    pganeus_io::write_trajectory(&m.out.join("pga.json"), &simulated)?;
     pganeus_io::write_trajectory(&m.out.join("trajectory.json"), &t)?;
     let mut summary = Vec::new();
     for (b, body) in m.bodies.iter().enumerate() {
