@@ -890,18 +890,7 @@ fn write_ga(job: &Job, path: &Path, results: &[FramePose]) -> Result<()> {
         "frames".into(),
         metric_rows(&results.iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
     );
-    extra.insert(
-        "ga".into(),
-        json!(results
-            .iter()
-            .map(
-                |r| json!({"in_contact": r.in_contact, "fitted": r.fitted, "start": r.start,
-                "contact_penalty": r.contact_penalty,
-                "loss": r.image.loss, "intersection": r.image.intersection, "union": r.image.union,
-                "pixels": r.image.pixels, "mse": r.image.mse})
-            )
-            .collect::<Vec<_>>()),
-    );
+    extra.insert("ga".into(), json!(results.iter().map(ga_row).collect::<Vec<_>>()));
     let t = pganeus_io::Trajectory {
         capture: job.capture.clone(),
         fps: job.fps,
@@ -940,9 +929,21 @@ fn read_ga(path: &Path, frames: usize) -> Result<Vec<FramePose>> {
     if b.poses.len() != frames || rows.len() != frames {
         bail!("{}: {} poses for {frames} frames", path.display(), b.poses.len());
     }
-    Ok(b.poses
+    Ok(frame_poses(&b.poses, &rows))
+}
+
+/// One GA frame as a row of `ga.json`'s `ga` list (what [`frame_poses`] reads back).
+pub(super) fn ga_row(r: &FramePose) -> Value {
+    json!({"in_contact": r.in_contact, "fitted": r.fitted, "start": r.start, "contact_penalty": r.contact_penalty,
+        "loss": r.image.loss, "intersection": r.image.intersection, "union": r.image.union,
+        "pixels": r.image.pixels, "mse": r.image.mse})
+}
+
+/// GA's frames from a `ga.json` body's poses and its rows ([`ga_row`]).
+pub(super) fn frame_poses(poses: &[pganeus_io::Pose], rows: &[Value]) -> Vec<FramePose> {
+    poses
         .iter()
-        .zip(&rows)
+        .zip(rows)
         .map(|(p, r)| {
             let f = |k: &str| r[k].as_f64().unwrap_or(0.0);
             let u = |k: &str| r[k].as_u64().unwrap_or(0) as usize;
@@ -962,7 +963,7 @@ fn read_ga(path: &Path, frames: usize) -> Result<Vec<FramePose>> {
                 start: serde_json::from_value(r["start"].clone()).unwrap_or(StartFrom::Physics),
             }
         })
-        .collect())
+        .collect()
 }
 
 /// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls; the best

@@ -25,8 +25,9 @@
 
 use super::checkpoint_of;
 use super::fit::{
-    check_guess_in_view, metric_rows, object_entry, open_output, pose_of, read_guesses, read_video, scene_grid, strip,
-    FitArgs, FitRecord, RecordInputs, Stage, SIMULATION_LOSS_RATIO, SIMULATION_MISSES_BY,
+    check_guess_in_view, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of, read_guesses,
+    read_video, scene_grid, strip, FitArgs, FitRecord, RecordInputs, Stage, SIMULATION_LOSS_RATIO,
+    SIMULATION_MISSES_BY,
 };
 use super::render_trajectory::{beside, to8};
 use crate::output::trajectory_json;
@@ -530,16 +531,7 @@ fn write_ga(m: &Multi, path: &Path, results: &[Vec<FramePose>]) -> Result<()> {
                 "frames".into(),
                 metric_rows(&rs.iter().map(|r| r.image.clone()).collect::<Vec<_>>()),
             );
-            extra.insert(
-                "ga".into(),
-                json!(rs
-                    .iter()
-                    .map(
-                        |r| json!({"fitted": r.fitted, "loss": r.image.loss, "intersection": r.image.intersection,
-                        "union": r.image.union, "pixels": r.image.pixels, "mse": r.image.mse})
-                    )
-                    .collect::<Vec<_>>()),
-            );
+            extra.insert("ga".into(), json!(rs.iter().map(ga_row).collect::<Vec<_>>()));
             pganeus_io::VideoBody {
                 name: body.name.clone(),
                 initial: pganeus_io::BodyState {
@@ -593,29 +585,7 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
                     b.poses.len()
                 );
             }
-            Ok(b.poses
-                .iter()
-                .zip(&rows)
-                .map(|(p, r)| {
-                    let f = |k: &str| r[k].as_f64().unwrap_or(0.0);
-                    let u = |k: &str| r[k].as_u64().unwrap_or(0) as usize;
-                    FramePose {
-                        pose: pose_of(p.t, p.q),
-                        image: ImageLoss {
-                            loss: f("loss"),
-                            mse: f("mse"),
-                            intersection: u("intersection"),
-                            union: u("union"),
-                            pixels: u("pixels"),
-                            ..ImageLoss::default()
-                        },
-                        contact_penalty: 0.0,
-                        in_contact: false,
-                        fitted: r["fitted"].as_bool().unwrap_or(false),
-                        start: recon::StartFrom::Physics,
-                    }
-                })
-                .collect())
+            Ok(frame_poses(&b.poses, &rows))
         })
         .collect()
 }
