@@ -93,3 +93,26 @@ pub fn trajectory_json(
         extra: top,
     }
 }
+
+/// The pairs' values of a trajectory file's `contact.pairs`: each pair's body names (sorted), restitution
+/// and friction (entries without them are skipped).
+pub fn contact_pairs(t: &IoTrajectory) -> Vec<([String; 2], sim::ContactParams)> {
+    let list = t
+        .contact
+        .extra
+        .get("pairs")
+        .and_then(|p| p.as_array())
+        .cloned()
+        .unwrap_or_default();
+    list.iter()
+        .filter_map(|p| {
+            let mut names: [String; 2] = serde_json::from_value(p["bodies"].clone()).ok()?;
+            names.sort();
+            let c = sim::ContactParams {
+                restitution: p["restitution"].as_f64()?,
+                friction: p["friction"].as_f64()?,
+            };
+            Some((names, c))
+        })
+        .collect()
+}

@@ -266,9 +266,10 @@ friction = 0.15
         );
         // Measured (2026-11-25): rolling 2.2 mm on average (worst 6.3, the impact), struck 2.1 (4.0), tossed
         // 8.0 (12.3: a 14 px ball in flight, its depth along the line of sight from its silhouette's size);
-        // IoU worst 0.90. These bounds catch a body lost, swapped or stuck, not millimetres: accuracy is
-        // measured on the two-body synth at 320×240 (README).
-        assert!(mean < 10.0, "{n}: {mean:.2} mm off on average");
+        // IoU worst 0.90. Each body's bound leaves room for the pixel batches, not for a body lost, swapped
+        // or stuck; accuracy at scale is measured on the two-body synth at 320×240 (README).
+        let bound = [5.0, 5.0, 12.0][b];
+        assert!(mean < bound, "{n}: {mean:.2} mm off on average (bound {bound} mm)");
         assert!(worst < 20.0, "{n}: worst frame {worst:.2} mm off");
         assert!(ious.iter().all(|&i| i > 0.75), "{n}: IoU {ious:?}");
     }

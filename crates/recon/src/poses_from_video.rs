@@ -278,11 +278,6 @@ impl<'a> PosesFromVideo<'a> {
         }
     }
 
-    /// The frame the next [`Self::step`] fits (`None` when the forward pass is over).
-    pub fn next_frame(&self) -> Option<usize> {
-        (self.results.len() < self.frames.len()).then_some(self.results.len())
-    }
-
     /// The pose frame `k` starts from before it is fitted (the physics start); its fitted pose once it is.
     pub fn current_pose(&self, k: usize) -> Pose<f64> {
         match self.results.get(k) {

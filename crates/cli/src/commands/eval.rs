@@ -187,27 +187,12 @@ fn pair_errors(fit: &Trajectory, video: &Trajectory) -> Option<Value> {
     if video.contact.model != "pganeus" {
         return None;
     }
-    let pairs = |t: &Trajectory| -> Vec<(Vec<String>, f64, f64)> {
-        let list = t
-            .contact
-            .extra
-            .get("pairs")
-            .and_then(|p| p.as_array())
-            .cloned()
-            .unwrap_or_default();
-        list.iter()
-            .filter_map(|p| {
-                let mut names: Vec<String> = serde_json::from_value(p["bodies"].clone()).ok()?;
-                names.sort();
-                Some((names, p["restitution"].as_f64()?, p["friction"].as_f64()?))
-            })
-            .collect()
-    };
-    let ours = pairs(fit);
-    let out: Vec<Value> = pairs(video)
+    let ours = crate::output::contact_pairs(fit);
+    let out: Vec<Value> = crate::output::contact_pairs(video)
         .into_iter()
-        .filter_map(|(names, e, mu)| {
-            let (_, fe, fmu) = ours.iter().find(|(n, _, _)| *n == names)?;
+        .filter_map(|(names, truth)| {
+            let (_, c) = ours.iter().find(|(n, _)| *n == names)?;
+            let (fe, fmu, e, mu) = (c.restitution, c.friction, truth.restitution, truth.friction);
             Some(json!({"bodies": names, "restitution": fe, "restitution_true": e,
                 "restitution_error": num((fe - e).abs(), 1.0, 4), "friction": fmu, "friction_true": mu,
                 "friction_error": num((fmu - mu).abs(), 1.0, 4)}))

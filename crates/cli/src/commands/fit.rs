@@ -524,6 +524,7 @@ pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
                 "pga.json",
                 "ga_tracked.json",
                 "pga_tracked.json",
+                "init_auto.json",
                 "trajectory.json",
             ] {
                 let _ = std::fs::remove_file(a.out.join(f));
@@ -680,50 +681,78 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
 /// `--init auto`: the first pose searched from frame 0's mask and the body's resting sides; written to
 /// `init_auto.json` as a guess relative to the object's reference capture, every candidate to the log.
 fn auto_guess(job: &mut Job) -> Result<Pose<f64>> {
-    let cfg = job.cfg.auto_init.clone();
-    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
-    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
-    let pb = super::progress(steps as u64, "first pose search");
-    let found = recon::search_first_pose(
+    let mut rows = Vec::new();
+    let pose = search_first_pose_of(
+        &job.cfg.auto_init,
         &job.world.bodies[0],
         &job.world.scene,
         &job.object,
         &job.scene_pre,
         &job.frames[0],
-        &cfg,
-        || pb.inc(1),
+        &job.name,
+        &job.video,
+        &job.out,
+        &mut rows,
     );
+    for r in rows {
+        job.log(r)?;
+    }
+    pose
+}
+
+/// `--init auto` for body `name`: its first pose searched from `frame`'s mask and its resting sides, each
+/// candidate a row of `rows` (for the log), the pose added to `OUT/init_auto.json` as a guess relative to
+/// the object's reference capture (the `init.json` format).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn search_first_pose_of(
+    cfg: &recon::FirstPoseSearchConfig,
+    body: &RigidBody,
+    scene: &sim::sdf::Shape,
+    object: &ObjectModel,
+    scene_pre: &[ComposedRay],
+    frame: &FrameTarget,
+    name: &str,
+    video: &Path,
+    out: &Path,
+    rows: &mut Vec<Value>,
+) -> Result<Pose<f64>> {
+    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
+    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
+    let pb = super::progress(steps as u64, &format!("first pose search: {name}"));
+    let found = recon::search_first_pose(body, scene, object, scene_pre, frame, cfg, || pb.inc(1));
     pb.finish_and_clear();
     let (pose, candidates) = match found {
         Ok(f) => f,
         Err(recon::PoseFitError::EmptyMask) => bail!(
-            "{}: the body's mask is empty in frame 0: the first pose cannot be searched",
-            job.video.display()
+            "{}: body {name:?}'s mask is empty in frame 0: its first pose cannot be searched",
+            video.display()
         ),
-        Err(e) => bail!("frame 0: {e}"),
+        Err(e) => bail!("{name}: frame 0: {e}"),
     };
     for c in &candidates {
-        writeln!(
-            job.log,
-            "{}",
-            json!({"stage": "first_pose_search", "t": c.pose.t.to_array(), "q": c.pose.q.to_array_re(),
-                   "silhouette_iou": c.silhouette_iou, "depth_from": c.depth_from, "refined_loss": c.refined_loss})
-        )?;
+        rows.push(
+            json!({"stage": "first_pose_search", "body": name, "t": c.pose.t.to_array(),
+            "q": c.pose.q.to_array_re(), "silhouette_iou": c.silhouette_iou, "depth_from": c.depth_from,
+            "refined_loss": c.refined_loss}),
+        );
     }
     let screened = candidates.iter().filter(|c| c.refined_loss.is_some()).count();
     tracing::info!(
-        "first pose search: {} candidates, {screened} screened; the best at {:?} m",
+        "{name}: first pose search: {} candidates, {screened} screened; the best at {:?} m",
         candidates.len(),
         pose.t.to_array().map(|x| (x * 1e4).round() / 1e4)
     );
-    let reference = job.object.primary.capture_from_body;
-    let g = pose.compose(&reference.inverse());
-    let entry =
-        json!({ &job.name: {"capture": job.object.reference_capture, "t": g.t.to_array(), "q": g.q.to_array_re()} });
-    pganeus_io::write_atomic(
-        &job.out.join("init_auto.json"),
-        serde_json::to_string_pretty(&entry)?.as_bytes(),
-    )?;
+    let path = out.join("init_auto.json");
+    let mut all: Map<String, Value> = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or_default();
+    let g = pose.compose(&object.primary.capture_from_body.inverse());
+    all.insert(
+        name.to_string(),
+        json!({"capture": object.reference_capture, "t": g.t.to_array(), "q": g.q.to_array_re()}),
+    );
+    pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&all)?.as_bytes())?;
     Ok(pose)
 }
 

@@ -26,8 +26,8 @@
 use super::checkpoint_of;
 use super::fit::{
     check_guess_in_view, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of, read_guesses,
-    read_video, scene_grid, strip, FitArgs, FitRecord, RecordInputs, Stage, SIMULATION_LOSS_RATIO,
-    SIMULATION_MISSES_BY,
+    read_video, scene_grid, search_first_pose_of, strip, FitArgs, FitRecord, RecordInputs, Stage,
+    SIMULATION_LOSS_RATIO, SIMULATION_MISSES_BY,
 };
 use super::render_trajectory::{beside, to8};
 use crate::output::trajectory_json;
@@ -389,48 +389,23 @@ fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: boo
 /// `--init auto` for body `b`: the first pose searched from its own mask in frame 0 and its resting sides.
 fn auto_guess(m: &Multi, log: &mut Log, b: usize) -> Result<Pose<f64>> {
     let body = &m.bodies[b];
-    let cfg = m.cfg.auto_init.clone();
-    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
-    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
-    let pb = super::progress(steps as u64, &format!("first pose search: {}", body.name));
-    let found = recon::search_first_pose(
+    let mut rows = Vec::new();
+    let pose = search_first_pose_of(
+        &m.cfg.auto_init,
         &m.world.bodies[b],
         &m.world.scene,
         &body.object,
         &m.scene_pre,
         &body.frames[0],
-        &cfg,
-        || pb.inc(1),
+        &body.name,
+        &m.video,
+        &m.out,
+        &mut rows,
     );
-    pb.finish_and_clear();
-    let (pose, candidates) = match found {
-        Ok(f) => f,
-        Err(recon::PoseFitError::EmptyMask) => bail!(
-            "{}: body {:?}'s mask is empty in frame 0: its first pose cannot be searched",
-            m.video.display(),
-            body.name
-        ),
-        Err(e) => bail!("{}: frame 0: {e}", body.name),
-    };
-    for c in &candidates {
-        log.write(
-            json!({"stage": "first_pose_search", "body": body.name, "t": c.pose.t.to_array(),
-            "q": c.pose.q.to_array_re(), "silhouette_iou": c.silhouette_iou, "refined_loss": c.refined_loss}),
-        )?;
+    for r in rows {
+        log.write(r)?;
     }
-    // Written as a guess relative to the object's reference capture, like a hand-made init.json entry.
-    let path = m.out.join("init_auto.json");
-    let mut all: Map<String, Value> = std::fs::read_to_string(&path)
-        .ok()
-        .and_then(|t| serde_json::from_str(&t).ok())
-        .unwrap_or_default();
-    let g = pose.compose(&body.object.primary.capture_from_body.inverse());
-    all.insert(
-        body.name.clone(),
-        json!({"capture": body.object.reference_capture, "t": g.t.to_array(), "q": g.q.to_array_re()}),
-    );
-    pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&all)?.as_bytes())?;
-    Ok(pose)
+    pose
 }
 
 /// Stage 2, GA: every frame of every body; in each frame the bodies in turn, each with the others drawn at
@@ -614,8 +589,8 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         ..m.cfg.pga.clone()
     };
     let pairs = m.world.pairs();
-    let contacts = recon::first_contacts(&m.world, &poses);
-    let steps = 1 + contacts.len().max(1);
+    // At most: the launch, the frames after the first collision, each pair, the final joint fit.
+    let steps = 3 + pairs.len();
     let per_step = if m.cfg.pga_multi_start {
         1 + CONTACT_STARTS.len()
     } else {
@@ -678,24 +653,12 @@ fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
             friction: t.contact.friction,
         };
     }
-    let pairs = t
-        .contact
-        .extra
-        .get("pairs")
-        .and_then(|p| p.as_array())
-        .cloned()
-        .unwrap_or_default();
+    let pairs = crate::output::contact_pairs(&t);
     for (p, (i, j)) in w.pairs().into_iter().enumerate() {
-        let names = [&m.bodies[i].name, &m.bodies[j].name];
-        let entry = pairs.iter().find(|e| {
-            let n: Vec<String> = serde_json::from_value(e["bodies"].clone()).unwrap_or_default();
-            n.len() == 2 && names.iter().all(|x| n.contains(x))
-        });
-        if let Some(e) = entry {
-            w.pair_contact[p] = sim::ContactParams {
-                restitution: e["restitution"].as_f64().unwrap_or(0.5),
-                friction: e["friction"].as_f64().unwrap_or(0.5),
-            };
+        let mut names = [m.bodies[i].name.clone(), m.bodies[j].name.clone()];
+        names.sort();
+        if let Some((_, c)) = pairs.iter().find(|(n, _)| *n == names) {
+            w.pair_contact[p] = *c;
         }
     }
     Ok(w)
