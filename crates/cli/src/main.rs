@@ -19,6 +19,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole method on the synthetic tabletop scene in one command (synth, train, merge, bake, fit, eval, report).
+    Demo(commands::demo::DemoArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(commands::synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
@@ -60,7 +62,29 @@ fn main() {
         .with_target(false)
         .init();
     let cli = Cli::parse();
-    let result = match cli.command {
+    let result = dispatch(cli.command);
+    if let Err(e) = result {
+        // The chain of causes, each once: many errors already quote their source.
+        let mut message = e.to_string();
+        for cause in e.chain().skip(1) {
+            let cause = cause.to_string();
+            if !message.contains(&cause) {
+                message = format!("{message}: {cause}");
+            }
+        }
+        eprintln!("error: {message}");
+        std::process::exit(1);
+    }
+}
+
+/// Runs one subcommand.
+fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Demo(a) => commands::demo::run(a, &|argv: &[String]| {
+            let cli = Cli::try_parse_from(argv)
+                .map_err(|e| anyhow::anyhow!("{}", e.to_string().trim().trim_start_matches("error: ")))?;
+            dispatch(cli.command)
+        }),
         Command::Synth(a) => commands::synth::run(a),
         Command::Train(a) => commands::train::run(a),
         Command::Render(a) => commands::render::run(a),
@@ -77,17 +101,5 @@ fn main() {
         Command::BenchCompose(a) => commands::bench_compose::run(a),
         Command::BenchContact(a) => commands::bench_contact::run(a),
         Command::BenchTrain(a) => commands::bench_train::run(a),
-    };
-    if let Err(e) = result {
-        // The chain of causes, each once: many errors already quote their source.
-        let mut message = e.to_string();
-        for cause in e.chain().skip(1) {
-            let cause = cause.to_string();
-            if !message.contains(&cause) {
-                message = format!("{message}: {cause}");
-            }
-        }
-        eprintln!("error: {message}");
-        std::process::exit(1);
     }
 }

@@ -174,6 +174,13 @@ lr_translation = 0.001
 lr_rotation = 0.01
 [pga]
 iterations = 20
+[auto_init]
+screened = 4
+screen_iterations = 10
+refined = 2
+[auto_init.refine]
+iterations = 40
+rays_per_step = 256
 "#;
 
 fn fit_cmd(f: &Fixture, video: &Path, object: &str, init: &Path, out: &Path) -> Command {
@@ -267,9 +274,17 @@ fn fit_recovers_a_toss_and_refuses_bad_inputs() {
     let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
     assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);
 
-    // Run again: every stage is read back, nothing refitted.
+    // Run again: the finished fit is left as it is.
     let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
-    assert!(text(&o).contains("resuming"), "{}", text(&o));
+    assert!(text(&o).contains("already finished"), "{}", text(&o));
+    // A fit stopped before its end (no trajectory.json yet) resumes: every stage is read back, nothing
+    // refitted.
+    std::fs::remove_file(out.join("trajectory.json")).unwrap();
+    let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
+    for needle in ["resuming", "first pose: from", "PA: from", "GA: from"] {
+        assert!(text(&o).contains(needle), "{needle}: {}", text(&o));
+    }
+    assert!(out.join("trajectory.json").exists());
     // Other settings into the same folder need --force.
     std::fs::write(d.join("other.toml"), SMALL_FIT.replace("rounds = 1", "rounds = 2")).unwrap();
     let o = fit_cmd_with(&f, &f.video, &object, &d.join("init.json"), &out, &d.join("other.toml"))

@@ -8,13 +8,13 @@
 
 use super::checkpoint_of;
 use super::mesh_cmds::world_cameras;
+use super::objects::{load_objects, parse_objects};
 use super::render_trajectory::read_motion;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use geom::Vec3;
 use neus::checkpoint::load_field;
 use neus::compose::{prerender_scene, Behind, ComposedRay, Composer, Layer, RayGradient};
-use neus::ObjectModel;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -96,12 +96,8 @@ fn time_rays(
 }
 
 pub fn run(a: BenchComposeArgs) -> Result<()> {
-    let (name, dir) = a
-        .object
-        .split_once('=')
-        .ok_or_else(|| anyhow!("--object {:?}: expected NAME=DIR", a.object))?;
-    let model = ObjectModel::load(std::path::Path::new(dir)).map_err(|e| anyhow!("--object {name}: {e}"))?;
-    let objects = vec![(name.to_string(), model)];
+    let objects = load_objects(&parse_objects(std::slice::from_ref(&a.object))?)?;
+    let name = objects[0].0.as_str();
     let (_, _, motion) = read_motion(&a.trajectory, a.video.as_deref(), &objects)?;
     let body = motion
         .iter()

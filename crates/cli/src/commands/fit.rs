@@ -6,6 +6,7 @@
 
 use super::checkpoint_of;
 use super::mesh_cmds::{bake_scene, world_cameras};
+use super::objects::parse_objects;
 use super::render_trajectory::{beside, read_mask, reference_frame, to8};
 use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
@@ -169,27 +170,6 @@ impl Job {
     fn stage_file(&self, name: &str) -> PathBuf {
         self.out.join(name)
     }
-}
-
-/// The `--object NAME=DIR` entries, in order (names unique).
-pub(super) fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
-    if list.is_empty() {
-        bail!("give the body with --object NAME=DIR");
-    }
-    let mut out: Vec<(String, PathBuf)> = Vec::new();
-    for one in list {
-        let (n, d) = one
-            .split_once('=')
-            .ok_or_else(|| anyhow!("--object {one:?}: expected NAME=DIR (a merge output or a run folder)"))?;
-        if n.is_empty() {
-            bail!("--object {one:?}: the name is empty");
-        }
-        if out.iter().any(|(o, _)| o == n) {
-            bail!("--object {one:?}: body {n:?} is given twice");
-        }
-        out.push((n.to_string(), PathBuf::from(d)));
-    }
-    Ok(out)
 }
 
 /// The video's frames for body `name`: images, the body's masks and the one fixed camera.
@@ -400,7 +380,9 @@ pub fn run(a: FitArgs) -> Result<()> {
         fit: cfg.clone(),
     };
 
-    open_output(&a, &record)?;
+    if open_output(&a, &record)? {
+        return Ok(());
+    }
     let grid = scene_grid(grid, &scene_field, &a)?;
     let sim_cfg = SimConfig {
         fps,
@@ -501,8 +483,9 @@ pub fn run(a: FitArgs) -> Result<()> {
 }
 
 /// The output folder: a new one (or, with `--force`, one emptied of stage results), or the same fit resumed;
-/// `config.toml` records what it was made with.
-pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
+/// `config.toml` records what it was made with. True when the same fit already finished there
+/// (`trajectory.json`, written last, is in place): nothing is left to do.
+pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<bool> {
     let record_path = a.out.join("config.toml");
     let record_text = toml::to_string(record)?;
     if record_path.exists() && !a.force {
@@ -513,6 +496,16 @@ pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
                 "{} holds a fit with other inputs or settings: give another --out, or --force to start over",
                 a.out.display()
             );
+        }
+        let whole = a.stages.as_ref().is_none_or(|s| s.contains(&Stage::Pga));
+        let done = a.out.join("trajectory.json");
+        if whole && done.exists() {
+            println!(
+                "resuming the fit in {}: already finished, {} is in place (--force to fit again)",
+                a.out.display(),
+                done.display()
+            );
+            return Ok(true);
         }
         tracing::info!("resuming the fit in {}", a.out.display());
     } else {
@@ -533,7 +526,7 @@ pub(super) fn open_output(a: &FitArgs, record: &FitRecord) -> Result<()> {
         std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
         pganeus_io::write_atomic(&record_path, record_text.as_bytes())?;
     }
-    Ok(())
+    Ok(false)
 }
 
 /// The scene's collision grid: `--scene-grid`'s, or baked from the scene run into the output folder once.

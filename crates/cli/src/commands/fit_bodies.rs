@@ -29,6 +29,7 @@ use super::fit::{
     read_video, scene_grid, search_first_pose_of, strip, FitArgs, FitRecord, RecordInputs, Stage,
     SIMULATION_LOSS_RATIO, SIMULATION_MISSES_BY,
 };
+use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
 use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
@@ -54,7 +55,7 @@ use std::time::Instant;
 /// One body of the video.
 struct Body {
     name: String,
-    object: ObjectModel,
+    object: Arc<ObjectModel>,
     /// The video's frames with this body's masks.
     frames: Vec<FrameTarget>,
 }
@@ -100,15 +101,14 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     // Every input is read and checked before anything is written.
     let mut bodies = Vec::new();
     let mut video_fps = None;
-    for (name, dir) in &objects {
+    let mut videos = Vec::new();
+    for (name, _) in &objects {
         let (frames, fps) = read_video(&a.video, name, false, a.frames)?;
         video_fps = video_fps.or(fps);
-        let object = ObjectModel::load(dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
-        bodies.push(Body {
-            name: name.clone(),
-            object,
-            frames,
-        });
+        videos.push(frames);
+    }
+    for ((name, object), frames) in load_objects(&objects)?.into_iter().zip(videos) {
+        bodies.push(Body { name, object, frames });
     }
     let n = bodies[0].frames.len();
     let fps = match (a.fps, video_fps) {
@@ -123,7 +123,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     let guesses: Vec<Option<Pose<f64>>> = if a.init.as_os_str() == "auto" {
         vec![None; bodies.len()]
     } else {
-        let named: Vec<(&str, &ObjectModel)> = bodies.iter().map(|b| (b.name.as_str(), &b.object)).collect();
+        let named: Vec<(&str, &ObjectModel)> = bodies.iter().map(|b| (b.name.as_str(), &*b.object)).collect();
         read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
     };
     let cam = bodies[0].frames[0].camera;
@@ -174,7 +174,9 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         },
         fit: cfg.clone(),
     };
-    open_output(&a, &record)?;
+    if open_output(&a, &record)? {
+        return Ok(());
+    }
     let grid = scene_grid(grid, &scene_field, &a)?;
     let sim_cfg = SimConfig {
         fps,
@@ -284,7 +286,7 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
     for (b, body) in m.bodies.iter().enumerate() {
         let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
             .filter(|&o| o != b)
-            .map(|o| (&m.bodies[o].object, poses[o].as_slice()))
+            .map(|o| (&*m.bodies[o].object, poses[o].as_slice()))
             .collect();
         all.push(evaluate_poses(
             &body.object,

@@ -5,6 +5,7 @@
 
 use super::checkpoint_of;
 use super::mesh_cmds::world_cameras;
+use super::objects::{load_objects, parse_objects};
 use super::render::read_cameras;
 use anyhow::{anyhow, bail, Context, Result};
 use geom::{Pose, Quat, Vec3};
@@ -13,7 +14,8 @@ use neus::compose::{prerender_scene, render_composed, Behind, ComposedImage, Com
 use neus::render_view::psnr;
 use neus::ObjectModel;
 use pganeus_io::{CameraMats, CaptureInfo, CaptureKind, Image};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+use std::sync::Arc;
 
 /// What `render --trajectory` needs (parsed by `render`'s arguments).
 pub struct TrajectoryJob<'a> {
@@ -45,7 +47,7 @@ fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
 pub(crate) fn read_motion(
     path: &Path,
     video: Option<&str>,
-    objects: &[(String, ObjectModel)],
+    objects: &[(String, Arc<ObjectModel>)],
 ) -> Result<(f64, String, Vec<BodyMotion>)> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
@@ -120,21 +122,6 @@ pub(crate) fn read_motion(
     Ok((v.fps, v.capture.clone(), bodies))
 }
 
-/// `NAME=DIR` pairs.
-fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
-    list.iter()
-        .map(|s| {
-            let (n, d) = s
-                .split_once('=')
-                .ok_or_else(|| anyhow!("--object {s:?}: expected NAME=DIR (a merge output or a run folder)"))?;
-            if n.is_empty() {
-                bail!("--object {s:?}: the name is empty");
-            }
-            Ok((n.to_string(), PathBuf::from(d)))
-        })
-        .collect()
-}
-
 pub(crate) fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
@@ -183,9 +170,12 @@ pub(crate) fn read_mask(path: &Path) -> Result<Vec<bool>> {
 
 pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let mut objects = Vec::new();
-    for (name, dir) in parse_objects(job.objects)? {
-        let model = ObjectModel::load(&dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
+    if job.objects.is_empty() {
+        bail!("give at least one --object NAME=DIR");
+    }
+    let named = parse_objects(job.objects)?;
+    let objects = load_objects(&named)?;
+    for ((name, dir), (_, model)) in named.iter().zip(&objects) {
         tracing::info!(
             "object {name}: {} ({}; body frame at the centre of mass in {})",
             dir.display(),
@@ -196,10 +186,6 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
             },
             model.reference_capture
         );
-        objects.push((name, model));
-    }
-    if objects.is_empty() {
-        bail!("give at least one --object NAME=DIR");
     }
     let (fps, capture_name, motion) = read_motion(job.trajectory, job.video, &objects)?;
     for (name, _) in &objects {
@@ -219,7 +205,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
             if o.is_none() {
                 tracing::warn!("body {:?} has no --object: not rendered", m.name);
             }
-            o.map(|o| (m, o))
+            o.map(|o| (m, &**o))
         })
         .collect();
     let frames = bodies.iter().map(|(m, _)| m.poses.len()).max().unwrap_or(0);

@@ -56,7 +56,7 @@ pub fn capture_kind(given: Option<CaptureSubject>, data: &Dataset) -> CaptureSub
         (None, None) if data.has_masks() => (CaptureSubject::Object, "the capture has masks"),
         (None, None) => (CaptureSubject::Scene, "the capture has no masks"),
     };
-    tracing::info!("training a {} field ({why})", kind.name());
+    tracing::info!("training the {} field ({why})", kind.name());
     kind
 }
 

@@ -1,0 +1,541 @@
+//! `pganeus demo`: the whole method on the embedded synthetic tabletop scene, one command. Each stage is
+//! the subcommand a user would run (its command line is printed and recorded), so the demo is also the
+//! recipe: synth → train the scene and the toy in its two poses → merge → bake → fit the slide and the drop
+//! from `--init auto` → eval against the truth → a report. Stages that finished with the same command line
+//! are skipped on a rerun; a stage stopped half way resumes (training from its checkpoint, `fit` from its
+//! stage files).
+
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// Small images, short training and a light fit: the whole chain in minutes (a smoke run; its
+    /// figures are far from the method's).
+    #[arg(long)]
+    pub quick: bool,
+    /// The folder for everything: data/, runs/, merged/, scene.sdf, fits/, report.md, demo.json.
+    /// Default: out/demo (out/demo-quick with --quick).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Redo every stage, even those that finished.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// How the demo's sizes differ between `--quick` and the default.
+struct Plan {
+    scale: &'static str,
+    scene_steps: usize,
+    object_steps: usize,
+    bake_res: usize,
+    /// Frames of each video the fit reads (all when None).
+    frames: Option<usize>,
+    /// `fit --config` settings (none: fit's defaults).
+    fit_config: Option<&'static str>,
+}
+
+const QUICK: Plan = Plan {
+    scale: "small",
+    scene_steps: 300,
+    object_steps: 300,
+    bake_res: 192,
+    frames: Some(16),
+    fit_config: Some(QUICK_FIT),
+};
+
+const FULL: Plan = Plan {
+    scale: "small",
+    scene_steps: 1500,
+    object_steps: 1000,
+    bake_res: 256,
+    frames: None,
+    fit_config: None,
+};
+
+/// A light fit: fewer steps and pixels in every stage, one GA⇄PGA round, no multi-start.
+const QUICK_FIT: &str = r#"# demo --quick: fewer steps and pixels in every stage (a smoke run, not the method's accuracy)
+rounds = 1
+pga_multi_start = false
+[first_pose]
+iterations = 60
+rays_per_step = 256
+[pa]
+iterations = 40
+rays_per_frame = 128
+window_steps = 10
+[ga]
+hypotheses = false
+[ga.pose]
+iterations = 25
+rays_per_step = 256
+[pga]
+iterations = 20
+[auto_init]
+screened = 4
+screen_iterations = 10
+refined = 2
+[auto_init.refine]
+iterations = 40
+rays_per_step = 256
+"#;
+
+/// One stage: a name, the subcommand's arguments, and its expected share of the time (seconds on two
+/// cores, measured; only for the ETA).
+struct Stage {
+    name: String,
+    argv: Vec<String>,
+    expected_s: f64,
+}
+
+/// What finished: stage name → the command line it ran with and how long it took.
+#[derive(Default, Serialize, Deserialize)]
+struct Record {
+    done: BTreeMap<String, Done>,
+}
+
+#[derive(Serialize, Deserialize, Clone)]
+struct Done {
+    argv: Vec<String>,
+    seconds: f64,
+}
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// The stages in order, their arguments written out as a user would type them.
+fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
+    let data = out.join("data");
+    let runs = out.join("runs");
+    let merged = out.join("merged").join("toy");
+    let grid = out.join("scene.sdf");
+    let mut v = Vec::new();
+    let mut add = |name: &str, expected_s: f64, args: &[String]| {
+        v.push(Stage {
+            name: name.to_string(),
+            argv: args.to_vec(),
+            expected_s,
+        })
+    };
+    let q = |quick_s: f64, full_s: f64| if quick { quick_s } else { full_s };
+    add(
+        "synth",
+        q(20.0, 20.0),
+        &[
+            "synth".into(),
+            "--preset".into(),
+            "tabletop".into(),
+            "--scale".into(),
+            plan.scale.into(),
+            "--out".into(),
+            s(&data),
+            "--contact-sheet".into(),
+        ],
+    );
+    for (name, capture, steps, expected) in [
+        ("train scene", "background", plan.scene_steps, q(100.0, 600.0)),
+        ("train toy_a", "toy_a", plan.object_steps, q(25.0, 90.0)),
+        ("train toy_b", "toy_b", plan.object_steps, q(25.0, 90.0)),
+    ] {
+        let run = if capture == "background" { "scene" } else { capture };
+        add(
+            name,
+            expected,
+            &[
+                "train".into(),
+                s(&data.join(capture)),
+                "--out".into(),
+                s(&runs.join(run)),
+                "--iterations".into(),
+                steps.to_string(),
+            ],
+        );
+    }
+    add(
+        "merge",
+        q(20.0, 25.0),
+        &[
+            "merge".into(),
+            s(&runs.join("toy_a")),
+            s(&runs.join("toy_b")),
+            "--out".into(),
+            s(&merged),
+            "--capture-a".into(),
+            s(&data.join("toy_a")),
+            "--capture-b".into(),
+            s(&data.join("toy_b")),
+        ],
+    );
+    add(
+        "bake",
+        q(10.0, 30.0),
+        &[
+            "bake".into(),
+            s(&runs.join("scene")),
+            "--out".into(),
+            s(&grid),
+            "--res".into(),
+            plan.bake_res.to_string(),
+        ],
+    );
+    for video in ["slide", "drop"] {
+        let fit_dir = out.join("fits").join(video);
+        let mut args: Vec<String> = vec![
+            "fit".into(),
+            s(&data.join(video)),
+            "--scene".into(),
+            s(&runs.join("scene")),
+            "--scene-grid".into(),
+            s(&grid),
+            "--object".into(),
+            format!("toy={}", s(&merged)),
+            "--init".into(),
+            "auto".into(),
+            "--out".into(),
+            s(&fit_dir),
+        ];
+        if let Some(n) = plan.frames {
+            args.extend(["--frames".into(), n.to_string()]);
+        }
+        if plan.fit_config.is_some() {
+            args.extend(["--config".into(), s(&out.join("fit.toml"))]);
+        }
+        add(&format!("fit {video}"), q(60.0, 300.0), &args);
+        add(
+            &format!("eval {video}"),
+            q(5.0, 10.0),
+            &[
+                "eval".into(),
+                s(&fit_dir),
+                "--truth".into(),
+                s(&data.join("truth.json")),
+                "--video".into(),
+                video.into(),
+            ],
+        );
+    }
+    v
+}
+
+/// Runs the demo; `dispatch` runs one subcommand from its arguments (as `pganeus ARGS...` would).
+pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()> {
+    let t0 = Instant::now();
+    let plan = if a.quick { &QUICK } else { &FULL };
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(if a.quick { "out/demo-quick" } else { "out/demo" }));
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let record_path = out.join("demo.json");
+    let mut record: Record = if a.force || !record_path.exists() {
+        Record::default()
+    } else {
+        let text = std::fs::read_to_string(&record_path)?;
+        serde_json::from_str(&text).map_err(|e| {
+            anyhow!(
+                "{}: {e} (not a demo record: give another --out, or --force)",
+                record_path.display()
+            )
+        })?
+    };
+    if let Some(cfg) = plan.fit_config {
+        pganeus_io::write_atomic(&out.join("fit.toml"), cfg.as_bytes())?;
+    }
+    let all = stages(plan, &out, a.quick);
+    let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
+    // Expected seconds of the stages done or skipped, and of those run here (with the time they took).
+    let (mut expected_done, mut expected_run, mut spent) = (0.0, 0.0, 0.0);
+    println!(
+        "demo{}: {} stages into {} (about {} on two cores)",
+        if a.quick { " --quick" } else { "" },
+        all.len(),
+        out.display(),
+        minutes(total_expected)
+    );
+    // Once a stage runs, every later one runs too: its inputs changed.
+    let mut upstream_ran = false;
+    for (i, stage) in all.iter().enumerate() {
+        let head = format!("[{}/{}] {}", i + 1, all.len(), stage.name);
+        if !upstream_ran && record.done.get(&stage.name).is_some_and(|d| d.argv == stage.argv) {
+            println!("{head}: done before, skipped");
+            expected_done += stage.expected_s;
+            continue;
+        }
+        // The time left, scaled by how this machine compares with the expected times so far (a minute of
+        // the expected pace mixed in, so one quick stage does not halve the estimate).
+        let pace = (spent + 60.0) / (expected_run + 60.0);
+        println!(
+            "{head}: pganeus {} (ETA for the demo {})",
+            stage.argv.join(" "),
+            minutes((total_expected - expected_done) * pace)
+        );
+        let mut argv = vec!["pganeus".to_string()];
+        argv.extend(stage.argv.iter().cloned());
+        let redo = a.force || upstream_ran || record.done.contains_key(&stage.name);
+        argv.extend(resume_flags(stage, redo));
+        upstream_ran = true;
+        let t = Instant::now();
+        dispatch(&argv).with_context(|| format!("demo stage {:?} failed", stage.name))?;
+        let seconds = t.elapsed().as_secs_f64();
+        println!("{head}: done in {seconds:.0} s");
+        spent += seconds;
+        expected_run += stage.expected_s;
+        expected_done += stage.expected_s;
+        record.done.insert(
+            stage.name.clone(),
+            Done {
+                argv: stage.argv.clone(),
+                seconds: (seconds * 10.0).round() / 10.0,
+            },
+        );
+        pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
+    }
+    let report = write_report(&out, plan, a.quick, &all, &record)?;
+    println!(
+        "demo finished in {} (this run); report: {}",
+        minutes(t0.elapsed().as_secs_f64()),
+        report.display()
+    );
+    Ok(())
+}
+
+/// A stage that has not finished is run over whatever it left: training resumes from its checkpoint when
+/// one is there, `fit` from its stage files, synth replaces its folder (merge, bake and eval always write anew). `redo`: its inputs or
+/// its command line changed since (or `--force`): everything starts over.
+fn resume_flags(stage: &Stage, redo: bool) -> Vec<String> {
+    let out = stage
+        .argv
+        .iter()
+        .position(|x| x == "--out")
+        .map(|i| PathBuf::from(&stage.argv[i + 1]));
+    match stage.argv[0].as_str() {
+        "train" => {
+            let checkpoint = out.map(|o| o.join("checkpoint.safetensors"));
+            if !redo && checkpoint.is_some_and(|c| c.exists()) {
+                vec!["--resume".into()]
+            } else {
+                vec!["--force".into()]
+            }
+        }
+        "synth" => vec!["--force".into()],
+        "fit" if redo => vec!["--force".into()],
+        _ => vec![],
+    }
+}
+
+fn minutes(s: f64) -> String {
+    if s < 90.0 {
+        format!("{s:.0} s")
+    } else {
+        format!("{:.1} min", s / 60.0)
+    }
+}
+
+fn read_json(p: &Path) -> Result<Value> {
+    let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+    serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))
+}
+
+/// `report.md`: what ran, how long, and how the fits compare with the truth (from each fit's eval.json),
+/// with the pictures each stage wrote.
+fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Record) -> Result<PathBuf> {
+    let mut md = String::new();
+    writeln!(
+        md,
+        "# pganeus demo{}\n\nThe whole method on the synthetic tabletop scene (`synth --preset tabletop --scale {}`): \
+         the scene trained for {} steps, the toy in two poses for {} steps each, merged, the scene baked at {}³, \
+         then `fit` from `--init auto` on each video{} and `eval` against the truth.\n",
+        if quick { " --quick" } else { "" },
+        plan.scale,
+        plan.scene_steps,
+        plan.object_steps,
+        plan.bake_res,
+        plan.frames
+            .map(|n| format!(" (its first {n} frames)"))
+            .unwrap_or_default()
+    )?;
+    if quick {
+        writeln!(
+            md,
+            "`--quick` is a smoke run: short training and a light fit. Its figures show the chain works, not \
+             the method's accuracy (run `pganeus demo` for that).\n"
+        )?;
+    }
+    writeln!(md, "![inputs](data/contact_sheet.png)\n")?;
+    writeln!(
+        md,
+        "## Fits against the truth\n\n| video | position mm (mean / worst) | rotation ° (mean / worst) | \
+         ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) | friction (true) |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |"
+    )?;
+    let mut mesh_line = None;
+    for video in ["slide", "drop"] {
+        let p = out.join("fits").join(video).join("eval.json");
+        let e = read_json(&p)?;
+        let body = e["summary"]
+            .as_object()
+            .and_then(|m| m.values().next())
+            .ok_or_else(|| anyhow!("{}: no body in the summary", p.display()))?;
+        let par = e["parameters"]
+            .as_object()
+            .and_then(|m| m.values().next())
+            .cloned()
+            .unwrap_or(Value::Null);
+        let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:.2}"));
+        writeln!(
+            md,
+            "| {video} | {} / {} | {} / {} | {} | {} | {} % | {} ({}) | {} ({}) |",
+            f(&body["position_mm"]["mean"]),
+            f(&body["position_mm"]["worst"]),
+            f(&body["rotation_deg"]["mean"]),
+            f(&body["rotation_deg"]["worst"]),
+            f(&body["add_s_mm"]["mean"]),
+            f(&body["silhouette_iou"]["worst"]),
+            f(&par["v0_error_percent"]),
+            f(&par["restitution"]),
+            f(&par["restitution_true"]),
+            f(&par["friction"]),
+            f(&par["friction_true"]),
+        )?;
+        if mesh_line.is_none() {
+            if let Some(m) = e["meshes"].as_object().and_then(|m| m.values().next()) {
+                mesh_line = Some(format!(
+                    "The merged toy against the true mesh: Chamfer mean {} mm (95th percentile {} mm), volume IoU {}.",
+                    f(&m["chamfer_mean_mm"]),
+                    f(&m["chamfer_p95_mm"]),
+                    f(&m["volume_iou"])
+                ));
+            }
+        }
+    }
+    writeln!(md)?;
+    if let Some(l) = mesh_line {
+        writeln!(md, "{l}\n")?;
+    }
+    for video in ["slide", "drop"] {
+        writeln!(
+            md,
+            "## {video}\n\nInput (left) and the fit rendered in the reconstructed scene (right): \
+             [animation](fits/{video}/animation.png), per-frame errors in `fits/{video}/eval.csv`.\n\n\
+             ![{video}](fits/{video}/strip.png)\n"
+        )?;
+    }
+    writeln!(md, "## Stages\n\n| stage | seconds | command |\n| --- | --- | --- |")?;
+    for stage in all {
+        if let Some(d) = record.done.get(&stage.name) {
+            writeln!(
+                md,
+                "| {} | {:.0} | `pganeus {}` |",
+                stage.name,
+                d.seconds,
+                d.argv.join(" ")
+            )?;
+        }
+    }
+    let path = out.join("report.md");
+    pganeus_io::write_atomic(&path, md.as_bytes())?;
+    Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::RefCell;
+
+    /// A stand-in for the subcommands: records each command line, writes the eval files the report reads,
+    /// and fails at `fail_at` (a stage's subcommand and first argument's end).
+    fn fake<'a>(
+        calls: &'a RefCell<Vec<Vec<String>>>,
+        fail_at: Option<&'a str>,
+    ) -> impl Fn(&[String]) -> Result<()> + 'a {
+        move |argv: &[String]| {
+            calls.borrow_mut().push(argv[1..].to_vec());
+            let line = argv[1..].join(" ");
+            if fail_at.is_some_and(|f| line.starts_with(f)) {
+                anyhow::bail!("stopped in {line}");
+            }
+            if argv[1] == "eval" {
+                let e = serde_json::json!({
+                    "summary": {"toy": {"position_mm": {"mean": 1.0, "worst": 2.0},
+                        "rotation_deg": {"mean": 0.5, "worst": 1.5}, "add_s_mm": {"mean": 0.7},
+                        "silhouette_iou": {"worst": 0.95}}},
+                    "parameters": {"toy": {"v0_error_percent": 3.0, "restitution": 0.48,
+                        "restitution_true": 0.5, "friction": 0.26, "friction_true": 0.25}},
+                    "meshes": {"toy": {"chamfer_mean_mm": 0.9, "chamfer_p95_mm": 2.0, "volume_iou": 0.93}}
+                });
+                let dir = PathBuf::from(&argv[2]);
+                std::fs::create_dir_all(&dir)?;
+                std::fs::write(dir.join("eval.json"), e.to_string())?;
+            }
+            Ok(())
+        }
+    }
+
+    fn args(out: &Path, force: bool) -> DemoArgs {
+        DemoArgs {
+            quick: true,
+            out: Some(out.to_path_buf()),
+            force,
+        }
+    }
+
+    fn names(calls: &RefCell<Vec<Vec<String>>>) -> Vec<String> {
+        calls
+            .borrow()
+            .iter()
+            .map(|c| format!("{} {}", c[0], c[1].rsplit('/').next().unwrap_or("")))
+            .collect()
+    }
+
+    #[test]
+    fn stages_run_once_resume_where_stopped_and_redo_what_follows_a_change() {
+        let dir = testkit::scratch_dir("cli", "demo");
+        // Stopped in the drop's fit: everything before it is recorded, the report is not written.
+        let calls = RefCell::new(Vec::new());
+        let drop_fit = format!("fit {}", dir.join("data").join("drop").display());
+        let e = run(args(&dir, false), &fake(&calls, Some(&drop_fit))).unwrap_err();
+        assert!(format!("{e:#}").contains("fit drop"), "{e:#}");
+        assert_eq!(calls.borrow().len(), 9);
+        assert!(!dir.join("report.md").exists());
+        // Rerun: only the drop's fit (resuming its own stage files: no --force) and its eval run.
+        let calls = RefCell::new(Vec::new());
+        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        assert_eq!(names(&calls), ["fit drop", "eval drop"]);
+        assert!(!calls.borrow()[0].contains(&"--force".to_string()));
+        let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
+        assert!(
+            report.contains("| slide | 1.00 / 2.00 | 0.50 / 1.50 | 0.70 | 0.95 | 3.00 % | 0.48 (0.50) | 0.26 (0.25) |"),
+            "{report}"
+        );
+        assert!(report.contains("Chamfer mean 0.90 mm"), "{report}");
+        // Nothing left to do.
+        let calls = RefCell::new(Vec::new());
+        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        assert!(calls.borrow().is_empty());
+        // A stage whose command line changed (the object's training) runs again from scratch, and so does
+        // every stage after it; those before it are kept.
+        let mut record: Record =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("demo.json")).unwrap()).unwrap();
+        record.done.get_mut("train toy_a").unwrap().argv.push("--old".into());
+        std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
+        let calls = RefCell::new(Vec::new());
+        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        assert_eq!(calls.borrow().len(), 8, "{:?}", names(&calls));
+        assert_eq!(names(&calls)[0], "train toy_a");
+        for c in calls.borrow().iter().filter(|c| c[0] == "train" || c[0] == "fit") {
+            assert!(c.contains(&"--force".to_string()), "{c:?}");
+        }
+        // --force redoes everything.
+        let calls = RefCell::new(Vec::new());
+        run(args(&dir, true), &fake(&calls, None)).unwrap();
+        assert_eq!(calls.borrow().len(), 10);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
