@@ -375,6 +375,12 @@ fn train_render_and_resume_end_to_end() {
         "{}",
         text(&o)
     );
+    // --force starts over: a fresh checkpoint and a fresh log (15 steps' worth, not 30 and 15 more).
+    let lines = |p: &Path| std::fs::read_to_string(p).unwrap().lines().count();
+    let resumed = lines(&run.join("log.jsonl"));
+    let o = train(&["--iterations", "15", "--force", "--no-preview"]);
+    assert!(o.status.success() && !text(&o).contains("resuming"), "{}", text(&o));
+    assert!(lines(&run.join("log.jsonl")) < resumed, "the log was not started over");
     let out = d.join("renders");
     let o = bin()
         .arg("render")

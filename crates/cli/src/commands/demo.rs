@@ -82,7 +82,7 @@ screened = 4
 screen_iterations = 10
 refined = 2
 [auto_init.refine]
-iterations = 40
+iterations = 100
 rays_per_step = 256
 "#;
 
@@ -127,7 +127,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
     let q = |quick_s: f64, full_s: f64| if quick { quick_s } else { full_s };
     add(
         "synth",
-        q(20.0, 20.0),
+        q(10.0, 10.0),
         &[
             "synth".into(),
             "--preset".into(),
@@ -140,9 +140,9 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         ],
     );
     for (name, capture, steps, expected) in [
-        ("train scene", "background", plan.scene_steps, q(100.0, 600.0)),
-        ("train toy_a", "toy_a", plan.object_steps, q(25.0, 90.0)),
-        ("train toy_b", "toy_b", plan.object_steps, q(25.0, 90.0)),
+        ("train scene", "background", plan.scene_steps, q(110.0, 600.0)),
+        ("train toy_a", "toy_a", plan.object_steps, q(32.0, 90.0)),
+        ("train toy_b", "toy_b", plan.object_steps, q(32.0, 90.0)),
     ] {
         let run = if capture == "background" { "scene" } else { capture };
         add(
@@ -207,7 +207,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
         }
-        add(&format!("fit {video}"), q(60.0, 300.0), &args);
+        add(&format!("fit {video}"), q(75.0, 270.0), &args);
         add(
             &format!("eval {video}"),
             q(5.0, 10.0),

@@ -90,9 +90,9 @@ pub fn run(a: TrainArgs) -> Result<()> {
         tracing::info!("resuming {} at step {}", ckpt.display(), t.step);
         t
     } else {
-        if ckpt.exists() {
+        if ckpt.exists() && !a.force {
             bail!(
-                "{} exists: pass --resume to continue it, or choose another --out",
+                "{} exists: pass --resume to continue it, --force to start over, or choose another --out",
                 ckpt.display()
             );
         }
@@ -106,9 +106,12 @@ pub fn run(a: TrainArgs) -> Result<()> {
     };
     std::fs::create_dir_all(&a.out)?;
     pganeus_io::write_atomic(&a.out.join("config.toml"), toml::to_string(&trainer.config)?.as_bytes())?;
+    // A run started over (--force) replaces its log; a resumed one adds to it.
     let mut log = std::fs::OpenOptions::new()
         .create(true)
-        .append(true)
+        .write(true)
+        .append(a.resume)
+        .truncate(!a.resume)
         .open(a.out.join("log.jsonl"))?;
     let total = trainer.config.iterations;
     if trainer.config.stereo_weight_at(trainer.step) > 0.0 {
