@@ -864,7 +864,7 @@ fn scene_train_bake_and_simulate_on_the_reconstruction() {
         .unwrap();
     assert!(o.status.success(), "{}", text(&o));
     assert!(
-        text(&o).contains("training a scene field (capture.json)"),
+        text(&o).contains("training the scene field (capture.json)"),
         "{}",
         text(&o)
     );
