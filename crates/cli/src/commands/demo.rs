@@ -281,6 +281,12 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
         let redo = a.force || upstream_ran || record.done.contains_key(&stage.name);
         argv.extend(resume_flags(stage, redo));
         upstream_ran = true;
+        // What the later stages made came from this stage's old outputs: forget it, so that a stop further on
+        // cannot leave them marked done.
+        for later in &all[i + 1..] {
+            record.done.remove(&later.name);
+        }
+        pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
         let t = Instant::now();
         dispatch(&argv).with_context(|| format!("demo stage {:?} failed", stage.name))?;
         let seconds = t.elapsed().as_secs_f64();
@@ -532,6 +538,17 @@ mod tests {
         for c in calls.borrow().iter().filter(|c| c[0] == "train" || c[0] == "fit") {
             assert!(c.contains(&"--force".to_string()), "{c:?}");
         }
+        // Changed again and stopped in the drop's fit: the drop's fit and eval from the earlier runs are
+        // stale, so the next run does them (and only them).
+        let mut record: Record =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("demo.json")).unwrap()).unwrap();
+        record.done.get_mut("merge").unwrap().argv.push("--old".into());
+        std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
+        let calls = RefCell::new(Vec::new());
+        assert!(run(args(&dir, false), &fake(&calls, Some(&drop_fit))).is_err());
+        let calls = RefCell::new(Vec::new());
+        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        assert_eq!(names(&calls), ["fit drop", "eval drop"]);
         // --force redoes everything.
         let calls = RefCell::new(Vec::new());
         run(args(&dir, true), &fake(&calls, None)).unwrap();
