@@ -39,6 +39,10 @@ struct Plan {
     frames: Option<usize>,
     /// `fit --config` settings (none: fit's defaults).
     fit_config: Option<&'static str>,
+    /// `train --config` settings for the scene (none: the scene preset's).
+    scene_config: Option<&'static str>,
+    /// `merge --field-res` (none: merge's default).
+    merge_field_res: Option<usize>,
 }
 
 const QUICK: Plan = Plan {
@@ -48,6 +52,8 @@ const QUICK: Plan = Plan {
     bake_res: 192,
     frames: Some(16),
     fit_config: Some(QUICK_FIT),
+    scene_config: Some("# demo --quick: half the rays per step\nbatch_rays = 1024\n"),
+    merge_field_res: Some(128),
 };
 
 const FULL: Plan = Plan {
@@ -57,6 +63,8 @@ const FULL: Plan = Plan {
     bake_res: 256,
     frames: None,
     fit_config: None,
+    scene_config: None,
+    merge_field_res: None,
 };
 
 /// A light fit: fewer steps and pixels in every stage, one GA⇄PGA round, no multi-start.
@@ -140,39 +148,39 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         ],
     );
     for (name, capture, steps, expected) in [
-        ("train scene", "background", plan.scene_steps, q(110.0, 600.0)),
+        ("train scene", "background", plan.scene_steps, q(70.0, 600.0)),
         ("train toy_a", "toy_a", plan.object_steps, q(32.0, 90.0)),
         ("train toy_b", "toy_b", plan.object_steps, q(32.0, 90.0)),
     ] {
         let run = if capture == "background" { "scene" } else { capture };
-        add(
-            name,
-            expected,
-            &[
-                "train".into(),
-                s(&data.join(capture)),
-                "--out".into(),
-                s(&runs.join(run)),
-                "--iterations".into(),
-                steps.to_string(),
-            ],
-        );
-    }
-    add(
-        "merge",
-        q(20.0, 25.0),
-        &[
-            "merge".into(),
-            s(&runs.join("toy_a")),
-            s(&runs.join("toy_b")),
+        let mut args: Vec<String> = vec![
+            "train".into(),
+            s(&data.join(capture)),
             "--out".into(),
-            s(&merged),
-            "--capture-a".into(),
-            s(&data.join("toy_a")),
-            "--capture-b".into(),
-            s(&data.join("toy_b")),
-        ],
-    );
+            s(&runs.join(run)),
+            "--iterations".into(),
+            steps.to_string(),
+        ];
+        if capture == "background" && plan.scene_config.is_some() {
+            args.extend(["--config".into(), s(&out.join("train_scene.toml"))]);
+        }
+        add(name, expected, &args);
+    }
+    let mut args: Vec<String> = vec![
+        "merge".into(),
+        s(&runs.join("toy_a")),
+        s(&runs.join("toy_b")),
+        "--out".into(),
+        s(&merged),
+        "--capture-a".into(),
+        s(&data.join("toy_a")),
+        "--capture-b".into(),
+        s(&data.join("toy_b")),
+    ];
+    if let Some(r) = plan.merge_field_res {
+        args.extend(["--field-res".into(), r.to_string()]);
+    }
+    add("merge", q(12.0, 20.0), &args);
     add(
         "bake",
         q(10.0, 30.0),
@@ -247,6 +255,9 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
     };
     if let Some(cfg) = plan.fit_config {
         pganeus_io::write_atomic(&out.join("fit.toml"), cfg.as_bytes())?;
+    }
+    if let Some(cfg) = plan.scene_config {
+        pganeus_io::write_atomic(&out.join("train_scene.toml"), cfg.as_bytes())?;
     }
     let all = stages(plan, &out, a.quick);
     let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
