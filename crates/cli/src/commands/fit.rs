@@ -1086,13 +1086,21 @@ pub(super) fn object_entry(object: &ObjectModel, mesh: &str) -> Map<String, Valu
 /// body's IoU differs by several hundredths between poses millimetres apart, and GA, fitting the silhouette
 /// alone, wins it by moving in depth (a 14 px ball: 0.88 simulated against 0.96 by GA, the simulated pose
 /// 2 mm closer to the truth), so only a clear miss counts.
-pub(super) const SIMULATION_MISSES_BY: f64 = 0.1;
+const SIMULATION_MISSES_BY: f64 = 0.1;
 /// A frame whose image loss (colour, silhouette and pull, per pixel) under the simulation is more than this
 /// many times GA's is one the simulation misses too, even with its silhouette in place: a tumble the
 /// simulator turned another way (the tabletop drop's bounces: 10–15° off, at 1.5–4 times GA's loss). Where
 /// both explain the image alike, the simulation's pose is kept (depth from physics, not from a silhouette's
 /// size).
-pub(super) const SIMULATION_LOSS_RATIO: f64 = 1.5;
+const SIMULATION_LOSS_RATIO: f64 = 1.5;
+
+/// Whether the simulation clearly misses a frame GA fitted (its silhouette or its image loss, above), so
+/// that GA's pose is reported there instead of the simulated one.
+pub(super) fn simulation_misses(simulated: &ImageLoss, ga: &FramePose) -> bool {
+    let silhouette_missed = simulated.iou() < ga.image.iou() - SIMULATION_MISSES_BY;
+    let image_missed = simulated.loss > SIMULATION_LOSS_RATIO * ga.image.loss;
+    ga.fitted && simulated.pixels > 0 && (silhouette_missed || image_missed)
+}
 
 /// The final trajectory (simulated, where it explains the video; GA's pose where it clearly does not),
 /// renders, the strip and the animation.
@@ -1116,10 +1124,7 @@ fn finish(
     let mut source = vec!["simulated"; n];
     if let Some(ga) = ga {
         for k in 0..n {
-            let (s, g) = (sim_losses[k].iou(), ga[k].image.iou());
-            let silhouette_missed = s < g - SIMULATION_MISSES_BY;
-            let image_missed = sim_losses[k].loss > SIMULATION_LOSS_RATIO * ga[k].image.loss;
-            if ga[k].fitted && sim_losses[k].pixels > 0 && (silhouette_missed || image_missed) {
+            if simulation_misses(&sim_losses[k], &ga[k]) {
                 reported[k] = ga[k].pose;
                 source[k] = "ga";
             }

@@ -26,8 +26,7 @@
 use super::checkpoint_of;
 use super::fit::{
     check_guess_in_view, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of, read_guesses,
-    read_video, scene_grid, search_first_pose_of, strip, FitArgs, FitRecord, RecordInputs, Stage,
-    SIMULATION_LOSS_RATIO, SIMULATION_MISSES_BY,
+    read_video, scene_grid, search_first_pose_of, simulation_misses, strip, FitArgs, FitRecord, RecordInputs, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
@@ -687,9 +686,7 @@ fn finish(
     for (b, losses) in sim_losses.iter().enumerate() {
         for k in 0..n {
             let g = &ga[b][k];
-            let silhouette_missed = losses[k].iou() < g.image.iou() - SIMULATION_MISSES_BY;
-            let image_missed = losses[k].loss > SIMULATION_LOSS_RATIO * g.image.loss;
-            if g.fitted && losses[k].pixels > 0 && (silhouette_missed || image_missed) {
+            if simulation_misses(&losses[k], g) {
                 reported[b][k] = g.pose;
                 source[b][k] = "ga";
             }
