@@ -19,7 +19,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// The whole method on the synthetic tabletop scene in one command (synth, train, merge, bake, fit, eval, report).
+    /// The whole method on the synthetic tabletop scene in one command (synth, train, merge, bake, fit, eval, report.md).
     Demo(commands::demo::DemoArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(commands::synth::SynthArgs),

@@ -16,8 +16,8 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct DemoArgs {
-    /// Small images, short training and a light fit: the whole chain in minutes (a smoke run; its
-    /// figures are far from the method's).
+    /// Short training and a light fit on the first 16 frames: the whole chain in about 5.5 minutes (a smoke
+    /// run; its figures are far from the method's).
     #[arg(long)]
     pub quick: bool,
     /// The folder for everything: data/, runs/, merged/, scene.sdf, fits/, report.md, demo.json.
