@@ -274,13 +274,17 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     }
 }
 
+/// Each body's pose in every frame of a simulation.
+fn body_poses(traj: &sim::Trajectory<f64>, nb: usize) -> Vec<Vec<Pose<f64>>> {
+    (0..nb)
+        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
+        .collect()
+}
+
 /// The image terms of every body's frames under `world`'s simulation, the others drawn where it puts them.
 fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
-    let traj = world.simulate(&world.params());
     let nb = m.bodies.len();
-    let poses: Vec<Vec<Pose<f64>>> = (0..nb)
-        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
-        .collect();
+    let poses = body_poses(&world.simulate(&world.params()), nb);
     let mut all = Vec::with_capacity(nb);
     for (b, body) in m.bodies.iter().enumerate() {
         let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
@@ -678,9 +682,7 @@ fn finish(
     let n = m.bodies[0].frames.len();
     let nb = m.bodies.len();
     let traj = world.simulate(&world.params());
-    let sim_poses: Vec<Vec<Pose<f64>>> = (0..nb)
-        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
-        .collect();
+    let sim_poses = body_poses(&traj, nb);
     let mut reported = sim_poses.clone();
     let mut source = vec![vec!["simulated"; n]; nb];
     for (b, losses) in sim_losses.iter().enumerate() {
