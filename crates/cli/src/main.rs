@@ -43,6 +43,8 @@ enum Command {
     Fit(commands::fit::FitArgs),
     /// Score a fit against a scene's truth.json: per-frame position, rotation, ADD(-S), silhouette IoU; launch and contact errors; the object's mesh.
     Eval(commands::eval::EvalArgs),
+    /// One self-contained HTML page for a run's folder: inputs, meshes, each fit's motion (video and a novel view), charts (PNG and SVG too), tables.
+    Report(commands::report::ReportArgs),
     /// Recover v0, omega0, k_n and mu of a body from a pose sequence (Eq. 11).
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
@@ -96,6 +98,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Target(a) => commands::target::run(a),
         Command::Fit(a) => commands::fit::run(a),
         Command::Eval(a) => commands::eval::run(a),
+        Command::Report(a) => commands::report::run(a),
         Command::FitPhysics(a) => commands::fit_physics::run(a),
         Command::BenchSim(a) => commands::bench_sim::run(a),
         Command::BenchCompose(a) => commands::bench_compose::run(a),

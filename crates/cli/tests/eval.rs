@@ -102,6 +102,21 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     }
     assert!(s["add_s_mm"]["mean"].as_f64().unwrap() <= 4.0 + 1e-3, "{s}");
     assert!(s["silhouette_iou"]["worst"].as_f64().unwrap() < 0.99, "{s}");
+    // The paths for the report's charts: the fitted one 4 mm from the true one in every frame.
+    let path = |who: &str| -> Vec<Vec3<f64>> {
+        let a = r["paths_m"][who]["toy"].as_array().unwrap();
+        a.iter()
+            .map(|p| {
+                let v: Vec<f64> = p.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+                Vec3::new(v[0], v[1], v[2])
+            })
+            .collect()
+    };
+    let (fitted, true_path) = (path("fit"), path("truth"));
+    assert_eq!(fitted.len(), 4);
+    for (f, t) in fitted.iter().zip(&true_path) {
+        assert!(((*f - *t).norm() - 0.004).abs() < 2e-6, "{f:?} {t:?}");
+    }
 
     // The same motion in another body frame (origin 7 mm off, axes turned): related through
     // object.reference, it scores as zero again.

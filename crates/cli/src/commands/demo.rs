@@ -229,6 +229,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
             ],
         );
     }
+    add("report", q(5.0, 8.0), &["report".into(), s(out)]);
     v
 }
 
@@ -385,6 +386,11 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
              the method's accuracy (run `pganeus demo` for that).\n"
         )?;
     }
+    writeln!(
+        md,
+        "The full report, with the fits' motion from a novel view and the charts, is \
+         [report.html](report.html) (one file, offline); the charts are also in `plots/` as PNG and SVG.\n"
+    )?;
     writeln!(md, "![inputs](data/contact_sheet.png)\n")?;
     writeln!(
         md,
@@ -514,6 +520,7 @@ mod tests {
     #[test]
     fn stages_run_once_resume_where_stopped_and_redo_what_follows_a_change() {
         let dir = testkit::scratch_dir("cli", "demo");
+        let report_call = format!("report {}", dir.file_name().unwrap().to_string_lossy());
         // Stopped in the drop's fit: everything before it is recorded, the report is not written.
         let calls = RefCell::new(Vec::new());
         let drop_fit = format!("fit {}", dir.join("data").join("drop").display());
@@ -524,7 +531,7 @@ mod tests {
         // Rerun: only the drop's fit (resuming its own stage files: no --force) and its eval run.
         let calls = RefCell::new(Vec::new());
         run(args(&dir, false), &fake(&calls, None)).unwrap();
-        assert_eq!(names(&calls), ["fit drop", "eval drop"]);
+        assert_eq!(names(&calls), ["fit drop", "eval drop", report_call.as_str()]);
         assert!(!calls.borrow()[0].contains(&"--force".to_string()));
         let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
         assert!(
@@ -544,7 +551,7 @@ mod tests {
         std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let calls = RefCell::new(Vec::new());
         run(args(&dir, false), &fake(&calls, None)).unwrap();
-        assert_eq!(calls.borrow().len(), 8, "{:?}", names(&calls));
+        assert_eq!(calls.borrow().len(), 9, "{:?}", names(&calls));
         assert_eq!(names(&calls)[0], "train toy_a");
         for c in calls.borrow().iter().filter(|c| c[0] == "train" || c[0] == "fit") {
             assert!(c.contains(&"--force".to_string()), "{c:?}");
@@ -559,11 +566,11 @@ mod tests {
         assert!(run(args(&dir, false), &fake(&calls, Some(&drop_fit))).is_err());
         let calls = RefCell::new(Vec::new());
         run(args(&dir, false), &fake(&calls, None)).unwrap();
-        assert_eq!(names(&calls), ["fit drop", "eval drop"]);
+        assert_eq!(names(&calls), ["fit drop", "eval drop", report_call.as_str()]);
         // --force redoes everything.
         let calls = RefCell::new(Vec::new());
         run(args(&dir, true), &fake(&calls, None)).unwrap();
-        assert_eq!(calls.borrow().len(), 10);
+        assert_eq!(calls.borrow().len(), 11);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

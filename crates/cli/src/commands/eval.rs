@@ -87,16 +87,20 @@ fn relation(entry: &pganeus_io::VideoBody, truth: &TruthBody, file: &Path) -> Re
     Ok((pose_of(&stat.pose).inverse().compose(&pose_of(&pose)), true))
 }
 
-/// Per-frame scores of `fit`'s poses of every body against the truth's video; the rows and a summary per
-/// body.
-fn score_poses(
-    fit: &Trajectory,
-    video: &Trajectory,
-    refs: &[BodyRef],
-    camera: Option<&Camera<f64>>,
-) -> (Vec<Value>, Value) {
+/// What [`score_poses`] finds: per-frame rows, a summary per body, and per body the path of the true
+/// body's origin as the fit places it and as the truth does (for plots).
+struct Scores {
+    rows: Vec<Value>,
+    summary: Value,
+    fitted_path: serde_json::Map<String, Value>,
+    true_path: serde_json::Map<String, Value>,
+}
+
+/// Per-frame scores of `fit`'s poses of every body against the truth's video.
+fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: Option<&Camera<f64>>) -> Scores {
     let mut rows = Vec::new();
     let mut summary = serde_json::Map::new();
+    let (mut fitted_path, mut true_path) = (serde_json::Map::new(), serde_json::Map::new());
     for (entry, r) in fit.bodies.iter().zip(refs) {
         let Some(truth) = video.body(&entry.name) else {
             continue;
@@ -104,9 +108,13 @@ fn score_poses(
         let from_truth = r.to_truth.inverse();
         let n = entry.poses.len().min(truth.poses.len());
         let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
+        let (mut fitted, mut true_) = (vec![], vec![]);
         for k in 0..n {
             let est = pose_of(&entry.poses[k]).compose(&from_truth);
             let tru = pose_of(&truth.poses[k]);
+            let micrometres = |v: Vec3<f64>| v.to_array().map(|x| (x * 1e6).round() / 1e6);
+            fitted.push(json!(micrometres(est.t)));
+            true_.push(json!(micrometres(tru.t)));
             let e = r.points.errors(&est, &tru);
             let iou = camera.map(|c| coverage_iou(&silhouette(c, &r.mesh, &est), &silhouette(c, &r.mesh, &tru)));
             let mut row = json!({"body": entry.name, "frame": k,
@@ -144,8 +152,15 @@ fn score_poses(
                 json!({"mean": num(ious.iter().sum::<f64>() / ious.len() as f64, 1.0, 4), "worst": num(worst, 1.0, 4)});
         }
         summary.insert(entry.name.clone(), s);
+        fitted_path.insert(entry.name.clone(), json!(fitted));
+        true_path.insert(entry.name.clone(), json!(true_));
     }
-    (rows, Value::Object(summary))
+    Scores {
+        rows,
+        summary: Value::Object(summary),
+        fitted_path,
+        true_path,
+    }
 }
 
 /// Launch and contact errors of the final trajectory (contact values only where the truth's model is the
@@ -261,12 +276,16 @@ pub fn run(a: EvalArgs) -> Result<()> {
             None
         }
     };
-    let (rows, summary) = score_poses(&fit, video, &refs, camera.as_ref());
+    let scores = score_poses(&fit, video, &refs, camera.as_ref());
+    // Where each fit put the true body's origin, frame by frame, beside the truth (the report's plots).
+    let mut paths = serde_json::Map::new();
+    paths.insert("truth".into(), Value::Object(scores.true_path));
+    paths.insert("fit".into(), Value::Object(scores.fitted_path));
     let mut report = json!({
         "fit": file, "truth": a.truth, "video": name, "truth_model": video.contact.model,
-        "summary": summary,
+        "summary": scores.summary,
         "parameters": parameter_errors(&fit, video, &refs),
-        "frames": rows,
+        "frames": scores.rows.clone(),
     });
     if let Some(p) = pair_errors(&fit, video) {
         report["pairs"] = p;
@@ -277,13 +296,15 @@ pub fn run(a: EvalArgs) -> Result<()> {
         let p = dir.join(format!("{stage}.json"));
         if a.fit.is_dir() && p.exists() {
             let t = pganeus_io::read_trajectory(&p)?;
-            let (_, s) = score_poses(&t, video, &refs, camera.as_ref());
-            stages.insert(stage.into(), s);
+            let s = score_poses(&t, video, &refs, camera.as_ref());
+            stages.insert(stage.into(), s.summary);
+            paths.insert(stage.into(), Value::Object(s.fitted_path));
         }
     }
     if !stages.is_empty() {
         report["stages"] = Value::Object(stages);
     }
+    report["paths_m"] = Value::Object(paths);
     // The object's mesh against the true one, in the true body frame.
     let mut meshes = serde_json::Map::new();
     for (entry, r) in fit.bodies.iter().zip(&refs) {
@@ -322,7 +343,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
         String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose\n");
-    for r in &rows {
+    for r in &scores.rows {
         let f = |k: &str| match &r[k] {
             Value::Null => String::new(),
             Value::String(s) => s.clone(),

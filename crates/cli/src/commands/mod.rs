@@ -11,6 +11,7 @@ pub mod mesh_cmds;
 mod objects;
 pub mod render;
 pub mod render_trajectory;
+pub mod report;
 pub mod simulate;
 pub mod synth;
 pub mod target;

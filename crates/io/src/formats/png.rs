@@ -284,6 +284,40 @@ pub fn write_apng(path: &Path, frames: &[Image], fps: f64) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// The smallest rectangle `(x, y, width, height)` holding every pixel where `a` and `b` (same size)
+/// differ; a single pixel when they are equal (an APNG frame cannot be empty).
+fn changed_rect(a: &Image, b: &Image) -> (u32, u32, u32, u32) {
+    let (w, c) = (a.width as usize, a.channels as usize);
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for (y, (ra, rb)) in a.data.chunks_exact(w * c).zip(b.data.chunks_exact(w * c)).enumerate() {
+        if ra == rb {
+            continue;
+        }
+        let first = (0..w).find(|&x| ra[x * c..(x + 1) * c] != rb[x * c..(x + 1) * c]);
+        let last = (0..w).rev().find(|&x| ra[x * c..(x + 1) * c] != rb[x * c..(x + 1) * c]);
+        if let (Some(f), Some(l)) = (first, last) {
+            (x0, x1, y0, y1) = (x0.min(f), x1.max(l), y0.min(y), y1.max(y));
+        }
+    }
+    if x0 == usize::MAX {
+        return (0, 0, 1, 1);
+    }
+    (x0 as u32, y0 as u32, (x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32)
+}
+
+/// The samples of `image` inside a rectangle, row by row.
+fn crop(image: &Image, (x, y, w, h): (u32, u32, u32, u32)) -> Vec<u8> {
+    let c = image.channels as usize;
+    let row = image.width as usize * c;
+    let mut out = Vec::with_capacity(w as usize * h as usize * c);
+    for r in y as usize..(y + h) as usize {
+        out.extend_from_slice(&image.data[r * row + x as usize * c..r * row + (x + w) as usize * c]);
+    }
+    out
+}
+
+/// APNG bytes: the first frame whole, each later one as the rectangle that changed since the frame
+/// before it, drawn over that frame (a still camera's video stores little more than its moving parts).
 fn try_encode_apng(frames: &[Image], fps: f64) -> std::result::Result<Vec<u8>, String> {
     let first = frames.first().ok_or("no frames")?;
     for (i, f) in frames.iter().enumerate() {
@@ -291,6 +325,9 @@ fn try_encode_apng(frames: &[Image], fps: f64) -> std::result::Result<Vec<u8>, S
         if (f.width, f.height, f.channels) != (first.width, first.height, first.channels) {
             return Err(format!("frame {i} differs in size or channels from frame 0"));
         }
+    }
+    if first.width == 0 || first.height == 0 {
+        return Err(format!("a PNG cannot be {}x{}", first.width, first.height));
     }
     if !(fps.is_finite() && fps > 0.0) {
         return Err(format!("fps must be positive, got {fps}"));
@@ -300,22 +337,29 @@ fn try_encode_apng(frames: &[Image], fps: f64) -> std::result::Result<Vec<u8>, S
         3 => png::ColorType::Rgb,
         _ => png::ColorType::Rgba,
     };
+    let e = |e: png::EncodingError| e.to_string();
     let mut bytes = Vec::new();
     let mut encoder = png::Encoder::new(&mut bytes, first.width, first.height);
     encoder.set_color(color);
     encoder.set_depth(png::BitDepth::Eight);
-    encoder.set_compression(png::Compression::Fast);
-    encoder
-        .set_animated(frames.len() as u32, 0)
-        .map_err(|e| e.to_string())?;
+    encoder.set_compression(png::Compression::Balanced);
+    encoder.set_animated(frames.len() as u32, 0).map_err(e)?;
     // The delay as a fraction: 1000 / (fps · 1000) s.
     let den = (fps * 100.0).round().clamp(1.0, u16::MAX as f64) as u16;
-    encoder.set_frame_delay(100, den).map_err(|e| e.to_string())?;
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    for f in frames {
-        writer.write_image_data(&f.data).map_err(|e| e.to_string())?;
+    encoder.set_frame_delay(100, den).map_err(e)?;
+    // Later frames are drawn over the one before (with RGBA, their pixels replace it, alpha and all).
+    encoder.set_dispose_op(png::DisposeOp::None).map_err(e)?;
+    encoder.set_blend_op(png::BlendOp::Source).map_err(e)?;
+    let mut writer = encoder.write_header().map_err(e)?;
+    writer.write_image_data(&first.data).map_err(e)?;
+    for pair in frames.windows(2) {
+        let rect = changed_rect(&pair[0], &pair[1]);
+        writer.reset_frame_position().map_err(e)?;
+        writer.set_frame_dimension(rect.2, rect.3).map_err(e)?;
+        writer.set_frame_position(rect.0, rect.1).map_err(e)?;
+        writer.write_image_data(&crop(&pair[1], rect)).map_err(e)?;
     }
-    writer.finish().map_err(|e| e.to_string())?;
+    writer.finish().map_err(e)?;
     Ok(bytes)
 }
 
