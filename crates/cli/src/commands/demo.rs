@@ -16,7 +16,7 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct DemoArgs {
-    /// Short training and a light fit on the first 16 frames: the whole chain in about 5.5 minutes (a smoke
+    /// Short training and a light fit on the first 12 frames: the whole chain in about 4.5 minutes (a smoke
     /// run; its figures are far from the method's).
     #[arg(long)]
     pub quick: bool,
@@ -47,12 +47,14 @@ struct Plan {
 
 const QUICK: Plan = Plan {
     scale: "small",
-    scene_steps: 300,
-    object_steps: 300,
+    scene_steps: 250,
+    object_steps: 250,
     bake_res: 192,
-    frames: Some(16),
+    frames: Some(12),
     fit_config: Some(QUICK_FIT),
-    scene_config: Some("# demo --quick: half the rays per step\nbatch_rays = 1024\n"),
+    scene_config: Some(
+        "# demo --quick: half the rays per step, coarser stereo points\nbatch_rays = 1024\n\n[stereo]\nstride = 2\nhypotheses = 64\n",
+    ),
     merge_field_res: Some(128),
 };
 
@@ -81,16 +83,16 @@ window_steps = 10
 [ga]
 hypotheses = false
 [ga.pose]
-iterations = 25
+iterations = 18
 rays_per_step = 256
 [pga]
 iterations = 20
 [auto_init]
-screened = 4
+screened = 3
 screen_iterations = 10
 refined = 2
 [auto_init.refine]
-iterations = 100
+iterations = 70
 rays_per_step = 256
 "#;
 
@@ -148,9 +150,9 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         ],
     );
     for (name, capture, steps, expected) in [
-        ("train scene", "background", plan.scene_steps, q(70.0, 600.0)),
-        ("train toy_a", "toy_a", plan.object_steps, q(32.0, 90.0)),
-        ("train toy_b", "toy_b", plan.object_steps, q(32.0, 90.0)),
+        ("train scene", "background", plan.scene_steps, q(50.0, 600.0)),
+        ("train toy_a", "toy_a", plan.object_steps, q(29.0, 90.0)),
+        ("train toy_b", "toy_b", plan.object_steps, q(29.0, 90.0)),
     ] {
         let run = if capture == "background" { "scene" } else { capture };
         let mut args: Vec<String> = vec![
@@ -215,7 +217,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
         }
-        add(&format!("fit {video}"), q(75.0, 270.0), &args);
+        add(&format!("fit {video}"), q(68.0, 250.0), &args);
         add(
             &format!("eval {video}"),
             q(5.0, 10.0),
