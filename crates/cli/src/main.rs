@@ -106,3 +106,43 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::BenchTrain(a) => commands::bench_train::run(a),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every subcommand's `--help` ends with examples, and every example parses: its subcommand and flags
+    /// exist and take the values given.
+    #[test]
+    fn every_subcommand_has_examples_that_parse() {
+        let cli = Cli::command();
+        let mut checked = 0;
+        for sub in cli.get_subcommands() {
+            let help = sub.get_after_help().map(|h| h.to_string()).unwrap_or_default();
+            assert!(
+                help.starts_with("Examples:"),
+                "{}: no examples in --help",
+                sub.get_name()
+            );
+            let examples: Vec<&str> = help.lines().filter_map(|l| l.trim().strip_prefix("pganeus ")).collect();
+            assert!(!examples.is_empty(), "{}: {help}", sub.get_name());
+            for example in examples {
+                // A shell line may chain a second command or redirect the output.
+                for command in example.split(" && pganeus ") {
+                    let words = command.split(" > ").next().unwrap_or("").split_whitespace();
+                    let argv: Vec<&str> = std::iter::once("pganeus").chain(words).collect();
+                    if let Err(e) = Cli::try_parse_from(&argv) {
+                        panic!(
+                            "{}: the example `{}` does not parse: {e}",
+                            sub.get_name(),
+                            argv.join(" ")
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked >= 20, "{checked} examples");
+    }
+}

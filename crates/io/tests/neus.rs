@@ -240,7 +240,7 @@ fn empty_or_missing_image_folder_is_an_error() {
     }
     let (path, msg) = capture_err(&dir.0);
     assert_eq!(path, dir.0.join("image"));
-    assert!(msg.contains("no PNG images"), "{msg}");
+    assert!(msg.contains("no images (PNG or JPEG)"), "{msg}");
 
     std::fs::remove_dir_all(dir.0.join("image")).unwrap();
     let (path, _) = capture_err(&dir.0);
@@ -277,11 +277,87 @@ fn missing_npz_corrupt_png_jpeg_and_bad_capture_json() {
     assert!(msg.contains("PNG"), "{msg}");
 
     write_png(&bad, &Image::new(8, 6, 3)).unwrap();
+    // A JPEG is read, so a broken one is an error naming it.
     let jpg = dir.0.join("image/002.jpg");
     std::fs::write(&jpg, b"\xff\xd8\xff").unwrap();
     let (path, msg) = capture_err(&dir.0);
     assert_eq!(path, jpg);
-    assert!(msg.contains("only PNG"), "{msg}");
+    assert!(msg.contains("JPEG"), "{msg}");
+}
+
+/// `image` as JPEG bytes.
+fn jpeg(image: &Image) -> Vec<u8> {
+    let mut out = Vec::new();
+    let color = if image.channels == 1 {
+        jpeg_encoder::ColorType::Luma
+    } else {
+        jpeg_encoder::ColorType::Rgb
+    };
+    jpeg_encoder::Encoder::new(&mut out, 95)
+        .encode(&image.data, image.width as u16, image.height as u16, color)
+        .unwrap();
+    out
+}
+
+#[test]
+fn dtu_naming_pairs_masks_by_order_and_different_counts_are_refused() {
+    // DTU as NeuS publishes it: image/000000.png with mask/000.png.
+    let dir = make_capture("dtu", 3);
+    for i in 0..3 {
+        std::fs::rename(
+            dir.0.join(format!("image/{i:03}.png")),
+            dir.0.join(format!("image/{i:06}.png")),
+        )
+        .unwrap();
+    }
+    let cap = open_capture(&dir.0).unwrap();
+    let masks = cap.masks.as_ref().unwrap();
+    for (i, (img, mask)) in cap.images.iter().zip(masks).enumerate() {
+        assert_eq!(img.file_name().unwrap().to_string_lossy(), format!("{i:06}.png"));
+        assert_eq!(mask.file_name().unwrap().to_string_lossy(), format!("{i:03}.png"));
+    }
+    // One mask short: neither the names nor the order pair them.
+    std::fs::remove_file(dir.0.join("mask/002.png")).unwrap();
+    let (path, msg) = capture_err(&dir.0);
+    assert_eq!(path, dir.0.join("mask/000000.png"));
+    assert!(msg.contains("2 masks for 3 images"), "{msg}");
+}
+
+#[test]
+fn jpeg_images_and_masks_open_and_read_like_png() {
+    let dir = make_capture("jpeg", 3);
+    let mut colour = Image::new(8, 6, 3);
+    for (k, v) in colour.data.iter_mut().enumerate() {
+        *v = [200u8, 90, 30][k % 3];
+    }
+    let mut mask = Image::new(8, 6, 1);
+    for y in 0..6 {
+        for x in 0..4 {
+            mask.pixel_mut(x, y)[0] = 255;
+        }
+    }
+    for i in 0..3 {
+        std::fs::remove_file(dir.0.join(format!("image/{i:03}.png"))).unwrap();
+        std::fs::write(dir.0.join(format!("image/{i:03}.jpg")), jpeg(&colour)).unwrap();
+        std::fs::remove_file(dir.0.join(format!("mask/{i:03}.png"))).unwrap();
+        std::fs::write(dir.0.join(format!("mask/{i:03}.JPEG")), jpeg(&mask)).unwrap();
+    }
+    let cap = open_capture(&dir.0).unwrap();
+    assert_eq!((cap.width, cap.height), (8, 6));
+    let img = pganeus_io::read_image(&cap.images[1]).unwrap();
+    assert_eq!((img.width, img.height, img.channels), (8, 6, 3));
+    // Lossy, but close: a flat colour comes back within a few levels.
+    for p in img.data.chunks(3) {
+        for (got, want) in p.iter().zip([200u8, 90, 30]) {
+            assert!((*got as i32 - want as i32).abs() <= 4, "{p:?}");
+        }
+    }
+    let m = pganeus_io::read_image(&cap.masks.as_ref().unwrap()[1]).unwrap();
+    assert_eq!(m.channels, 1);
+    assert!(m.data[0] > 200 && m.data[7] < 50, "{:?}", &m.data[..8]);
+    assert_eq!(pganeus_io::read_image_size(&cap.images[0]).unwrap(), (8, 6));
+    // Not an image this tool reads.
+    assert!(pganeus_io::read_image(&dir.0.join("capture.json")).is_err());
 }
 
 #[test]

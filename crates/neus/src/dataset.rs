@@ -87,7 +87,7 @@ impl Dataset {
             let mut unit = cam;
             unit.world_to_cam.t = cam.world_to_cam.t + cam.world_to_cam.q.rotate(centre);
             unit.world_to_cam.t = unit.world_to_cam.t * (1.0 / radius);
-            let img = pganeus_io::read_png(img_path)?.to_rgb();
+            let img = pganeus_io::read_image(img_path)?.to_rgb();
             let rgb = img
                 .data
                 .chunks_exact(3)
@@ -96,7 +96,7 @@ impl Dataset {
             let mask = match &index.masks {
                 None => None,
                 Some(m) => {
-                    let g = pganeus_io::read_png(&m[i])?.to_gray();
+                    let g = pganeus_io::read_image(&m[i])?.to_gray();
                     Some(g.data.iter().map(|&v| if v > 127 { 1.0 } else { 0.0 }).collect())
                 }
             };
@@ -133,5 +133,14 @@ impl Dataset {
 
     pub fn has_masks(&self) -> bool {
         self.views.first().is_some_and(|v| v.mask.is_some())
+    }
+
+    /// The names of the views whose mask marks no pixel (none without masks).
+    pub fn empty_masks(&self) -> Vec<&str> {
+        self.views
+            .iter()
+            .filter(|v| v.mask.as_ref().is_some_and(|m| m.iter().all(|&x| x == 0.0)))
+            .map(|v| v.name.as_str())
+            .collect()
     }
 }

@@ -93,16 +93,16 @@ pub fn contact_sheet(dataset: &Path) -> Result<(Image, Vec<String>), pganeus_io:
         let picks: Vec<usize> = (0..COLUMNS.min(images.len()))
             .map(|i| i * (images.len() - 1) / (COLUMNS - 1).max(1))
             .collect();
-        let first = pganeus_io::read_png(&images[picks[0]])?;
+        let first = pganeus_io::read_image(&images[picks[0]])?;
         tile_h = (TILE_W as u64 * first.height as u64 / first.width as u64) as u32;
         let mut row = Vec::new();
         for &i in &picks {
-            row.push(resize(&pganeus_io::read_png(&images[i])?, TILE_W, tile_h));
+            row.push(resize(&pganeus_io::read_image(&images[i])?, TILE_W, tile_h));
         }
         let last = images[*picks.last().expect("at least one pick")].clone();
         let mask = dataset.join(name).join("mask").join(last.file_name().expect("a file"));
         if mask.exists() {
-            row.push(resize(&pganeus_io::read_png(&mask)?, TILE_W, tile_h));
+            row.push(resize(&pganeus_io::read_image(&mask)?, TILE_W, tile_h));
         }
         rows.push(row);
     }

@@ -19,6 +19,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus bench-compose --scene runs/scene --object toy=merged/toy --trajectory data/tabletop_large/truth.json --video slide --frame 20 --views data/tabletop_large/slide")]
 pub struct BenchComposeArgs {
     /// The scene's run folder.
     #[arg(long)]

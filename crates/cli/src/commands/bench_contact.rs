@@ -15,6 +15,9 @@ use std::path::Path;
 use synth::{contact_scenes, simulate_videos, Physics};
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus bench-contact
+  pganeus bench-contact --scene tipping-slide --per-frame")]
 pub struct BenchContactArgs {
     /// Only these scenes (default: all of tipping-slide, ramp-drop, rocking, push).
     #[arg(long)]

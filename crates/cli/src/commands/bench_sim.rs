@@ -10,6 +10,9 @@ use sim::{simulate_with_gradients, BodyState, ContactParams, ContactSampling, Ma
 use std::time::Instant;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus bench-sim
+  pganeus bench-sim --threads 1 --runs 7 --contact-model multi-point")]
 pub struct BenchSimArgs {
     /// Threads (the target figure is for one core).
     #[arg(long, default_value_t = 1)]

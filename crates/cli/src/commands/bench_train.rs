@@ -12,6 +12,8 @@ use neus::{Dataset, NeusTrainer};
 use std::path::PathBuf;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus bench-train --dataset data/tabletop_large --capture toy_a --iterations 3000 --every 500")]
 pub struct BenchTrainArgs {
     /// A dataset from `pganeus synth` (e.g. --preset tabletop --scale large).
     #[arg(long)]

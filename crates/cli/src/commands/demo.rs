@@ -15,6 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args, Debug)]
+#[command(after_help = "Examples:
+  pganeus demo
+  pganeus demo --quick --out out/demo-quick")]
 pub struct DemoArgs {
     /// Short training and a light fit on the first 12 frames: the whole chain in about 4.5 minutes (a smoke
     /// run; its figures are far from the method's).

@@ -7,6 +7,8 @@ use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus fit-physics --poses out/tabletop.json --scene scenes/tabletop_guess.toml --out out/fitted.json")]
 pub struct FitPhysicsArgs {
     /// The observed poses: a trajectory.json (one pose per frame).
     #[arg(long)]

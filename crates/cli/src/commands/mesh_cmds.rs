@@ -12,6 +12,9 @@ use sim::sdf::{MeshDistance, SdfGrid};
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus mesh runs/toy_a --out toy_a.ply
+  pganeus mesh runs/toy_a --out toy_a.ply --res 256 --largest-piece --faces 5000")]
 pub struct MeshArgs {
     /// A run folder (from `pganeus train`) or its checkpoint.
     pub run: PathBuf,
@@ -97,6 +100,9 @@ pub fn mesh(a: MeshArgs) -> Result<()> {
 }
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus bake runs/scene --out scene.sdf --res 256
+  pganeus bake toy.ply --out toy.sdf")]
 pub struct BakeArgs {
     /// A run folder / checkpoint (its field) or a closed mesh (.ply, .obj).
     pub source: PathBuf,
@@ -250,6 +256,9 @@ pub fn bake(a: BakeArgs) -> Result<()> {
 }
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus compare-mesh toy_a.ply data/tabletop/toy.ply
+  pganeus compare-mesh toy_a.ply --truth data/tabletop/truth.json --capture toy_a")]
 pub struct CompareMeshArgs {
     pub a: PathBuf,
     /// The mesh to compare with (or give `--truth` and `--capture`).
@@ -369,6 +378,9 @@ pub fn compare_mesh(a: CompareMeshArgs) -> Result<()> {
 }
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus merge runs/toy_a runs/toy_b --out merged/toy --capture-a data/tabletop/toy_a --capture-b data/tabletop/toy_b
+  pganeus merge cup_a.ply cup_b.ply --out merged/cup")]
 pub struct MergeArgs {
     /// The object upright: a run folder (from `pganeus train`) or a closed mesh in its capture's frame.
     pub a: PathBuf,

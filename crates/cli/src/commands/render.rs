@@ -12,6 +12,9 @@ use serde::Deserialize;
 use std::path::PathBuf;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus render runs/toy_a --views data/tabletop/toy_a --out renders/toy_a
+  pganeus render --trajectory fits/slide/trajectory.json --scene runs/scene --object toy=merged/toy --views data/tabletop/slide --out renders/slide")]
 pub struct RenderArgs {
     /// A run folder (from `pganeus train`) or its checkpoint file (not with --trajectory).
     #[arg(required_unless_present = "trajectory", conflicts_with = "trajectory")]

@@ -147,7 +147,7 @@ fn iou(a: &[bool], b: &[bool]) -> f64 {
 
 /// A capture's image as RGB in [0, 1].
 pub(crate) fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
-    let img = pganeus_io::read_png(path)?;
+    let img = pganeus_io::read_image(path)?;
     let ch = img.channels as usize;
     Ok(img
         .data
@@ -163,7 +163,7 @@ pub(crate) fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
 }
 
 pub(crate) fn read_mask(path: &Path) -> Result<Vec<bool>> {
-    let m = pganeus_io::read_png(path)?;
+    let m = pganeus_io::read_image(path)?;
     let ch = m.channels as usize;
     Ok(m.data.chunks_exact(ch).map(|p| p[0] >= 128).collect())
 }
@@ -411,7 +411,7 @@ fn side_by_side(dir: &Path, ours: &[Image]) -> Result<Vec<Image>> {
     ours.iter()
         .zip(&c.images)
         .map(|(a, path)| {
-            let b = pganeus_io::read_png(path)?;
+            let b = pganeus_io::read_image(path)?;
             if b.height != a.height {
                 bail!(
                     "--side-by-side {}: images are {} high, the rendering {}",

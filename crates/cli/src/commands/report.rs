@@ -270,7 +270,7 @@ fn meshes(page: &mut Page, fits: &[PathBuf]) -> Result<()> {
                 continue;
             }
             let path = fit.join(mesh);
-            let m = pganeus_io::read_mesh(&path).with_context(|| format!("{}", path.display()))?;
+            let m = pganeus_io::read_mesh(&path)?;
             let strip = turntable(&m, 6, 160, [0.86, 0.55, 0.3]);
             let name = b["name"].as_str().unwrap_or("body");
             let mut caption = format!("{name}: the object from {source} ({} triangles)", m.faces.len());
@@ -664,7 +664,7 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
     } else {
         scene
     };
-    let mut scene_mesh = pganeus_io::read_mesh(&scene_mesh).with_context(|| format!("{}", scene_mesh.display()))?;
+    let mut scene_mesh = pganeus_io::read_mesh(&scene_mesh)?;
     face_towards(&mut scene_mesh, cam.center());
 
     let mut bodies: Vec<(TriMesh, Vec<Pose<f64>>)> = Vec::new();

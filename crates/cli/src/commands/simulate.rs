@@ -5,6 +5,8 @@ use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus simulate --scene scenes/two_body.toml --out out/two_body.json --frames 120")]
 pub struct SimulateArgs {
     /// Scene file (TOML, or JSON by extension).
     #[arg(long)]

@@ -16,6 +16,9 @@ pub enum ScaleArg {
 }
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus synth --preset tabletop --out data/tabletop --contact-sheet
+  pganeus synth --print-preset tabletop > my_scene.toml && pganeus synth --scene my_scene.toml --out data/mine")]
 pub struct SynthArgs {
     /// A built-in scene: tabletop, two-body or backdrop.
     #[arg(long, conflicts_with = "scene")]

@@ -7,6 +7,8 @@ use scene_file::SceneFile;
 use std::path::PathBuf;
 
 #[derive(Args)]
+#[command(after_help = "Examples:
+  pganeus target --scene scenes/obstacle.toml --to 0.5,0.05,0.02 --frame 50 --out out/target.json")]
 pub struct TargetArgs {
     /// Scene file; the body's `v` is the start guess.
     #[arg(long)]

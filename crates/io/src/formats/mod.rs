@@ -1,5 +1,7 @@
 //! One module per file format.
 
+pub mod image_file;
+pub mod jpeg;
 pub mod mesh_file;
 pub mod neus;
 pub mod npz;

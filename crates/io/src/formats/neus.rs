@@ -3,15 +3,16 @@
 //!
 //! ```text
 //! <capture>/
-//!   image/000.png 001.png ...   all the same size; sorted by file name (time, for a video)
-//!   mask/000.png  001.png ...   optional; the same names; white (>127) = the object
+//!   image/000.png 001.png ...   PNG or JPEG, all the same size; sorted by file name (time, for a video)
+//!   mask/000.png  001.png ...   optional; the same names, or as many in the same order (NeuS pairs by
+//!                               order: DTU's image/000000.png goes with mask/000.png); white (>127) = the object
 //!   mask_<name>/000.png ...     optional extra masks (e.g. one per body), same rules
 //!   cameras_sphere.npz          world_mat_i and scale_mat_i per image i (float64, 4x4)
 //!   capture.json                optional: {"kind": "static" | "video", "fps": 30.0, "subject": "scene" | "object"}
 //! ```
 //!
 //! [`open_capture`] lists and checks a capture without decoding any pixels;
-//! the images are then read with [`read_png`](crate::read_png).
+//! the images are then read with [`read_image`](crate::read_image).
 
 use std::collections::BTreeMap;
 use std::ffi::OsString;
@@ -20,8 +21,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
+use super::image_file::{is_image_file, read_image_size};
 use super::npz::{read_npz, write_npz, NpyArray};
-use super::png::read_png_size;
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
 
@@ -284,14 +285,13 @@ fn invert4(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
 
 /// Lists and checks a capture folder (see the module doc), decoding no pixels.
 ///
-/// Checks: `image/` holds at least one PNG; every image has the size of the
-/// first (read from the PNG header only); `mask/` and each `mask_<name>/`, if
-/// present, hold exactly one PNG per image with the same file stem and the
-/// same size; `cameras_sphere.npz` exists and has `world_mat_i` and
-/// `scale_mat_i` (4x4, finite) for every image; `capture.json`, if present,
-/// is valid. Only PNG images are read: a `.jpg`/`.jpeg` in an image or mask
-/// folder is an error (rather than being silently skipped); other files
-/// (hidden files, notes) are ignored.
+/// Checks: `image/` holds at least one PNG or JPEG; every image has the size
+/// of the first (read from the file's header only); `mask/` and each
+/// `mask_<name>/`, if present, hold one image per image of the capture, each
+/// of its size, paired by file stem, or by sorted order when the names differ
+/// and the counts agree; `cameras_sphere.npz` exists and has `world_mat_i`
+/// and `scale_mat_i` (4x4, finite) for every image; `capture.json`, if
+/// present, is valid. Other files (hidden files, notes) are ignored.
 ///
 /// Every error is an [`IoError::Capture`] whose path is the offending file or folder.
 pub fn open_capture(dir: &Path) -> Result<CaptureIndex> {
@@ -302,14 +302,14 @@ pub fn open_capture(dir: &Path) -> Result<CaptureIndex> {
     if !image_dir.is_dir() {
         return Err(capture_err(&image_dir, "missing: a capture keeps its images in image/"));
     }
-    let images = list_pngs(&image_dir)?;
+    let images = list_images(&image_dir)?;
     if images.is_empty() {
-        return Err(capture_err(&image_dir, "no PNG images"));
+        return Err(capture_err(&image_dir, "no images (PNG or JPEG)"));
     }
 
     let mut sizes = Vec::with_capacity(images.len());
     for img in &images {
-        let size = read_png_size(img).map_err(to_capture)?;
+        let size = read_image_size(img).map_err(to_capture)?;
         if size != sizes.first().copied().unwrap_or(size) {
             return Err(capture_err(
                 img,
@@ -393,24 +393,19 @@ fn read_dir_sorted(folder: &Path) -> Result<Vec<PathBuf>> {
     Ok(paths)
 }
 
-/// The PNG files of a folder, sorted by file name.
-fn list_pngs(folder: &Path) -> Result<Vec<PathBuf>> {
-    let mut pngs = Vec::new();
+/// The PNG and JPEG files of a folder, sorted by file name.
+fn list_images(folder: &Path) -> Result<Vec<PathBuf>> {
+    let mut found = Vec::new();
     for path in read_dir_sorted(folder)? {
         let hidden = path.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.'));
         if hidden || !path.is_file() {
             continue;
         }
-        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-        match ext.as_deref() {
-            Some("png") => pngs.push(path),
-            Some("jpg" | "jpeg") => {
-                return Err(capture_err(&path, "only PNG images are read; convert this file to PNG"));
-            }
-            _ => {}
+        if is_image_file(&path) {
+            found.push(path);
         }
     }
-    Ok(pngs)
+    Ok(found)
 }
 
 /// The `mask_<name>/` folders of a capture, sorted by name.
@@ -429,23 +424,50 @@ fn list_extra_mask_dirs(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
     Ok(found)
 }
 
-/// One mask per image from `folder`, matched by file stem, each the image size.
+/// One mask per image from `folder`, each the image size: matched by file stem when every image has a mask
+/// of its name, else by sorted order when the counts agree (as NeuS pairs them: DTU's `image/000000.png`
+/// goes with `mask/000.png`).
 fn match_masks(images: &[PathBuf], folder: &Path, size: (u32, u32)) -> Result<Vec<PathBuf>> {
     let stem = |p: &Path| p.file_stem().map(OsString::from).unwrap_or_default();
-    let mut by_stem: BTreeMap<OsString, PathBuf> = list_pngs(folder)?.into_iter().map(|p| (stem(&p), p)).collect();
-    let mut masks = Vec::with_capacity(images.len());
-    for img in images {
-        let Some(mask) = by_stem.remove(&stem(img)) else {
-            let expected = folder.join(img.file_name().unwrap_or_default());
-            return Err(capture_err(
-                &expected,
-                &format!("missing: no mask for image {}", img.display()),
-            ));
-        };
-        let mask_size = read_png_size(&mask).map_err(to_capture)?;
-        if mask_size != size {
+    let listed = list_images(folder)?;
+    let mut by_stem: BTreeMap<OsString, PathBuf> = listed.iter().map(|p| (stem(p), p.clone())).collect();
+    let named = images.iter().all(|img| by_stem.contains_key(&stem(img)));
+    let masks: Vec<PathBuf> = if !named && listed.len() == images.len() {
+        listed
+    } else {
+        let mut masks = Vec::with_capacity(images.len());
+        for img in images {
+            let Some(mask) = by_stem.remove(&stem(img)) else {
+                let expected = folder.join(img.file_name().unwrap_or_default());
+                return Err(capture_err(
+                    &expected,
+                    &format!(
+                        "missing: no mask for image {} ({} masks for {} images, so they cannot be paired by order either)",
+                        img.display(),
+                        listed.len(),
+                        images.len()
+                    ),
+                ));
+            };
+            masks.push(mask);
+        }
+        if let Some((s, mask)) = by_stem.into_iter().next() {
+            let image_dir = images[0].parent().unwrap_or(Path::new(""));
+            let mut file = s;
+            file.push(".png");
+            let expected = image_dir.join(file);
             return Err(capture_err(
                 &mask,
+                &format!("mask has no image (expected {})", expected.display()),
+            ));
+        }
+        masks
+    };
+    for (img, mask) in images.iter().zip(&masks) {
+        let mask_size = read_image_size(mask).map_err(to_capture)?;
+        if mask_size != size {
+            return Err(capture_err(
+                mask,
                 &format!(
                     "mask is {}x{} but its image {} is {}x{}",
                     mask_size.0,
@@ -456,17 +478,6 @@ fn match_masks(images: &[PathBuf], folder: &Path, size: (u32, u32)) -> Result<Ve
                 ),
             ));
         }
-        masks.push(mask);
-    }
-    if let Some((s, mask)) = by_stem.into_iter().next() {
-        let image_dir = images[0].parent().unwrap_or(Path::new(""));
-        let mut file = s;
-        file.push(".png");
-        let expected = image_dir.join(file);
-        return Err(capture_err(
-            &mask,
-            &format!("mask has no image (expected {})", expected.display()),
-        ));
     }
     Ok(masks)
 }

@@ -1,0 +1,146 @@
+//! Captures named as published datasets name them train as the project's own: DTU as NeuS preprocessed it
+//! (`image/000000.png` with `mask/000.png`, `camera_mat_i` entries in the npz) and a BlendedMVS-style
+//! folder of JPEG images (`00000000.jpg`) with PNG masks.
+
+use pganeus_io::{read_image, read_npz, Image};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pganeus"))
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// The tabletop preset's toy_a capture at 64×48 with four views.
+fn toy_capture(d: &Path) -> PathBuf {
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 64", 1)
+        .replacen("height = 120", "height = 48", 1)
+        .replacen("views = 24", "views = 4", 1)
+        .replace("frames = 30", "frames = 2");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let o = bin()
+        .args(["synth", "--scene"])
+        .arg(d.join("scene.toml"))
+        .arg("--out")
+        .arg(d.join("data"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    d.join("data").join("toy_a")
+}
+
+/// `src` copied to `dst` with its images renamed by `image_name(i)` (and written as JPEG when the name ends
+/// so) and its masks by `mask_name(i)`; the cameras as they are, capture.json left out (as published).
+fn renamed(src: &Path, dst: &Path, image_name: impl Fn(usize) -> String, mask_name: impl Fn(usize) -> String) {
+    for sub in ["image", "mask"] {
+        std::fs::create_dir_all(dst.join(sub)).unwrap();
+    }
+    std::fs::copy(src.join("cameras_sphere.npz"), dst.join("cameras_sphere.npz")).unwrap();
+    let mut images: Vec<PathBuf> = std::fs::read_dir(src.join("image"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    images.sort();
+    for (i, img) in images.iter().enumerate() {
+        let name = image_name(i);
+        let to = dst.join("image").join(&name);
+        if name.ends_with(".jpg") {
+            let rgb = read_image(img).unwrap().to_rgb();
+            std::fs::write(&to, jpeg(&rgb)).unwrap();
+        } else {
+            std::fs::copy(img, &to).unwrap();
+        }
+        let mask = src.join("mask").join(img.file_name().unwrap());
+        std::fs::copy(mask, dst.join("mask").join(mask_name(i))).unwrap();
+    }
+}
+
+fn jpeg(image: &Image) -> Vec<u8> {
+    let mut out = Vec::new();
+    jpeg_encoder::Encoder::new(&mut out, 92)
+        .encode(
+            &image.data,
+            image.width as u16,
+            image.height as u16,
+            jpeg_encoder::ColorType::Rgb,
+        )
+        .unwrap();
+    out
+}
+
+fn train_a_few_steps(capture: &Path, run: &Path) {
+    let o = bin()
+        .arg("train")
+        .arg(capture)
+        .arg("--out")
+        .arg(run)
+        .args(["--iterations", "4", "--kind", "object"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}: {}", capture.display(), text(&o));
+    assert!(run.join("checkpoint.safetensors").is_file(), "{}", text(&o));
+}
+
+#[test]
+fn dtu_and_blendedmvs_style_captures_load_and_train() {
+    let d = testkit::scratch_dir("cli", "captures");
+    let toy = toy_capture(&d);
+    // The npz has NeuS's camera_mat entries, as DTU's does.
+    let npz = read_npz(&toy.join("cameras_sphere.npz")).unwrap();
+    let keys: Vec<&str> = npz.iter().map(|(k, _)| k.as_str()).collect();
+    assert!(keys.iter().any(|k| k.starts_with("camera_mat_")), "{keys:?}");
+
+    let dtu = d.join("dtu_scan");
+    renamed(&toy, &dtu, |i| format!("{i:06}.png"), |i| format!("{i:03}.png"));
+    train_a_few_steps(&dtu, &d.join("run_dtu"));
+
+    let bmvs = d.join("bmvs");
+    renamed(&toy, &bmvs, |i| format!("{i:08}.jpg"), |i| format!("{i:03}.png"));
+    train_a_few_steps(&bmvs, &d.join("run_bmvs"));
+
+    // A mask short: refused, naming the counts.
+    std::fs::remove_file(dtu.join("mask").join("003.png")).unwrap();
+    let o = bin()
+        .arg("train")
+        .arg(&dtu)
+        .arg("--out")
+        .arg(d.join("run_short"))
+        .args(["--iterations", "4"])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && text(&o).contains("3 masks for 4 images"),
+        "{}",
+        text(&o)
+    );
+
+    // Masks that mark nothing in any view: an object capture refused before training, naming the folder.
+    for e in std::fs::read_dir(bmvs.join("mask")).unwrap() {
+        let p = e.unwrap().path();
+        let m = read_image(&p).unwrap();
+        pganeus_io::write_png(&p, &Image::new(m.width, m.height, 1)).unwrap();
+    }
+    let o = bin()
+        .arg("train")
+        .arg(&bmvs)
+        .arg("--out")
+        .arg(d.join("run_empty"))
+        .args(["--iterations", "4", "--kind", "object"])
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("every mask is empty"), "{t}");
+    assert!(t.contains(&bmvs.join("mask").display().to_string()), "{t}");
+    assert!(!d.join("run_empty").join("checkpoint.safetensors").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,0 +1,61 @@
+//! JPEG images through zune-jpeg, to the same [`Image`] as PNG: gray stays gray, colour (YCbCr, CMYK) becomes
+//! RGB. Errors name the file; no input panics.
+
+use super::png::Image;
+use crate::error::{IoError, Result};
+use std::path::Path;
+use zune_jpeg::zune_core::bytestream::ZCursor;
+use zune_jpeg::zune_core::colorspace::ColorSpace;
+use zune_jpeg::zune_core::options::DecoderOptions;
+use zune_jpeg::JpegDecoder;
+
+fn err(path: &Path, msg: String) -> IoError {
+    IoError::Png {
+        path: path.to_path_buf(),
+        msg: format!("JPEG: {msg}"),
+    }
+}
+
+fn read(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The width and height in a JPEG's header.
+pub fn read_jpeg_size(path: &Path) -> Result<(u32, u32)> {
+    let bytes = read(path)?;
+    let mut d = JpegDecoder::new(ZCursor::new(&bytes[..]));
+    d.decode_headers().map_err(|e| err(path, format!("{e:?}")))?;
+    let info = d.info().ok_or_else(|| err(path, "no header".into()))?;
+    Ok((info.width as u32, info.height as u32))
+}
+
+/// Reads a JPEG file into an 8-bit gray or RGB image.
+pub fn read_jpeg(path: &Path) -> Result<Image> {
+    read_jpeg_bytes(&read(path)?, path)
+}
+
+/// [`read_jpeg`] from bytes in memory; `path` is only used in errors.
+pub fn read_jpeg_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
+    let mut probe = JpegDecoder::new(ZCursor::new(bytes));
+    probe.decode_headers().map_err(|e| err(path, format!("{e:?}")))?;
+    let info = probe.info().ok_or_else(|| err(path, "no header".into()))?;
+    let (out, channels) = if info.components == 1 {
+        (ColorSpace::Luma, 1)
+    } else {
+        (ColorSpace::RGB, 3)
+    };
+    let options = DecoderOptions::default().jpeg_set_out_colorspace(out);
+    let mut d = JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+    let data = d.decode().map_err(|e| err(path, format!("{e:?}")))?;
+    let image = Image {
+        width: info.width as u32,
+        height: info.height as u32,
+        channels,
+        data,
+    };
+    image.check().map_err(|m| err(path, m))?;
+    Ok(image)
+}
