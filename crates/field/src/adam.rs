@@ -11,7 +11,7 @@ const DENSE_BLOCK: usize = 16 * 1024;
 
 /// Adam hyper-parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct AdamConfig {
     /// Base learning rate; the trainer's schedule scales it and passes the result to each step. Default 1e-2.
     pub lr: f32,

@@ -15,6 +15,7 @@ const REDUCE_BLOCK: usize = 2048;
 
 /// Network shape and activations.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MlpConfig {
     /// `[in, hidden…, out]`; at least two entries, all ≥ 1.
     pub dims: Vec<usize>,

@@ -10,35 +10,7 @@ use pganeus_io::{
 use serde_json::json;
 
 /// FORMATS.md's example, without the `"... one per frame"` placeholder.
-const FORMATS_EXAMPLE: &str = r#"{
-  "gravity": [0, 0, -9.81],
-  "background": {"capture": "background", "mesh": "background.ply"},
-  "bodies": [
-    {
-      "name": "toy",
-      "mesh": "toy.ply",
-      "mass": 0.05,
-      "static_captures": [
-        {"capture": "toy_a", "pose": {"t": [0.0, 0.0, 0.03], "q": [1, 0, 0, 0]}},
-        {"capture": "toy_b", "pose": {"t": [0.0, 0.0, 0.03], "q": [0, 1, 0, 0]}}
-      ]
-    }
-  ],
-  "videos": [
-    {
-      "capture": "slide",
-      "fps": 30.0,
-      "bodies": [
-        {
-          "name": "toy",
-          "initial": {"t": [0, 0, 0.03], "q": [1, 0, 0, 0], "v": [0.8, 0, 0], "omega": [0, 0, 0]},
-          "poses": [{"t": [0, 0, 0.03], "q": [1, 0, 0, 0]}]
-        }
-      ],
-      "contact": {"restitution": 0.3, "friction": 0.4, "model": "pganeus"}
-    }
-  ]
-}"#;
+const FORMATS_EXAMPLE: &str = include_str!("data/truth_example.json");
 
 const TRUTH: &str = "truth.json";
 const TRAJ: &str = "trajectory.json";

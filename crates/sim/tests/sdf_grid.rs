@@ -565,3 +565,21 @@ fn smoothing_keeps_planes_and_removes_roughness() {
     assert!(after < 0.35 * before, "roughness {before:.2e} → {after:.2e}");
     assert_eq!(rough_grid.smoothed(0.0), rough_grid);
 }
+
+/// Grid files (`bake --out`), mutated: refused or read, never a panic, and a read one has finite values.
+#[test]
+fn mutated_grid_files_are_refused_or_read_never_a_panic() {
+    let seeds = vec![sphere_grid().to_bytes(), cuboid_grid().to_bytes()];
+    let r = testkit::fuzz::fuzz("grid", &seeds, 3000, 11, |b| {
+        match SdfGrid::from_bytes(b, Path::new("g.sdf")) {
+            Ok(g) => {
+                assert!(g.distance_local(V::new(0.0, 0.0, 0.0)).is_finite());
+                true
+            }
+            Err(_) => false,
+        }
+    });
+    println!("{r}");
+    assert!(r.panics.is_empty(), "{r}: {:?}", r.panics.first());
+    assert!(r.accepted > 0 && r.accepted < r.cases, "{r}");
+}

@@ -1,5 +1,8 @@
 //! Shared test helpers. [`check_jacobian`] compares an analytic Jacobian with
-//! central finite differences and names every entry that disagrees.
+//! central finite differences and names every entry that disagrees; [`fuzz`]
+//! hands mutated files to parsers and catches their panics.
+
+pub mod fuzz;
 
 /// Tolerances of a finite-difference check: an entry passes when
 /// `|analytic − fd| ≤ abs_tol + rel_tol · max(|analytic|, |fd|)`.

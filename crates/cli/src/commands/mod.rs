@@ -90,6 +90,28 @@ mod tests {
         std::fs::write(&file, "[ga.pose]\niteration = 7\n").unwrap();
         let e = config_over(&base, &file).unwrap_err().to_string();
         assert!(e.contains("fit.toml") && e.contains("iteration"), "{e}");
+        // Training configs too, nested tables included: a typo is named, not dropped.
+        let train = neus::TrainConfig::preset("fast", neus::CaptureSubject::Object).unwrap();
+        let file = dir.join("train.toml");
+        std::fs::write(&file, "[field.grid]\nlevels = 8\n").unwrap();
+        assert_eq!(config_over(&train, &file).unwrap().field.grid.levels, 8);
+        for typo in [
+            "[field.grid]\nlevelz = 8\n",
+            "[stereo]\nhypotheses = 64\nstrid = 2\n",
+            "[adam]\nlr = 0.1\n",
+        ] {
+            std::fs::write(&file, typo).unwrap();
+            let e = config_over(&train, &file).unwrap_err().to_string();
+            let key = typo
+                .lines()
+                .nth(typo.lines().count() - 1)
+                .unwrap()
+                .split(' ')
+                .next()
+                .unwrap();
+            let key = if typo.starts_with("[adam]") { "adam" } else { key };
+            assert!(e.contains("train.toml") && e.contains(key), "{typo}: {e}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -37,11 +37,27 @@ pub fn read_jpeg(path: &Path) -> Result<Image> {
     read_jpeg_bytes(&read(path)?, path)
 }
 
+/// A JPEG holds at least a few bits per 8×8 block; a header claiming far more pixels than the file could
+/// hold is damage, refused before the decoder allocates for it.
+const MAX_PIXELS_PER_BYTE: usize = 2000;
+
 /// [`read_jpeg`] from bytes in memory; `path` is only used in errors.
 pub fn read_jpeg_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
     let mut probe = JpegDecoder::new(ZCursor::new(bytes));
     probe.decode_headers().map_err(|e| err(path, format!("{e:?}")))?;
     let info = probe.info().ok_or_else(|| err(path, "no header".into()))?;
+    let pixels = info.width as usize * info.height as usize;
+    if pixels > MAX_PIXELS_PER_BYTE * bytes.len() {
+        return Err(err(
+            path,
+            format!(
+                "truncated or damaged: the header says {}x{} pixels but the file has only {} bytes",
+                info.width,
+                info.height,
+                bytes.len()
+            ),
+        ));
+    }
     let (out, channels) = if info.components == 1 {
         (ColorSpace::Luma, 1)
     } else {
