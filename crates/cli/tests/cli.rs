@@ -677,18 +677,10 @@ fn train_refuses_bad_captures_before_training() {
 
 /// `scenes/cup_house.obj` moved by `f` (an OBJ with the same faces).
 fn moved_cup(f: impl Fn([f64; 3]) -> [f64; 3]) -> String {
-    let src = std::fs::read_to_string(repo().join("scenes/cup_house.obj")).unwrap();
-    src.lines()
-        .map(|l| match l.strip_prefix("v ") {
-            Some(rest) => {
-                let v: Vec<f64> = rest.split_whitespace().map(|x| x.parse().unwrap()).collect();
-                let p = f([v[0], v[1], v[2]]);
-                format!("v {} {} {}", p[0], p[1], p[2])
-            }
-            None => l.to_string(),
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
+    testkit::moved_obj(
+        &std::fs::read_to_string(repo().join("scenes/cup_house.obj")).unwrap(),
+        f,
+    )
 }
 
 #[test]

@@ -99,3 +99,24 @@ pub fn scratch_dir(prefix: &str, name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&d).expect("temp dir is writable");
     d
 }
+
+/// An OBJ's text with every vertex moved by `f` (faces and other lines as they are).
+///
+/// # Panics
+/// On a `v` line whose coordinates are not numbers (test data is valid).
+pub fn moved_obj(obj: &str, f: impl Fn([f64; 3]) -> [f64; 3]) -> String {
+    obj.lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(rest) => {
+                let v: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse().expect("a vertex coordinate"))
+                    .collect();
+                let p = f([v[0], v[1], v[2]]);
+                format!("v {} {} {}", p[0], p[1], p[2])
+            }
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}

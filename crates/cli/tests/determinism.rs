@@ -1,0 +1,130 @@
+//! The same inputs give the same bytes on one thread and on two: `synth`, `simulate`, `train` (a short run)
+//! and `merge`. Parallel loops in the project reduce in a fixed order, so the thread count changes speed,
+//! never results.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// `pganeus ARGS` on `threads` threads; it must succeed.
+fn run(threads: usize, args: &[&str], dir: &Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_pganeus"))
+        .current_dir(dir)
+        .env("RAYON_NUM_THREADS", threads.to_string())
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{args:?}: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// Every file under `dir` (relative path → bytes), leaving out `skip` names (logs with timings).
+fn files(dir: &Path, skip: &[&str]) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if !skip.iter().any(|s| p.file_name().is_some_and(|n| n == *s)) {
+                out.insert(p.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+fn same(a: &Path, b: &Path, skip: &[&str]) {
+    let (fa, fb) = (files(a, skip), files(b, skip));
+    assert!(!fa.is_empty());
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
+    for (name, bytes) in &fa {
+        assert!(bytes == &fb[name], "{} differs between 1 and 2 threads", name.display());
+    }
+}
+
+#[test]
+fn one_thread_and_two_give_the_same_bytes() {
+    let d = testkit::scratch_dir("cli", "determinism");
+    let printed = Command::new(env!("CARGO_BIN_EXE_pganeus"))
+        .args(["synth", "--print-preset", "tabletop"])
+        .output()
+        .unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 64", 1)
+        .replacen("height = 120", "height = 48", 1)
+        .replacen("views = 24", "views = 4", 1)
+        .replace("frames = 30", "frames = 2");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let cup = std::fs::read_to_string(repo().join("scenes/cup_house.obj")).unwrap();
+    std::fs::write(
+        d.join("a.obj"),
+        testkit::moved_obj(&cup, |p| [p[0] + 0.01, p[1], p[2] + 0.02]),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("b.obj"),
+        testkit::moved_obj(&cup, |p| [p[0], -p[1] + 0.02, -p[2] + 0.035]),
+    )
+    .unwrap();
+    let two_body = repo().join("scenes/two_body.toml");
+    // A small hash table: the same code paths, a checkpoint of a few MB instead of 150.
+    std::fs::write(d.join("train.toml"), "[field.grid]\nlog2_table_size = 14\n").unwrap();
+    for t in [1, 2] {
+        run(t, &["synth", "--scene", "scene.toml", "--out", &format!("data{t}")], &d);
+        run(
+            t,
+            &[
+                "simulate",
+                "--scene",
+                two_body.to_str().unwrap(),
+                "--out",
+                &format!("sim{t}.json"),
+            ],
+            &d,
+        );
+        run(
+            t,
+            &[
+                "train",
+                "data1/toy_a",
+                "--out",
+                &format!("run{t}"),
+                "--iterations",
+                "30",
+            ],
+            &d,
+        );
+        run(
+            t,
+            &[
+                "merge",
+                "a.obj",
+                "b.obj",
+                "--res",
+                "64",
+                "--faces",
+                "2000",
+                "--out",
+                &format!("merged{t}"),
+            ],
+            &d,
+        );
+    }
+    same(&d.join("data1"), &d.join("data2"), &[]);
+    assert!(std::fs::read(d.join("sim1.json")).unwrap() == std::fs::read(d.join("sim2.json")).unwrap());
+    // The training log has wall-clock times; the checkpoint, config and preview mesh must agree.
+    same(&d.join("run1"), &d.join("run2"), &["log.jsonl"]);
+    same(&d.join("merged1"), &d.join("merged2"), &[]);
+    let _ = std::fs::remove_dir_all(&d);
+}

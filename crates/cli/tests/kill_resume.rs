@@ -1,0 +1,102 @@
+//! `train` killed with SIGKILL at several moments (as its first checkpoint lands, and part way through two
+//! resumed runs) and resumed each time ends with the same checkpoint, byte for byte, as a training that was
+//! never interrupted: checkpoints are written to a temporary file and renamed (`pganeus_io::write_atomic`:
+//! a kill leaves the old file or the new one under the final name, never part of one), and hold the step,
+//! the random state and the optimiser's moments.
+
+use std::path::Path;
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pganeus"))
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn train(d: &Path, out: &str, extra: &[&str]) -> Command {
+    let mut c = bin();
+    c.current_dir(d)
+        .args([
+            "train",
+            "data/toy_a",
+            "--out",
+            out,
+            "--config",
+            "train.toml",
+            "--iterations",
+            "60",
+        ])
+        .args(extra);
+    c
+}
+
+#[test]
+fn a_killed_training_resumes_to_the_same_checkpoint() {
+    let d = testkit::scratch_dir("cli", "kill_resume");
+    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
+    let scene = String::from_utf8(printed.stdout)
+        .unwrap()
+        .replacen("width = 160", "width = 64", 1)
+        .replacen("height = 120", "height = 48", 1)
+        .replacen("views = 24", "views = 4", 1)
+        .replace("frames = 30", "frames = 2");
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    let o = bin()
+        .current_dir(&d)
+        .args(["synth", "--scene", "scene.toml", "--out", "data"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    // A checkpoint every 10 steps; a table small enough that the whole run takes seconds.
+    std::fs::write(
+        d.join("train.toml"),
+        "checkpoint_every = 10\n\n[field.grid]\nlog2_table_size = 15\n",
+    )
+    .unwrap();
+
+    let o = train(&d, "whole", &[]).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let whole = std::fs::read(d.join("whole/checkpoint.safetensors")).unwrap();
+
+    // Killed three times: as soon as the first checkpoint appears, then 1.5 s and 3 s into two resumed runs;
+    // each time resumed from what is on disk.
+    let ckpt = d.join("cut/checkpoint.safetensors");
+    let mut kills = 0;
+    for (attempt, delay_ms) in [0u64, 1500, 3000].into_iter().enumerate() {
+        let first = attempt == 0;
+        let mut child = if first {
+            train(&d, "cut", &[]).spawn().unwrap()
+        } else {
+            train(&d, "cut", &["--resume"]).spawn().unwrap()
+        };
+        let t0 = Instant::now();
+        while !ckpt.exists() && t0.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        std::thread::sleep(Duration::from_millis(delay_ms));
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
+            kills += 1;
+            println!("killed {attempt}: {delay_ms} ms after the checkpoint was there");
+        }
+        child.wait().unwrap();
+        // Whatever is under the final name is a whole checkpoint: the resume below reads it.
+        assert!(ckpt.exists());
+    }
+    assert!(kills >= 1, "the training ended before any kill");
+    let o = train(&d, "cut", &["--resume"]).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let cut = std::fs::read(&ckpt).unwrap();
+    assert!(
+        cut == whole,
+        "the resumed training's checkpoint differs from the uninterrupted one"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
