@@ -4,13 +4,6 @@ use pganeus_io::{BodyState as IoState, Contact, Pose as IoPose, Trajectory as Io
 use serde_json::{json, Map, Value};
 use sim::{BodyState, Trajectory, World};
 
-fn io_pose(s: &BodyState<f64>) -> IoPose {
-    IoPose {
-        t: s.pose.t.to_array(),
-        q: s.pose.q.to_array_re(),
-    }
-}
-
 fn io_state(s: &BodyState<f64>) -> IoState {
     IoState {
         t: s.pose.t.to_array(),
@@ -53,7 +46,7 @@ pub fn trajectory_json(
             VideoBody {
                 name: body.name.clone(),
                 initial: io_state(&traj.frames[0][b]),
-                poses: traj.frames.iter().map(|f| io_pose(&f[b])).collect(),
+                poses: traj.frames.iter().map(|f| IoPose::from_geom(&f[b].pose)).collect(),
                 extra: e,
             }
         })

@@ -8,7 +8,7 @@ use crate::cameras::{framed_orbit, framing_distance, hemisphere_views, intrinsic
 use crate::desc::{Physics, SynthScene};
 use crate::rapier_motion::simulate_with_rapier;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
-use geom::{Camera, Pose, TriMesh, Vec3};
+use geom::{Camera, TriMesh, Vec3};
 use pganeus_io::{
     BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Contact, Image, PlyEncoding, PlyMesh,
     Pose as IoPose, StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
@@ -295,7 +295,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             });
             statics.push(StaticCapture {
                 capture: name,
-                pose: io_pose(&pose),
+                pose: IoPose::from_geom(&pose),
                 extra: Default::default(),
             });
         }
@@ -385,13 +385,6 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
     })
 }
 
-fn io_pose(p: &Pose<f64>) -> IoPose {
-    IoPose {
-        t: p.t.to_array(),
-        q: p.q.to_array_re(),
-    }
-}
-
 fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, physics: Physics) -> Trajectory {
     let contact = world.scene_contact.first().copied().unwrap_or_default();
     let bodies = world
@@ -408,7 +401,7 @@ fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, physics: 
                     v: s.v.to_array(),
                     omega: s.omega.to_array(),
                 },
-                poses: traj.frames.iter().map(|f| io_pose(&f[b].pose)).collect(),
+                poses: traj.frames.iter().map(|f| IoPose::from_geom(&f[b].pose)).collect(),
                 extra: Default::default(),
             }
         })

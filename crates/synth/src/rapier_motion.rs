@@ -119,8 +119,7 @@ pub(crate) fn simulate_with_rapier(
         let c = match o.shape {
             // Built from the mesh: already placed.
             ShapeDesc::Wedge { .. } | ShapeDesc::Mesh { .. } => collider(&o.shape, world_mesh, false),
-            _ => collider(&o.shape, world_mesh, false)
-                .position(pose(&Pose::new(Quat::cst(o.q).normalize_or_identity(), Vec3::cst(o.t)))),
+            _ => collider(&o.shape, world_mesh, false).position(pose(&pganeus_io::Pose { t: o.t, q: o.q }.to_geom())),
         };
         statics.push(pw.insert_collider(with_contact(c), None));
     }

@@ -7,7 +7,7 @@
 use super::mesh_cmds::world_cameras;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use geom::{coverage_iou, silhouette, Camera, Pose, Quat, TriMesh, Vec3};
+use geom::{coverage_iou, silhouette, Camera, Pose, TriMesh, Vec3};
 use mesh::SurfacePoints;
 use pganeus_io::{Trajectory, Truth, TruthBody};
 use serde_json::{json, Value};
@@ -50,10 +50,6 @@ struct BodyRef<'a> {
     points: SurfacePoints,
 }
 
-fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
-    Pose::new(Quat::cst(p.q).normalize_or_identity(), Vec3::cst(p.t))
-}
-
 fn num(v: f64, scale: f64, digits: i32) -> Value {
     let k = 10f64.powi(digits);
     json!((v * scale * k).round() / k)
@@ -84,7 +80,7 @@ fn relation(entry: &pganeus_io::VideoBody, truth: &TruthBody, file: &Path) -> Re
                 entry.name
             )
         })?;
-    Ok((pose_of(&stat.pose).inverse().compose(&pose_of(&pose)), true))
+    Ok((stat.pose.to_geom().inverse().compose(&pose.to_geom()), true))
 }
 
 /// What [`score_poses`] finds: per-frame rows, a summary per body, and per body the path of the true
@@ -110,8 +106,8 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
         let (mut fitted, mut true_) = (vec![], vec![]);
         for k in 0..n {
-            let est = pose_of(&entry.poses[k]).compose(&from_truth);
-            let tru = pose_of(&truth.poses[k]);
+            let est = entry.poses[k].to_geom().compose(&from_truth);
+            let tru = truth.poses[k].to_geom();
             let micrometres = |v: Vec3<f64>| v.to_array().map(|x| (x * 1e6).round() / 1e6);
             fitted.push(json!(micrometres(est.t)));
             true_.push(json!(micrometres(tru.t)));
@@ -172,7 +168,7 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
             continue;
         };
         // The velocity of the true body's origin: v + ω × (its offset from the fit's origin, in world axes).
-        let offset = pose_of(&entry.poses[0]).q.rotate(r.to_truth.inverse().t);
+        let offset = entry.poses[0].to_geom().q.rotate(r.to_truth.inverse().t);
         let omega = Vec3::cst(entry.initial.omega);
         let v = Vec3::cst(entry.initial.v) + omega.cross(offset);
         let tv = Vec3::cst(truth.initial.v);

@@ -492,13 +492,6 @@ fn stage_ga(
     Ok(results)
 }
 
-fn io_pose(p: &Pose<f64>) -> pganeus_io::Pose {
-    pganeus_io::Pose {
-        t: p.t.to_array(),
-        q: p.q.to_array_re(),
-    }
-}
-
 /// GA's poses of every body as a trajectory file (poses only).
 fn write_ga(m: &Multi, path: &Path, results: &[Vec<FramePose>]) -> Result<()> {
     let bodies = m
@@ -520,7 +513,7 @@ fn write_ga(m: &Multi, path: &Path, results: &[Vec<FramePose>]) -> Result<()> {
                     v: [0.0; 3],
                     omega: [0.0; 3],
                 },
-                poses: rs.iter().map(|r| io_pose(&r.pose)).collect(),
+                poses: rs.iter().map(|r| pganeus_io::Pose::from_geom(&r.pose)).collect(),
                 extra,
             }
         })
@@ -747,7 +740,7 @@ fn finish(
         let mesh = format!("object_{}.ply", body.name);
         let tb = &mut t.bodies[b];
         for (pose, r) in tb.poses.iter_mut().zip(&reported[b]) {
-            *pose = io_pose(r);
+            *pose = pganeus_io::Pose::from_geom(r);
         }
         tb.extra.extend(object_entry(&body.object, &mesh));
         tb.extra.insert("frames".into(), json!(rows[b]));

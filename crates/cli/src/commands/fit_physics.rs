@@ -1,7 +1,7 @@
 use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use geom::{Pose, Quat, Vec3};
+use geom::Pose;
 use recon::{fit_multi_start, PhysicsFitConfig, CONTACT_STARTS};
 use scene_file::SceneFile;
 use std::path::PathBuf;
@@ -73,11 +73,7 @@ pub fn run(a: FitPhysicsArgs) -> Result<()> {
             obs.bodies.iter().map(|b| &b.name).collect::<Vec<_>>()
         ),
     };
-    let poses: Vec<Pose<f64>> = observed
-        .poses
-        .iter()
-        .map(|p| Pose::new(Quat::cst(p.q), Vec3::cst(p.t)))
-        .collect();
+    let poses: Vec<Pose<f64>> = observed.poses.iter().map(pganeus_io::Pose::to_geom).collect();
     let weights = match &a.weights {
         None => None,
         Some(p) => {

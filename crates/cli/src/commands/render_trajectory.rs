@@ -37,10 +37,6 @@ pub(crate) struct BodyMotion {
     pub poses: Vec<Pose<f64>>,
 }
 
-fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
-    Pose::new(Quat::cst(p.q).normalize_or_identity(), Vec3::cst(p.t))
-}
-
 /// The motion to render: a `trajectory.json` (poses of each object's own body frame) or a `videos[]` entry
 /// of a `truth.json` (poses of the true meshes' frames, carried onto each object's body frame through the
 /// static capture the object's reference was taken in).
@@ -64,7 +60,7 @@ pub(crate) fn read_motion(
             .iter()
             .map(|b| BodyMotion {
                 name: b.name.clone(),
-                poses: b.poses.iter().map(pose_of).collect(),
+                poses: b.poses.iter().map(pganeus_io::Pose::to_geom).collect(),
             })
             .collect();
         return Ok((t.fps, t.capture, bodies));
@@ -113,10 +109,10 @@ pub(crate) fn read_motion(
                 )
             })?;
         // world_k = H_k · truth_body = H_k · P_capture⁻¹ · reference · object_body.
-        let to_object = pose_of(&sc.pose).inverse().compose(&model.reference_pose);
+        let to_object = sc.pose.to_geom().inverse().compose(&model.reference_pose);
         bodies.push(BodyMotion {
             name: b.name.clone(),
-            poses: b.poses.iter().map(|p| pose_of(p).compose(&to_object)).collect(),
+            poses: b.poses.iter().map(|p| p.to_geom().compose(&to_object)).collect(),
         });
     }
     Ok((v.fps, v.capture.clone(), bodies))

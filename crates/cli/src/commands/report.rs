@@ -7,7 +7,7 @@
 use super::mesh_cmds::world_cameras;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use geom::{Camera, Intrinsics, Pose, Quat, TriMesh, Vec3};
+use geom::{Camera, Intrinsics, Pose, TriMesh, Vec3};
 use pganeus_io::{Image, Trajectory};
 use report::{face_towards, turntable, Chart, Mark, Page, Paint, Raster, Series};
 use serde_json::Value;
@@ -630,10 +630,6 @@ fn loss_charts(name: &str, log: &Path) -> Vec<(String, Chart)> {
     ]
 }
 
-fn pose_of(p: &pganeus_io::Pose) -> Pose<f64> {
-    Pose::new(Quat::cst(p.q).normalize_or_identity(), Vec3::cst(p.t))
-}
-
 /// The fit drawn from a camera turned 60° about the vertical round the motion's centre: the scene's
 /// extracted surface, the fitted bodies, and the truth as a ghost when `eval` names it.
 fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -> Result<Vec<Image>> {
@@ -675,7 +671,7 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
             .and_then(|o| o["mesh"].as_str())
             .ok_or_else(|| anyhow!("body {:?} names no object mesh", b.name))?;
         let m = pganeus_io::read_mesh(&fit.join(mesh))?;
-        bodies.push((m, b.poses.iter().map(pose_of).collect()));
+        bodies.push((m, b.poses.iter().map(pganeus_io::Pose::to_geom).collect()));
     }
     let ghosts = truth_ghosts(traj, eval, &bases).unwrap_or_else(|e| {
         tracing::warn!("no truth in the novel view: {e:#}");
@@ -755,7 +751,7 @@ fn truth_ghosts(traj: &Trajectory, eval: Option<&Value>, bases: &[&Path]) -> Res
             continue;
         };
         let m = pganeus_io::read_mesh(&dir.join(&tb.mesh))?;
-        out.push((m, tv.poses.iter().map(pose_of).collect()));
+        out.push((m, tv.poses.iter().map(pganeus_io::Pose::to_geom).collect()));
     }
     Ok(out)
 }

@@ -42,6 +42,21 @@ impl Default for Pose {
     }
 }
 
+impl Pose {
+    /// The pose as geometry (the quaternion normalised; a zero one becomes the identity).
+    pub fn to_geom(&self) -> geom::Pose<f64> {
+        geom::Pose::new(geom::Quat::cst(self.q).normalize_or_identity(), geom::Vec3::cst(self.t))
+    }
+
+    /// A pose of the geometry as written in files.
+    pub fn from_geom(p: &geom::Pose<f64>) -> Self {
+        Self {
+            t: p.t.to_array(),
+            q: p.q.to_array_re(),
+        }
+    }
+}
+
 /// A pose with its velocities: the state of a body at one instant.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BodyState {
