@@ -102,11 +102,14 @@ pub fn mesh(a: MeshArgs) -> Result<()> {
 #[derive(Args)]
 #[command(after_help = "Examples:
   pganeus bake runs/scene --out scene.sdf --res 256
-  pganeus bake toy.ply --out toy.sdf")]
+  pganeus bake toy.ply --out toy.sdf
+  pganeus bake toy.ply --out toy.npz")]
 pub struct BakeArgs {
     /// A run folder / checkpoint (its field) or a closed mesh (.ply, .obj).
     pub source: PathBuf,
-    /// The grid file to write (read by scene files' `shape = "grid"`).
+    /// The grid file to write (read by scene files' `shape = "grid"` and `fit --scene-grid`); with `.npz`, a
+    /// NumPy archive instead: `sdf` (float32, shape [nz, ny, nx], metres, negative inside), `origin` (the
+    /// node [0, 0, 0], m) and `spacing` (m).
     #[arg(long)]
     pub out: PathBuf,
     /// Nodes along the longest side.
@@ -239,7 +242,11 @@ pub fn bake(a: BakeArgs) -> Result<()> {
         bail!("--smooth must be a non-negative number of node spacings, got {smooth}");
     }
     let grid = grid.smoothed(smooth);
-    grid.save(&a.out)?;
+    if a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz")) {
+        write_grid_npz(&grid, &a.out)?;
+    } else {
+        grid.save(&a.out)?;
+    }
     println!(
         "baked {:?} nodes, spacing {:.3} mm{}, in {:.2} s; wrote {}",
         grid.dims,
@@ -424,6 +431,26 @@ pub struct MergeArgs {
 /// The cameras of a capture, in its world frame.
 fn capture_cameras(dir: &Path) -> Result<Vec<geom::Camera<f64>>> {
     world_cameras(&pganeus_io::open_capture(dir)?)
+}
+
+/// A grid as a NumPy archive: x fastest in the file's order is C order for the shape [nz, ny, nx].
+fn write_grid_npz(grid: &sim::sdf::SdfGrid, path: &Path) -> Result<()> {
+    use pganeus_io::{NpyArray, NpyData};
+    let [nx, ny, nz] = grid.dims;
+    let sdf = NpyArray {
+        shape: vec![nz, ny, nx],
+        data: NpyData::F32(grid.values.clone()),
+    };
+    let origin = NpyArray {
+        shape: vec![3],
+        data: NpyData::F64(grid.origin.to_vec()),
+    };
+    let spacing = NpyArray {
+        shape: vec![],
+        data: NpyData::F64(vec![grid.spacing]),
+    };
+    pganeus_io::write_npz(path, &[("sdf", &sdf), ("origin", &origin), ("spacing", &spacing)])?;
+    Ok(())
 }
 
 /// An opened capture's cameras, one per image, in its world frame.
