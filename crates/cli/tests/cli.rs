@@ -420,6 +420,32 @@ fn train_render_and_resume_end_to_end() {
         std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(),
         std::fs::read(out.join("rgb").join("001.png")).unwrap()
     );
+    // A render that fails (its second camera is broken) leaves the earlier folder as it was, and no
+    // partial folder beside it.
+    let zero = [[0.0f64; 4]; 4];
+    let bad = serde_json::json!([
+        {"width": 48, "height": 36, "world_mat": cams[1].world_mat},
+        {"width": 48, "height": 36, "world_mat": zero}
+    ]);
+    std::fs::write(d.join("bad_cams.json"), bad.to_string()).unwrap();
+    let before = std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap();
+    let o = bin()
+        .arg("render")
+        .arg(&run)
+        .arg("--camera")
+        .arg(d.join("bad_cams.json"))
+        .arg("--out")
+        .arg(&out2)
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "{}", text(&o));
+    assert_eq!(std::fs::read(out2.join("rgb").join("cam_000.png")).unwrap(), before);
+    assert!(
+        std::fs::read_dir(&d)
+            .unwrap()
+            .all(|e| !e.unwrap().file_name().to_string_lossy().contains("partial")),
+        "a partial folder was left"
+    );
     // The run as an object moved along a trajectory: a video capture in the NeuS layout.
     let pose = |x: f64| serde_json::json!({"t": [x, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0]});
     let traj = serde_json::json!({

@@ -68,3 +68,72 @@ fn sync_dir(dir: &Path) {
     #[cfg(not(unix))]
     let _ = dir;
 }
+
+/// A folder written beside its target and swapped in whole: `path()` is where to write; [`Self::commit`]
+/// moves it to the target (an existing target is replaced only then); dropped without a commit, the
+/// partial folder is removed, so a failure part-way leaves the old folder, or none, as it was.
+pub struct StagedDir {
+    target: PathBuf,
+    partial: PathBuf,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// A fresh partial folder `.{name}.partial-{pid}` beside `target`.
+    pub fn new(target: &Path) -> Result<Self> {
+        let err = |source| IoError::Write {
+            path: target.to_path_buf(),
+            source,
+        };
+        let name = target.file_name().ok_or_else(|| {
+            err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "the path does not name a folder",
+            ))
+        })?;
+        let partial = target.with_file_name(format!(".{}.partial-{}", name.to_string_lossy(), std::process::id()));
+        let _ = fs::remove_dir_all(&partial);
+        fs::create_dir_all(&partial).map_err(err)?;
+        Ok(Self {
+            target: target.to_path_buf(),
+            partial,
+            committed: false,
+        })
+    }
+
+    /// Where the folder's contents go until the commit.
+    pub fn path(&self) -> &Path {
+        &self.partial
+    }
+
+    /// Moves the finished folder to the target, replacing what was there.
+    pub fn commit(mut self) -> Result<()> {
+        let err = |source| IoError::Write {
+            path: self.target.clone(),
+            source,
+        };
+        if self.target.exists() {
+            let old = self.target.with_file_name(format!(
+                ".{}.old-{}",
+                self.target.file_name().unwrap_or_default().to_string_lossy(),
+                std::process::id()
+            ));
+            let _ = fs::remove_dir_all(&old);
+            fs::rename(&self.target, &old).map_err(err)?;
+            fs::rename(&self.partial, &self.target).map_err(err)?;
+            let _ = fs::remove_dir_all(&old);
+        } else {
+            fs::rename(&self.partial, &self.target).map_err(err)?;
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = fs::remove_dir_all(&self.partial);
+        }
+    }
+}

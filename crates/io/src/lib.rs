@@ -27,7 +27,7 @@ mod atomic;
 mod error;
 pub mod formats;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, StagedDir};
 pub use error::{IoError, Result};
 pub use formats::image_file::{is_image_file, read_image, read_image_size};
 pub use formats::jpeg::{read_jpeg, read_jpeg_bytes};

@@ -75,3 +75,30 @@ fn concurrent_writers_to_one_target_never_mix() {
     assert_eq!(dir_names(&dir), vec!["shared.bin"]);
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn a_staged_folder_replaces_its_target_only_when_committed() {
+    let dir = tempdir("staged");
+    let target = dir.join("out");
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("old.txt"), "old").unwrap();
+    // Dropped half-written: the old folder stays whole and the partial one is gone.
+    {
+        let staged = pganeus_io::StagedDir::new(&target).unwrap();
+        std::fs::write(staged.path().join("new.txt"), "new").unwrap();
+    }
+    assert_eq!(dir_names(&target), ["old.txt"]);
+    assert_eq!(dir_names(&dir), ["out"]);
+    // Committed: the new contents replace the old.
+    let staged = pganeus_io::StagedDir::new(&target).unwrap();
+    std::fs::write(staged.path().join("new.txt"), "new").unwrap();
+    staged.commit().unwrap();
+    assert_eq!(dir_names(&target), ["new.txt"]);
+    assert_eq!(dir_names(&dir), ["out"]);
+    // A target that did not exist is created.
+    let fresh = dir.join("fresh");
+    let staged = pganeus_io::StagedDir::new(&fresh).unwrap();
+    std::fs::write(staged.path().join("a"), "a").unwrap();
+    staged.commit().unwrap();
+    assert_eq!(dir_names(&fresh), ["a"]);
+}

@@ -166,8 +166,11 @@ struct Job<'a> {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
+    // Written beside --out and swapped in whole: a failure part-way leaves the old folder as it was.
+    let staged = pganeus_io::StagedDir::new(&a.out)?;
+    let out = staged.path().to_path_buf();
     if let Some(trajectory) = &a.trajectory {
-        return super::render_trajectory::run(super::render_trajectory::TrajectoryJob {
+        super::render_trajectory::run(super::render_trajectory::TrajectoryJob {
             trajectory,
             video: a.video.as_deref(),
             scene: a.scene.as_deref(),
@@ -177,8 +180,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
             side_by_side: a.side_by_side.as_deref(),
             orbit_deg: a.orbit,
             reference_compositing: a.reference_compositing,
-            out: &a.out,
-        });
+            out: &out,
+            shown_as: &a.out,
+        })?;
+        staged.commit()?;
+        return Ok(());
     }
     let run = a.run.as_deref().expect("clap: RUN is required without --trajectory");
     let l = load_field(&checkpoint_of(run))?;
@@ -249,12 +255,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
             dep.data[p] = to8(img.depth[p] / dmax);
         }
         let name = format!("{}.png", job.name);
-        pganeus_io::write_png(&a.out.join("rgb").join(&name), &rgb)?;
-        pganeus_io::write_png(&a.out.join("normal").join(&name), &nrm)?;
-        pganeus_io::write_png(&a.out.join("depth").join(&name), &dep)?;
+        pganeus_io::write_png(&out.join("rgb").join(&name), &rgb)?;
+        pganeus_io::write_png(&out.join("normal").join(&name), &nrm)?;
+        pganeus_io::write_png(&out.join("depth").join(&name), &dep)?;
         let metres: Vec<f32> = img.depth.iter().map(|d| d * field.radius as f32).collect();
         pganeus_io::write_npy(
-            &a.out.join("depth").join(format!("{}.npy", job.name)),
+            &out.join("depth").join(format!("{}.npy", job.name)),
             &pganeus_io::NpyArray::new(vec![h as usize, w as usize], pganeus_io::NpyData::F32(metres)),
         )?;
         match job.reference {
@@ -281,5 +287,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         );
     }
+    staged.commit()?;
+    println!("wrote {}", a.out.display());
     Ok(())
 }

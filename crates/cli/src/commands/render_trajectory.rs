@@ -28,7 +28,10 @@ pub struct TrajectoryJob<'a> {
     pub side_by_side: Option<&'a Path>,
     pub orbit_deg: Option<f64>,
     pub reference_compositing: bool,
+    /// Where to write (a staged folder swapped in by the caller).
     pub out: &'a Path,
+    /// The folder as the user named it, for messages.
+    pub shown_as: &'a Path,
 }
 
 /// One body's poses, in its object folder's body frame.
@@ -387,7 +390,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     println!(
         "rendered {frames} frames of {w}×{h} in {:.1} s into {} (animation.png{})",
         t0.elapsed().as_secs_f64(),
-        out.display(),
+        job.shown_as.display(),
         if mp4 { ", video.mp4" } else { "" }
     );
     Ok(())

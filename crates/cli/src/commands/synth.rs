@@ -91,15 +91,9 @@ pub fn run(a: SynthArgs) -> Result<()> {
     if out.exists() && std::fs::read_dir(&out).map(|mut d| d.next().is_some()).unwrap_or(true) && !a.force {
         bail!("{} exists and is not empty; use --force to replace it", out.display());
     }
-    // Write beside the target, then swap, so a failure leaves the old dataset whole.
-    let partial = out.with_file_name(format!(
-        ".{}.partial-{}",
-        out.file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "synth".into()),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&partial);
+    // Written beside the target and swapped in whole, so a failure leaves the old dataset as it was.
+    let staged = pganeus_io::StagedDir::new(&out)?;
+    let partial = staged.path().to_path_buf();
     let t0 = std::time::Instant::now();
     let pb = super::progress(0, "render");
     let result = synth::generate(&scene, &base, &partial, &mut |name, done, total| {
@@ -110,31 +104,19 @@ pub fn run(a: SynthArgs) -> Result<()> {
     pb.finish_and_clear();
     let summary = match result {
         Ok(s) => s,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&partial);
-            return Err(anyhow!("{label}: {e}"));
-        }
+        Err(e) => return Err(anyhow!("{label}: {e}")),
     };
     if a.contact_sheet {
         let (sheet, rows) = synth::contact_sheet::contact_sheet(&partial)?;
         pganeus_io::write_png(&partial.join("contact_sheet.png"), &sheet)?;
         println!("contact sheet rows: {}", rows.join(", "));
     }
-    if out.exists() {
-        let old = out.with_file_name(format!(
-            ".{}.old-{}",
-            out.file_name().expect("a name").to_string_lossy(),
-            std::process::id()
-        ));
-        std::fs::rename(&out, &old).with_context(|| format!("cannot move {} aside", out.display()))?;
-        std::fs::rename(&partial, &out).with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
-        let _ = std::fs::remove_dir_all(&old);
-    } else {
-        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent)?;
-        }
-        std::fs::rename(&partial, &out).with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)?;
     }
+    staged
+        .commit()
+        .with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
     for (name, n) in &summary.captures {
         println!("  {name}: {n} images");
     }
