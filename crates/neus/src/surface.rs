@@ -9,10 +9,25 @@ use geom::{TriMesh, Vec3};
 /// beyond it the background field holds the content, and the SDF there was
 /// never trained (an open mesh, cut at the sphere).
 pub fn zero_level_mesh(field: &NeusField, levels: usize, centre: Vec3<f64>, radius: f64, res: usize) -> TriMesh {
+    zero_level_mesh_reporting(field, levels, centre, radius, res, &|_| {})
+}
+
+/// [`zero_level_mesh`], telling `sampled` how many of the grid's `res³` points each batch evaluated (for a
+/// progress bar; batches run in parallel).
+pub fn zero_level_mesh_reporting(
+    field: &NeusField,
+    levels: usize,
+    centre: Vec3<f64>,
+    radius: f64,
+    res: usize,
+    sampled: &(dyn Fn(usize) + Sync),
+) -> TriMesh {
     let grid = mesh::sample_sdf_grid(
         &|pts: &[[f64; 3]]| {
             let flat: Vec<f32> = pts.iter().flatten().map(|v| *v as f32).collect();
-            field.sdf_values(&flat, levels)
+            let values = field.sdf_values(&flat, levels);
+            sampled(pts.len());
+            values
         },
         [-1.0; 3],
         [1.0; 3],

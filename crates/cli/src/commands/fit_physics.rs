@@ -102,13 +102,19 @@ pub fn run(a: FitPhysicsArgs) -> Result<()> {
     } else {
         &CONTACT_STARTS
     };
+    // The scene file's values, then each start of the grid.
+    let pb = super::progress(1 + starts.len() as u64, "starts");
     let multi = fit_multi_start(cfg, world, body, poses, weights, starts, &mut |i, r| {
-        println!(
-            "start {i:2} (restitution {:.2}, friction {:.2}): loss {:.6e} after {} iterations",
-            r.restitution, r.friction, r.loss, r.iterations
-        );
+        pb.suspend(|| {
+            println!(
+                "start {i:2} (restitution {:.2}, friction {:.2}): loss {:.6e} after {} iterations",
+                r.restitution, r.friction, r.loss, r.iterations
+            )
+        });
+        pb.inc(1);
     })
     .map_err(|e| anyhow!("{}: {e}", a.poses.display()))?;
+    pb.finish_and_clear();
     let (fit, history) = (&multi.best, &multi.history);
     if !starts.is_empty() {
         let w = &multi.starts[multi.winner];

@@ -166,7 +166,15 @@ fn field_grid(
             }
         }
     }
-    let sdf = l.field.sdf_values(&pts, l.config.field.grid.levels);
+    // In slices (each still parallel inside), for the progress bar.
+    const SLICE: usize = 1 << 18;
+    let pb = super::progress((pts.len() / 3) as u64, "sampling the field");
+    let mut sdf = Vec::with_capacity(pts.len() / 3);
+    for chunk in pts.chunks(3 * SLICE) {
+        sdf.extend(l.field.sdf_values(chunk, l.config.field.grid.levels));
+        pb.inc((chunk.len() / 3) as u64);
+    }
+    pb.finish_and_clear();
     if !sdf.iter().any(|v| *v < 0.0) || !sdf.iter().any(|v| *v > 0.0) {
         bail!("{}: the field has no zero level inside the bounds", source.display());
     }

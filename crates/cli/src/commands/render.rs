@@ -88,7 +88,19 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
     sum / views.len().max(1) as f32
 }
 
-pub use neus::surface::zero_level_mesh;
+/// A field's zero level (`neus::surface::zero_level_mesh`) with a progress bar over the points sampled.
+pub fn zero_level_mesh(
+    field: &neus::NeusField,
+    levels: usize,
+    centre: geom::Vec3<f64>,
+    radius: f64,
+    res: usize,
+) -> geom::TriMesh {
+    let pb = super::progress((res * res * res) as u64, &format!("zero level at {res}³"));
+    let m = neus::surface::zero_level_mesh_reporting(field, levels, centre, radius, res, &|n| pb.inc(n as u64));
+    pb.finish_and_clear();
+    m
+}
 
 fn to8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8

@@ -62,13 +62,17 @@ pub fn run(a: TargetArgs) -> Result<()> {
     };
     let mut stage = TargetReach::new(cfg, w, body, point, a.frame)?;
     println!("start: {:.5} m from the target", stage.distance());
+    let pb = super::progress(a.iterations as u64, "iterations");
     loop {
         let s = stage.step();
-        println!("iteration {:3}: distance {:.5} m", s.iteration, s.distance);
+        pb.set_position(s.iteration as u64);
+        pb.set_message(format!("distance {:.5} m", s.distance));
+        tracing::debug!("iteration {:3}: distance {:.5} m", s.iteration, s.distance);
         if s.converged {
             break;
         }
     }
+    pb.finish_and_clear();
     let solved = stage.solved_world();
     let traj = solved.simulate(&solved.params());
     let s0 = solved.initial[body];
