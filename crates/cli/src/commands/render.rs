@@ -236,7 +236,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         _ => None,
     };
     let mut psnrs = Vec::new();
+    let pb = super::progress(jobs.len() as u64, "views");
     for job in &jobs {
+        pb.inc(1);
         // Eq. 4: the other field renders cameras below the primary's board.
         let (field, camera, to_primary) = match &other {
             Some((lo, primary_to_other)) => match route(&job.camera, primary_to_other) {
@@ -275,18 +277,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
             &out.join("depth").join(format!("{}.npy", job.name)),
             &pganeus_io::NpyArray::new(vec![h as usize, w as usize], pganeus_io::NpyData::F32(metres)),
         )?;
-        match job.reference {
+        let line = match job.reference {
             Some(Reference { rgb: gt, mask }) => {
                 let p = psnr(&img.rgb, gt, mask);
-                println!("{}: PSNR {p:.2} dB", job.name);
                 psnrs.push(p);
+                format!("{}: PSNR {p:.2} dB", job.name)
             }
             None if to_primary.is_some() => {
-                println!("{}: rendered by the other field (camera below the board)", job.name)
+                format!("{}: rendered by the other field (camera below the board)", job.name)
             }
-            None => println!("{}: rendered", job.name),
-        }
+            None => format!("{}: rendered", job.name),
+        };
+        pb.suspend(|| println!("{line}"));
     }
+    pb.finish_and_clear();
     if !psnrs.is_empty() {
         println!(
             "mean PSNR {:.2} dB over {} views{}",
