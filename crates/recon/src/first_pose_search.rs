@@ -192,7 +192,19 @@ pub fn candidates(body: &RigidBody, scene: &Shape, frame: &FrameTarget, cfg: &Fi
     // Beyond any tabletop: a ray that misses the scene stops here.
     let far = 50.0;
     let mut out = Vec::new();
-    for (side, _) in resting_sides(&body.mesh, cfg.resting_sides) {
+    let t0 = std::time::Instant::now();
+    let sides = resting_sides(&body.mesh, cfg.resting_sides);
+    tracing::debug!(
+        "first pose search: {} resting sides of {} vertices in {:.2} s: {:?}",
+        sides.len(),
+        body.mesh.vertices.len(),
+        t0.elapsed().as_secs_f64(),
+        sides
+            .iter()
+            .map(|(d, share)| (d.to_array(), *share))
+            .collect::<Vec<_>>()
+    );
+    for (side, _) in sides {
         let tilt = turn_onto(side, down);
         for k in 0..cfg.yaw_steps.max(1) {
             let yaw =
@@ -250,10 +262,17 @@ pub fn search_first_pose(
     cfg: &FirstPoseSearchConfig,
     mut on_step: impl FnMut(),
 ) -> Result<(Pose<f64>, Vec<Candidate>), PoseFitError> {
+    let t0 = std::time::Instant::now();
     let mut all = candidates(body, scene, frame, cfg);
     if all.is_empty() {
         return Err(PoseFitError::EmptyMask);
     }
+    tracing::debug!(
+        "first pose search: {} candidates in {:.2} s, best silhouette IoU {:.3}",
+        all.len(),
+        t0.elapsed().as_secs_f64(),
+        all[0].silhouette_iou
+    );
     // The best silhouettes that differ: others within 15° and a fifth of the body's size of a chosen one
     // would refine to the same pose.
     let mut chosen: Vec<usize> = Vec::new();
@@ -290,9 +309,23 @@ pub fn search_first_pose(
         fits.sort_by(|a, b| loss(a.0).total_cmp(&loss(b.0)));
     };
     let screen = cfg.screen_iterations.min(cfg.refine.iterations);
+    let t0 = std::time::Instant::now();
     run(&mut fits, screen, &mut all);
+    tracing::debug!(
+        "first pose search: {} screened in {:.2} s, losses {:?}",
+        fits.len(),
+        t0.elapsed().as_secs_f64(),
+        fits.iter().map(|(i, _)| all[*i].refined_loss).collect::<Vec<_>>()
+    );
     fits.truncate(cfg.refined.max(1));
+    let t0 = std::time::Instant::now();
     run(&mut fits, cfg.refine.iterations - screen, &mut all);
+    tracing::debug!(
+        "first pose search: {} refined in {:.2} s, losses {:?}",
+        fits.len(),
+        t0.elapsed().as_secs_f64(),
+        fits.iter().map(|(i, _)| all[*i].refined_loss).collect::<Vec<_>>()
+    );
     let pose = fits[0].1.pose;
     Ok((pose, all))
 }

@@ -433,6 +433,10 @@ fn match_masks(images: &[PathBuf], folder: &Path, size: (u32, u32)) -> Result<Ve
     let mut by_stem: BTreeMap<OsString, PathBuf> = listed.iter().map(|p| (stem(p), p.clone())).collect();
     let named = images.iter().all(|img| by_stem.contains_key(&stem(img)));
     let masks: Vec<PathBuf> = if !named && listed.len() == images.len() {
+        tracing::info!(
+            "{}: masks paired with images by sorted order (their names differ, as in NeuS's DTU folders)",
+            folder.display()
+        );
         listed
     } else {
         let mut masks = Vec::with_capacity(images.len());
