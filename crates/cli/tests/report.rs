@@ -152,7 +152,13 @@ fn headless(chrome: &Path, profile: &Path, args: &[&str], page: &Path) -> Output
     Command::new("timeout")
         .arg("120")
         .arg(chrome)
-        .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars"])
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--hide-scrollbars",
+        ])
         .arg(format!("--user-data-dir={}", profile.display()))
         .args(args)
         .arg(format!("file://{}", page.display()))
