@@ -1,11 +1,8 @@
 //! Meshes with a coordinate that is not a number are refused by every command that reads meshes, naming
 //! the file and the vertex (`compare-mesh` used to panic on one).
 
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
+mod common;
+use common::bin;
 
 /// A tetrahedron as ASCII PLY, its second vertex's x as given.
 fn tetrahedron(x1: &str) -> String {

@@ -4,39 +4,13 @@
 
 use pganeus_io::{read_image, read_npz, Image};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{bin, tabletop, text};
 
 /// The tabletop preset's toy_a capture at 64×48 with four views.
 fn toy_capture(d: &Path) -> PathBuf {
-    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", "width = 64", 1)
-        .replacen("height = 120", "height = 48", 1)
-        .replacen("views = 24", "views = 4", 1)
-        .replace("frames = 30", "frames = 2");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    let o = bin()
-        .args(["synth", "--scene"])
-        .arg(d.join("scene.toml"))
-        .arg("--out")
-        .arg(d.join("data"))
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    d.join("data").join("toy_a")
+    tabletop(d, (64, 48), 4, 2, &[]).join("toy_a")
 }
 
 /// `src` copied to `dst` with its images renamed by `image_name(i)` (and written as JPEG when the name ends

@@ -2,26 +2,12 @@
 //! bad-input contract (a message naming the file and field, a non-zero exit,
 //! no output written and earlier outputs intact).
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+mod common;
+use common::{bin, repo, tabletop, text};
 
 fn scratch(name: &str) -> PathBuf {
     testkit::scratch_dir("cli", name)
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
 }
 
 const GOOD_BODY: &str = r#"
@@ -298,23 +284,7 @@ fn synth_refuses_a_bad_scene_and_keeps_the_old_dataset() {
 /// The tabletop preset rendered by `pganeus synth` into `d/data` at `width`×`height` with `views` views per
 /// static capture and one frame per video.
 fn tiny_dataset(d: &Path, width: u32, height: u32, views: usize) -> PathBuf {
-    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", &format!("width = {width}"), 1)
-        .replacen("height = 120", &format!("height = {height}"), 1)
-        .replacen("views = 24", &format!("views = {views}"), 1)
-        .replace("frames = 30", "frames = 1");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    let o = bin()
-        .args(["synth", "--scene"])
-        .arg(d.join("scene.toml"))
-        .arg("--out")
-        .arg(d.join("data"))
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    d.join("data")
+    tabletop(d, (width, height), views, 1, &[])
 }
 
 /// A tiny capture of the tabletop toy.

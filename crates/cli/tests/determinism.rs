@@ -4,26 +4,19 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+mod common;
+use common::{bin, repo, tabletop_toml, text};
 
 /// `pganeus ARGS` on `threads` threads; it must succeed.
 fn run(threads: usize, args: &[&str], dir: &Path) {
-    let o = Command::new(env!("CARGO_BIN_EXE_pganeus"))
+    let o = bin()
         .current_dir(dir)
         .env("RAYON_NUM_THREADS", threads.to_string())
         .args(args)
         .output()
         .unwrap();
-    assert!(
-        o.status.success(),
-        "{args:?}: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "{args:?}: {}", text(&o));
 }
 
 /// Every file under `dir` (relative path → bytes), leaving out `skip` names (logs with timings).
@@ -55,17 +48,7 @@ fn same(a: &Path, b: &Path, skip: &[&str]) {
 #[test]
 fn one_thread_and_two_give_the_same_bytes() {
     let d = testkit::scratch_dir("cli", "determinism");
-    let printed = Command::new(env!("CARGO_BIN_EXE_pganeus"))
-        .args(["synth", "--print-preset", "tabletop"])
-        .output()
-        .unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", "width = 64", 1)
-        .replacen("height = 120", "height = 48", 1)
-        .replacen("views = 24", "views = 4", 1)
-        .replace("frames = 30", "frames = 2");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    std::fs::write(d.join("scene.toml"), tabletop_toml(64, 48, 4, 2)).unwrap();
     let cup = std::fs::read_to_string(repo().join("scenes/cup_house.obj")).unwrap();
     std::fs::write(
         d.join("a.obj"),

@@ -11,17 +11,8 @@ use neus::{CaptureSubject, FieldInit};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{bin, text};
 
 /// The video's camera: 96×72, looking down at the toss from the front.
 fn camera() -> Camera<f64> {

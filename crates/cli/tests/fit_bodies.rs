@@ -13,17 +13,8 @@ use neus::untrained_field::untrained_field;
 use neus::{CaptureSubject, FieldInit};
 use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{bin, text};
 
 fn run_ok(cmd: &mut Command) -> Output {
     let o = cmd.output().unwrap();

@@ -5,20 +5,11 @@
 //! the random state and the optimiser's moments.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
+
+mod common;
+use common::{bin, tabletop, text};
 use std::time::{Duration, Instant};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 fn train(d: &Path, out: &str, extra: &[&str]) -> Command {
     let mut c = bin();
@@ -40,20 +31,7 @@ fn train(d: &Path, out: &str, extra: &[&str]) -> Command {
 #[test]
 fn a_killed_training_resumes_to_the_same_checkpoint() {
     let d = testkit::scratch_dir("cli", "kill_resume");
-    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", "width = 64", 1)
-        .replacen("height = 120", "height = 48", 1)
-        .replacen("views = 24", "views = 4", 1)
-        .replace("frames = 30", "frames = 2");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    let o = bin()
-        .current_dir(&d)
-        .args(["synth", "--scene", "scene.toml", "--out", "data"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    tabletop(&d, (64, 48), 4, 2, &[]);
     // A checkpoint every 10 steps; a table small enough that the whole run takes seconds.
     std::fs::write(
         d.join("train.toml"),

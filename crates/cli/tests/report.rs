@@ -8,38 +8,12 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_pganeus"))
-}
+mod common;
+use common::{bin, tabletop, text};
 
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// The tabletop preset at 64×48 with six frames per video.
+/// The tabletop preset at 64×48 with six frames per video, and its contact sheet.
 fn dataset(d: &Path) -> PathBuf {
-    let printed = bin().args(["synth", "--print-preset", "tabletop"]).output().unwrap();
-    let scene = String::from_utf8(printed.stdout)
-        .unwrap()
-        .replacen("width = 160", "width = 64", 1)
-        .replacen("height = 120", "height = 48", 1)
-        .replacen("views = 24", "views = 3", 1)
-        .replace("frames = 30", "frames = 6");
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    let o = bin()
-        .args(["synth", "--scene"])
-        .arg(d.join("scene.toml"))
-        .arg("--out")
-        .arg(d.join("data"))
-        .arg("--contact-sheet")
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    d.join("data")
+    tabletop(d, (64, 48), 3, 6, &["--contact-sheet"])
 }
 
 /// Per-frame image terms as `fit` writes them.
