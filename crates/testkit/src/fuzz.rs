@@ -6,9 +6,9 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
 
-/// A small deterministic generator (SplitMix64).
+/// Mutations drawn from a seeded generator.
 pub struct Mutator {
-    state: u64,
+    rng: geom::SplitMix64,
 }
 
 /// Text that replaces a number in a text format.
@@ -26,15 +26,13 @@ const NUMBERS: [&str; 9] = [
 
 impl Mutator {
     pub fn new(seed: u64) -> Self {
-        Self { state: seed }
+        Self {
+            rng: geom::SplitMix64::new(seed),
+        }
     }
 
     fn next(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.rng.next_u64()
     }
 
     /// Uniform in `0..n` (0 when `n` is 0).
