@@ -148,6 +148,26 @@ impl NeusTrainer {
         if data.views.is_empty() {
             return Err("the capture has no views".into());
         }
+        // An object is trained on what its masks mark: masks marking nothing in any view would have it fit
+        // empty space for minutes. A scene's masks mark what is not scene, so empty ones are fine there.
+        let empty = data.empty_masks();
+        if config.kind == CaptureSubject::Object && !empty.is_empty() {
+            let folder = data.dir.join(pganeus_io::MASK_DIR);
+            if empty.len() == data.views.len() {
+                return Err(format!(
+                    "{}: every mask is empty (no pixel above 127): an object capture needs the object marked; \
+                     if the masks mark nothing on purpose, train it as a scene (--kind scene)",
+                    folder.display()
+                ));
+            }
+            tracing::warn!(
+                "{}: the masks of {} of {} views mark nothing: {:?}",
+                folder.display(),
+                empty.len(),
+                data.views.len(),
+                empty
+            );
+        }
         let (mut train_views, mut holdout_views) = (Vec::new(), Vec::new());
         for i in 0..data.views.len() {
             if config.holdout_every > 0 && data.views.len() > 2 && i % config.holdout_every == config.holdout_every / 2

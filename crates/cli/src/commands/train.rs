@@ -63,33 +63,6 @@ pub fn capture_kind(given: Option<CaptureSubject>, data: &Dataset) -> CaptureSub
     kind
 }
 
-/// An object is trained on what its masks mark: masks that mark nothing in every view are refused (the
-/// training would fit empty space for minutes), single empty ones named in a warning. A scene's masks mark
-/// what is not scene, so empty ones are fine.
-fn check_masks(capture: &Path, data: &Dataset, kind: CaptureSubject) -> Result<()> {
-    if kind != CaptureSubject::Object {
-        return Ok(());
-    }
-    let empty = data.empty_masks();
-    if !empty.is_empty() && empty.len() == data.views.len() {
-        bail!(
-            "{}: every mask is empty (no pixel above 127): an object capture needs the object marked; \
-             if the masks mark nothing on purpose, train it as a scene (--kind scene)",
-            capture.join(pganeus_io::MASK_DIR).display()
-        );
-    }
-    if !empty.is_empty() {
-        tracing::warn!(
-            "{}: the masks of {} of {} views mark nothing: {:?}",
-            capture.join(pganeus_io::MASK_DIR).display(),
-            empty.len(),
-            data.views.len(),
-            empty
-        );
-    }
-    Ok(())
-}
-
 /// A preset for a kind of capture with a config file's fields laid over it.
 pub fn load_config(preset: &str, kind: CaptureSubject, file: Option<&Path>) -> Result<TrainConfig> {
     let base = TrainConfig::preset(preset, kind)
@@ -114,7 +87,6 @@ pub fn run(a: TrainArgs) -> Result<()> {
             bail!("--resume: {} does not exist", ckpt.display());
         }
         let mut t = checkpoint::resume(&ckpt, data)?;
-        check_masks(&a.capture, &t.data, t.config.kind)?;
         if let Some(n) = a.iterations {
             t.config.iterations = n;
         }
@@ -128,7 +100,6 @@ pub fn run(a: TrainArgs) -> Result<()> {
             );
         }
         let kind = capture_kind(a.kind, &data);
-        check_masks(&a.capture, &data, kind)?;
         let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
         if let Some(n) = a.iterations {
             cfg.iterations = n;
