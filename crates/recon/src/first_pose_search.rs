@@ -89,7 +89,8 @@ pub fn resting_sides(mesh: &TriMesh, count: usize) -> Vec<(Vec3<f64>, f64)> {
         let (mut best, mut at) = (f64::NEG_INFINITY, 0);
         for i in 0..xs.len() {
             let s = xs[i] * d.x + ys[i] * d.y + zs[i] * d.z;
-            if s > best {
+            // `>=`: on a tie the last vertex wins, as `max_by` chose before (a box's flat faces tie).
+            if s >= best {
                 (best, at) = (s, i);
             }
         }
