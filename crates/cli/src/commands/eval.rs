@@ -278,7 +278,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         "fit": file, "truth": a.truth, "video": name, "truth_model": video.contact.model,
         "summary": scores.summary,
         "parameters": parameter_errors(&fit, video, &refs),
-        "frames": scores.rows.clone(),
+        "frames": scores.rows,
     });
     if let Some(p) = pair_errors(&fit, video) {
         report["pairs"] = p;
@@ -336,7 +336,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
         String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose\n");
-    for r in &scores.rows {
+    for r in report["frames"].as_array().into_iter().flatten() {
         let f = |k: &str| match &r[k] {
             Value::Null => String::new(),
             Value::String(s) => s.clone(),

@@ -546,29 +546,21 @@ fn path_charts(
     out
 }
 
+/// A stage file's own per-frame rows.
+fn own_rows(stage: &Option<Trajectory>) -> Option<&Value> {
+    stage.as_ref().and_then(|t| t.extra.get("frames"))
+}
+
 /// The per-frame image terms (`iou`, `psnr_window`) of PA, GA and PGA, each measured the same way (the
 /// object's window of the render against the video).
 fn frame_charts(name: &str, traj: &Trajectory, stages: &[(&str, [u8; 3], Option<Trajectory>)]) -> Vec<(String, Chart)> {
     let rows = |v: Option<&Value>| -> Vec<Value> { v.and_then(Value::as_array).cloned().unwrap_or_default() };
+    let final_stage = |key: &str| traj.extra.get("stages").and_then(|s| s.get(key));
+    // GA's rows as the fit measured them at the end, else from its own stage file.
     let sources: Vec<(&str, [u8; 3], Vec<Value>)> = vec![
-        ("PA", PA, rows(stages[0].2.as_ref().and_then(|t| t.extra.get("frames")))),
-        (
-            "GA",
-            GA,
-            rows(traj.extra.get("stages").and_then(|s| s.get("ga")))
-                .into_iter()
-                .chain(if traj.extra.get("stages").is_some_and(|s| s.get("ga").is_some()) {
-                    vec![]
-                } else {
-                    rows(stages[1].2.as_ref().and_then(|t| t.extra.get("frames")))
-                })
-                .collect(),
-        ),
-        (
-            "PGA",
-            PGA,
-            rows(traj.extra.get("stages").and_then(|s| s.get("simulated"))),
-        ),
+        ("PA", PA, rows(own_rows(&stages[0].2))),
+        ("GA", GA, rows(final_stage("ga").or_else(|| own_rows(&stages[1].2)))),
+        ("PGA", PGA, rows(final_stage("simulated"))),
     ];
     let mut iou = Chart::new("silhouette IoU per frame", "frame", "IoU");
     let mut psnr = Chart::new("PSNR per frame (object window)", "frame", "PSNR (dB)");
