@@ -30,26 +30,13 @@ fn renamed(src: &Path, dst: &Path, image_name: impl Fn(usize) -> String, mask_na
         let to = dst.join("image").join(&name);
         if name.ends_with(".jpg") {
             let rgb = read_image(img).unwrap().to_rgb();
-            std::fs::write(&to, jpeg(&rgb)).unwrap();
+            std::fs::write(&to, testkit::jpeg_bytes(&rgb.data, rgb.width, rgb.height, 3, 92)).unwrap();
         } else {
             std::fs::copy(img, &to).unwrap();
         }
         let mask = src.join("mask").join(img.file_name().unwrap());
         std::fs::copy(mask, dst.join("mask").join(mask_name(i))).unwrap();
     }
-}
-
-fn jpeg(image: &Image) -> Vec<u8> {
-    let mut out = Vec::new();
-    jpeg_encoder::Encoder::new(&mut out, 92)
-        .encode(
-            &image.data,
-            image.width as u16,
-            image.height as u16,
-            jpeg_encoder::ColorType::Rgb,
-        )
-        .unwrap();
-    out
 }
 
 fn train_a_few_steps(capture: &Path, run: &Path) {

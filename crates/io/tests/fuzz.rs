@@ -80,19 +80,6 @@ fn pattern(w: u32, h: u32, channels: u8) -> Image {
     img
 }
 
-fn jpeg(img: &Image) -> Vec<u8> {
-    let mut out = Vec::new();
-    let color = if img.channels == 1 {
-        jpeg_encoder::ColorType::Luma
-    } else {
-        jpeg_encoder::ColorType::Rgb
-    };
-    jpeg_encoder::Encoder::new(&mut out, 80)
-        .encode(&img.data, img.width as u16, img.height as u16, color)
-        .unwrap();
-    out
-}
-
 fn tetrahedron() -> PlyMesh {
     PlyMesh {
         mesh: geom::TriMesh::new(
@@ -144,7 +131,10 @@ fn every_parser_survives_mutated_files() {
         ),
         fuzz(
             "JPEG",
-            &[jpeg(&pattern(16, 8, 3)), jpeg(&pattern(8, 8, 1))],
+            &[
+                testkit::jpeg_bytes(&pattern(16, 8, 3).data, 16, 8, 3, 80),
+                testkit::jpeg_bytes(&pattern(8, 8, 1).data, 8, 8, 1, 80),
+            ],
             n,
             2,
             |b| read_jpeg_bytes(b, path).is_ok(),

@@ -285,20 +285,6 @@ fn missing_npz_corrupt_png_jpeg_and_bad_capture_json() {
     assert!(msg.contains("JPEG"), "{msg}");
 }
 
-/// `image` as JPEG bytes.
-fn jpeg(image: &Image) -> Vec<u8> {
-    let mut out = Vec::new();
-    let color = if image.channels == 1 {
-        jpeg_encoder::ColorType::Luma
-    } else {
-        jpeg_encoder::ColorType::Rgb
-    };
-    jpeg_encoder::Encoder::new(&mut out, 95)
-        .encode(&image.data, image.width as u16, image.height as u16, color)
-        .unwrap();
-    out
-}
-
 #[test]
 fn dtu_naming_pairs_masks_by_order_and_different_counts_are_refused() {
     // DTU as NeuS publishes it: image/000000.png with mask/000.png.
@@ -338,9 +324,17 @@ fn jpeg_images_and_masks_open_and_read_like_png() {
     }
     for i in 0..3 {
         std::fs::remove_file(dir.0.join(format!("image/{i:03}.png"))).unwrap();
-        std::fs::write(dir.0.join(format!("image/{i:03}.jpg")), jpeg(&colour)).unwrap();
+        std::fs::write(
+            dir.0.join(format!("image/{i:03}.jpg")),
+            testkit::jpeg_bytes(&colour.data, 8, 6, 3, 95),
+        )
+        .unwrap();
         std::fs::remove_file(dir.0.join(format!("mask/{i:03}.png"))).unwrap();
-        std::fs::write(dir.0.join(format!("mask/{i:03}.JPEG")), jpeg(&mask)).unwrap();
+        std::fs::write(
+            dir.0.join(format!("mask/{i:03}.JPEG")),
+            testkit::jpeg_bytes(&mask.data, 8, 6, 1, 95),
+        )
+        .unwrap();
     }
     let cap = open_capture(&dir.0).unwrap();
     assert_eq!((cap.width, cap.height), (8, 6));

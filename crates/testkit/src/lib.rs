@@ -120,3 +120,21 @@ pub fn moved_obj(obj: &str, f: impl Fn([f64; 3]) -> [f64; 3]) -> String {
         .collect::<Vec<_>>()
         .join("\n")
 }
+
+/// `width × height` 8-bit samples (gray with 1 channel, RGB with 3) as a JPEG file's bytes, for tests of
+/// the JPEG readers (the project itself only decodes JPEG).
+///
+/// # Panics
+/// On a size or channel count the encoder refuses.
+pub fn jpeg_bytes(data: &[u8], width: u32, height: u32, channels: u8, quality: u8) -> Vec<u8> {
+    let color = match channels {
+        1 => jpeg_encoder::ColorType::Luma,
+        3 => jpeg_encoder::ColorType::Rgb,
+        c => panic!("jpeg_bytes: {c} channels (1 or 3)"),
+    };
+    let mut out = Vec::new();
+    jpeg_encoder::Encoder::new(&mut out, quality)
+        .encode(data, width as u16, height as u16, color)
+        .expect("a JPEG the encoder accepts");
+    out
+}
