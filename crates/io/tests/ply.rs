@@ -361,3 +361,16 @@ fn tempdir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+#[test]
+fn a_vertex_that_is_not_finite_is_refused_by_name_in_ply_and_obj() {
+    let ply = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\nnan 0 0\n";
+    match pganeus_io::read_ply_bytes(ply, std::path::Path::new("p.ply")) {
+        Err(pganeus_io::IoError::Invalid { field, .. }) => assert_eq!(field, "vertex 1"),
+        other => panic!("{other:?}"),
+    }
+    match pganeus_io::read_obj_bytes(b"v 0 0 0\nv 0 inf 0\nv 0 0 1\nf 1 2 3\n", std::path::Path::new("o.obj")) {
+        Err(pganeus_io::IoError::Invalid { field, .. }) => assert_eq!(field, "vertex 1"),
+        other => panic!("{other:?}"),
+    }
+}

@@ -24,10 +24,12 @@ pub fn read_obj(path: &Path) -> Result<TriMesh> {
 /// and `f` with corners `i`, `i/j`, `i/j/k` or `i//k`, where a negative `i`
 /// counts back from the last vertex read so far. Other statements are ignored.
 pub fn read_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-    parse(&String::from_utf8_lossy(bytes)).map_err(|msg| IoError::Obj {
+    let mesh = parse(&String::from_utf8_lossy(bytes)).map_err(|msg| IoError::Obj {
         path: path.to_path_buf(),
         msg,
-    })
+    })?;
+    super::mesh_file::check_finite_vertices(&mesh, path)?;
+    Ok(mesh)
 }
 
 fn parse(text: &str) -> std::result::Result<TriMesh, String> {

@@ -70,10 +70,12 @@ pub fn read_ply(path: &Path) -> Result<PlyMesh> {
 /// property named `vertex_indices` or `vertex_index`; faces with fewer than
 /// three corners are dropped. A file without a `face` element is a point cloud.
 pub fn read_ply_bytes(bytes: &[u8], path: &Path) -> Result<PlyMesh> {
-    parse(bytes).map_err(|msg| IoError::Ply {
+    let ply = parse(bytes).map_err(|msg| IoError::Ply {
         path: path.to_path_buf(),
         msg,
-    })
+    })?;
+    super::mesh_file::check_finite_vertices(&ply.mesh, path)?;
+    Ok(ply)
 }
 
 /// Writes `mesh` to `path` atomically, with default options but `encoding`.
