@@ -2,7 +2,6 @@
 //! progress and write files; the work is in the library crates.
 
 mod commands;
-mod output;
 
 use clap::{Parser, Subcommand};
 
@@ -66,15 +65,8 @@ fn main() {
     let cli = Cli::parse();
     let result = dispatch(cli.command);
     if let Err(e) = result {
-        // The chain of causes, each once: many errors already quote their source.
-        let mut message = e.to_string();
-        for cause in e.chain().skip(1) {
-            let cause = cause.to_string();
-            if !message.contains(&cause) {
-                message = format!("{message}: {cause}");
-            }
-        }
-        eprintln!("error: {message}");
+        // The chain of causes (no error quotes its source in its own message).
+        eprintln!("error: {e:#}");
         std::process::exit(1);
     }
 }

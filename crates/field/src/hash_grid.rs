@@ -3,6 +3,7 @@
 //! through a spatial hash (eq. 4). All levels live in one flat parameter buffer with an offset table.
 
 use crate::kernels::{self, LevelGeom};
+use crate::ConfigError;
 use crate::GradMode;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -41,26 +42,29 @@ impl Default for HashGridConfig {
 
 impl HashGridConfig {
     /// Check ranges: `levels ≥ 1`, `F ∈ {1,2,4,8}`, `3 ≤ log2 T ≤ 28`, `1 ≤ N_min ≤ N_max ≤ 2^20`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ConfigError> {
         if self.levels == 0 {
-            return Err("hash grid: levels must be ≥ 1".into());
+            return Err(ConfigError::new("levels", "must be at least 1"));
         }
         if ![1, 2, 4, 8].contains(&self.features_per_level) {
-            return Err(format!(
-                "hash grid: features_per_level {} not in {{1, 2, 4, 8}}",
-                self.features_per_level
+            return Err(ConfigError::new(
+                "features_per_level",
+                format!("must be 1, 2, 4 or 8, got {}", self.features_per_level),
             ));
         }
         if !(3..=28).contains(&self.log2_table_size) {
-            return Err(format!(
-                "hash grid: log2_table_size {} not in 3..=28",
-                self.log2_table_size
+            return Err(ConfigError::new(
+                "log2_table_size",
+                format!("must be 3 to 28, got {}", self.log2_table_size),
             ));
         }
         if self.base_resolution == 0 || self.base_resolution > self.max_resolution || self.max_resolution > 1 << 20 {
-            return Err(format!(
-                "hash grid: need 1 ≤ base_resolution ({}) ≤ max_resolution ({}) ≤ 2^20",
-                self.base_resolution, self.max_resolution
+            return Err(ConfigError::new(
+                "base_resolution",
+                format!(
+                    "need 1 ≤ base_resolution ({}) ≤ max_resolution ({}) ≤ 2^20",
+                    self.base_resolution, self.max_resolution
+                ),
             ));
         }
         Ok(())
@@ -95,7 +99,7 @@ impl HashGrid {
     /// multiple of 8 entries, and hashed with `T` entries otherwise. Panics on an invalid config (see `validate`).
     pub fn new(cfg: &HashGridConfig) -> Self {
         if let Err(e) = cfg.validate() {
-            panic!("{e}");
+            panic!("hash grid: {e}");
         }
         let t = 1u64 << cfg.log2_table_size;
         let ln_b = cfg.ln_growth_factor();

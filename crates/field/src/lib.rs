@@ -16,6 +16,7 @@
 
 mod activation;
 mod adam;
+mod config_error;
 mod hash_grid;
 pub mod kernels;
 mod mlp;
@@ -23,6 +24,7 @@ mod sh;
 
 pub use activation::Activation;
 pub use adam::{Adam, AdamConfig};
+pub use config_error::ConfigError;
 pub use hash_grid::{HashGrid, HashGridConfig, Touched};
 pub use kernels::LevelGeom;
 pub use mlp::{Mlp, MlpConfig, MlpScratch};

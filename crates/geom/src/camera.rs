@@ -112,6 +112,22 @@ impl Camera<f64> {
         p
     }
 
+    /// The same camera seen from a unit frame placed at `centre` with scale
+    /// `radius` (`p_world = centre + radius · p_unit`): a field's frame, as
+    /// NeuS's `scale_mat` defines it.
+    pub fn in_unit_frame(&self, centre: Vec3<f64>, radius: f64) -> Self {
+        let mut c = *self;
+        c.world_to_cam.t = (self.world_to_cam.t + self.world_to_cam.q.rotate(centre)) * (1.0 / radius);
+        c
+    }
+
+    /// The inverse of [`Camera::in_unit_frame`]: a camera of the unit frame back in the world.
+    pub fn from_unit_frame(&self, centre: Vec3<f64>, radius: f64) -> Self {
+        let mut c = *self;
+        c.world_to_cam.t = self.world_to_cam.t * radius - self.world_to_cam.q.rotate(centre);
+        c
+    }
+
     /// Split a NeuS `world_mat` (`P = K [R | t]`, any overall scale) into
     /// intrinsics and the world-to-camera pose, by an RQ decomposition.
     pub fn from_world_mat(p: &[[f64; 4]; 4], width: u32, height: u32) -> Result<Self, CameraError> {

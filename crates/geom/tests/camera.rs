@@ -363,3 +363,35 @@ fn error_messages_name_the_problem() {
     assert!(CameraError::Singular.to_string().contains("singular"));
     assert!(CameraError::LastRowNotAffine.to_string().contains("[0, 0, 0, 1]"));
 }
+
+/// A point projects to the same pixel and a depth scaled by 1/radius from a
+/// field's unit frame (`p_world = centre + radius · p_unit`), and the frame
+/// change undoes itself.
+#[test]
+fn unit_frame_projects_the_same_and_round_trips() {
+    let mut rng = Rng::new(11);
+    for _ in 0..50 {
+        let (cam, target, _, _) = random_camera(&mut rng, true);
+        let (centre, radius) = (rng.vec(1.0), rng.range(0.05, 3.0));
+        let unit = cam.in_unit_frame(centre, radius);
+        let p_world = target + rng.vec(0.3);
+        let (u, v, z) = cam.project(p_world);
+        let (uu, vu, zu) = unit.project((p_world - centre) * (1.0 / radius));
+        // Relative: a point near the camera's plane projects far out.
+        let tol = 1e-9 * u.abs().max(v.abs()).max(1.0);
+        assert!(
+            (u - uu).abs() < tol && (v - vu).abs() < tol,
+            "pixel moved: {u},{v} vs {uu},{vu}"
+        );
+        assert!(
+            (z / radius - zu).abs() < 1e-10 * z.abs().max(1.0),
+            "depth {z} / {radius} vs {zu}"
+        );
+        let back = unit.from_unit_frame(centre, radius);
+        let d = back.world_to_cam.t - cam.world_to_cam.t;
+        assert!(
+            d.norm() < 1e-12 * cam.world_to_cam.t.norm().max(1.0),
+            "round trip off by {d:?}"
+        );
+    }
+}

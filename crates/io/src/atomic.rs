@@ -19,7 +19,7 @@ static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let write_err = |source| IoError::Write {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     };
     let name = path.file_name().ok_or_else(|| {
         write_err(std::io::Error::new(
@@ -83,7 +83,7 @@ impl StagedDir {
     pub fn new(target: &Path) -> Result<Self> {
         let err = |source| IoError::Write {
             path: target.to_path_buf(),
-            source,
+            cause: source,
         };
         let name = target.file_name().ok_or_else(|| {
             err(std::io::Error::new(
@@ -110,7 +110,7 @@ impl StagedDir {
     pub fn commit(mut self) -> Result<()> {
         let err = |source| IoError::Write {
             path: self.target.clone(),
-            source,
+            cause: source,
         };
         if self.target.exists() {
             let old = self.target.with_file_name(format!(

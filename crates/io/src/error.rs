@@ -1,5 +1,7 @@
 //! The one error type of the crate. Every variant carries the file's path so a
-//! message read on its own says which file is wrong.
+//! message read on its own says which file is wrong, and says its cause itself:
+//! the cause is not also given as the error's `source()`, so a printer that
+//! walks the chain (the CLI's) shows it once.
 
 use std::path::{Path, PathBuf};
 
@@ -7,29 +9,29 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
     /// The file could not be opened or read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {cause}", path.display())]
     Open {
         /// The file.
         path: PathBuf,
         /// What the operating system said.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file (or its temporary sibling, or its folder) could not be written.
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}: {cause}", path.display())]
     Write {
         /// The file.
         path: PathBuf,
         /// What the operating system said.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The JSON is malformed or does not have the expected shape.
     /// serde_json's message ends with the line and column.
-    #[error("{}: bad JSON: {source}", path.display())]
+    #[error("{}: bad JSON: {cause}", path.display())]
     Json {
         /// The file.
         path: PathBuf,
         /// The parser's error, with line and column.
-        source: serde_json::Error,
+        cause: serde_json::Error,
     },
     /// The PLY file is malformed (header, truncated body, bad index, ...).
     #[error("{}: bad PLY file: {msg}", path.display())]
@@ -118,9 +120,9 @@ impl IoError {
     /// The message without the path, e.g. `bad PNG file: truncated`.
     pub(crate) fn detail(&self) -> String {
         match self {
-            IoError::Open { source, .. } => format!("cannot read: {source}"),
-            IoError::Write { source, .. } => format!("cannot write: {source}"),
-            IoError::Json { source, .. } => format!("bad JSON: {source}"),
+            IoError::Open { cause, .. } => format!("cannot read: {cause}"),
+            IoError::Write { cause, .. } => format!("cannot write: {cause}"),
+            IoError::Json { cause, .. } => format!("bad JSON: {cause}"),
             IoError::Ply { msg, .. } => format!("bad PLY file: {msg}"),
             IoError::Obj { msg, .. } => format!("bad OBJ file: {msg}"),
             IoError::Invalid { field, msg, .. } => format!("invalid value at `{field}`: {msg}"),

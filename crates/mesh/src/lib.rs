@@ -30,7 +30,9 @@ pub use components::{components, faces_where, largest_component, sub_mesh};
 pub use decimate::decimate;
 pub use icp::{icp, icp_auto, icp_evaluate, icp_hypotheses, inlier_fraction, IcpConfig, IcpResult, IcpTarget};
 pub use marching_tetrahedra::{extract_zero_level, GridError, ScalarGrid};
-pub use merge::{merge_two_poses, MergeConfig, MergeError, Merged, PartialSurface};
+pub use merge::{
+    merge_two_poses, merge_two_poses_reporting, MergeConfig, MergeError, MergeStage, Merged, PartialSurface,
+};
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
 pub use pose_metrics::{PoseErrors, SurfacePoints};
 pub use sample_sdf_grid::sample_sdf_grid;

@@ -89,10 +89,21 @@ impl Default for MergeConfig {
     }
 }
 
+/// Why a mesh or a field cannot be a part of a merge.
+#[derive(Debug, thiserror::Error)]
+pub enum PartError {
+    #[error("the mesh has no faces")]
+    NoFaces,
+    #[error("{0}")]
+    NotClosed(sim::MeshCheckError),
+    #[error("{0}")]
+    Distance(sim::sdf::MeshSdfError),
+    #[error("the field has no zero level")]
+    NoZeroLevel,
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum MergeError {
-    #[error("part {0}: {1}")]
-    Mesh(char, String),
     #[error("mesh {0} has nothing above its board plane (z > {1} m): was it reconstructed in its capture's frame?")]
     NothingVisible(char, f64),
     #[error("ICP did not converge: RMS residual {residual:.3e} m is above {limit:.1e} m (the two parts may not overlap enough, or be different objects)")]
@@ -122,12 +133,12 @@ pub struct PartialSurface<'a> {
 
 impl<'a> PartialSurface<'a> {
     /// A closed mesh: its distance by the generalized winding number.
-    pub fn from_mesh(mesh: TriMesh) -> Result<PartialSurface<'static>, String> {
+    pub fn from_mesh(mesh: TriMesh) -> Result<PartialSurface<'static>, PartError> {
         if mesh.faces.is_empty() {
-            return Err("the mesh has no faces".into());
+            return Err(PartError::NoFaces);
         }
-        sim::check_closed_mesh(&mesh).map_err(|e| e.to_string())?;
-        let dist = MeshDistance::new(&mesh).map_err(|e| e.to_string())?;
+        sim::check_closed_mesh(&mesh).map_err(PartError::NotClosed)?;
+        let dist = MeshDistance::new(&mesh).map_err(PartError::Distance)?;
         Ok(PartialSurface {
             mesh: largest_component(&mesh),
             sdf: Box::new(move |pts: &[V]| pts.iter().map(|p| dist.signed_distance(*p).0).collect()),
@@ -139,10 +150,10 @@ impl<'a> PartialSurface<'a> {
 
     /// A field: its signed distance in metres (`sdf`, batched) and its
     /// extracted zero level, of which the largest piece is kept.
-    pub fn from_field(zero_level: &TriMesh, sdf: impl Fn(&[V]) -> Vec<f64> + Sync + 'a) -> Result<Self, String> {
+    pub fn from_field(zero_level: &TriMesh, sdf: impl Fn(&[V]) -> Vec<f64> + Sync + 'a) -> Result<Self, PartError> {
         let mesh = largest_component(zero_level);
         if mesh.faces.is_empty() {
-            return Err("the field has no zero level".into());
+            return Err(PartError::NoZeroLevel);
         }
         Ok(Self {
             mesh,
@@ -244,6 +255,66 @@ fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
 /// Merge `a` (upright) and `b` (turned over), each in its own capture's
 /// frame (board at z = 0).
 pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig) -> Result<Merged, MergeError> {
+    merge_two_poses_reporting(a, b, cfg, &|_| {})
+}
+
+/// The merge's stages, in order, as [`merge_two_poses_reporting`] reports them done.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MergeStage {
+    /// What each part's cameras saw.
+    Visibility,
+    /// The point clouds ICP aligns (samples on each part, projected onto its zero level).
+    Clouds,
+    /// The alignment: ICP from several starts, refined, one chosen.
+    Alignment,
+    /// The cameras' share of the fused SDF's weights.
+    Weights,
+    /// The fused SDF on the narrow band around the surface.
+    FusedSdf,
+    /// Its zero level.
+    ZeroLevel,
+}
+
+impl MergeStage {
+    pub const ALL: [MergeStage; 6] = [
+        Self::Visibility,
+        Self::Clouds,
+        Self::Alignment,
+        Self::Weights,
+        Self::FusedSdf,
+        Self::ZeroLevel,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Visibility => "visibility",
+            Self::Clouds => "ICP clouds",
+            Self::Alignment => "alignment",
+            Self::Weights => "camera weights",
+            Self::FusedSdf => "fused SDF",
+            Self::ZeroLevel => "zero level",
+        }
+    }
+}
+
+/// [`merge_two_poses`], telling `done` each stage as it ends (for a progress
+/// bar), and logging each stage's time at debug level.
+pub fn merge_two_poses_reporting(
+    a: &PartialSurface,
+    b: &PartialSurface,
+    cfg: &MergeConfig,
+    done: &dyn Fn(MergeStage),
+) -> Result<Merged, MergeError> {
+    let clock = std::cell::Cell::new(std::time::Instant::now());
+    let stage_done = |stage: MergeStage| {
+        tracing::debug!(
+            "merge: {} in {:.2} s",
+            stage.name(),
+            clock.get().elapsed().as_secs_f64()
+        );
+        clock.set(std::time::Instant::now());
+        done(stage);
+    };
     let (vis_a, vis_b) = (
         a.visibility(cfg.visibility_resolution),
         b.visibility(cfg.visibility_resolution),
@@ -264,8 +335,14 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     // the cameras saw would, on boxy objects, leave little more than parallel
     // walls, which do not fix the pose; the guesses above the board are close
     // (masks carve them) and trimming drops the pairs that disagree.
+    stage_done(MergeStage::Visibility);
     let (pa, na) = a.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 1);
     let (pb, nb) = b.visible_cloud(cfg.board_margin, cfg.icp_points, cfg.fd_step, 2);
+    tracing::debug!(
+        "merge: ICP clouds of {} (A) and {} (B) points above the board",
+        pa.len(),
+        pb.len()
+    );
     if pa.is_empty() {
         return Err(MergeError::NothingVisible('A', cfg.board_margin));
     }
@@ -280,6 +357,7 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     nb.extend(std::iter::repeat_n(V::new(0.0, 0.0, 1.0), board.len()));
     pb.extend(board);
     let target = IcpTarget::new(pb, nb);
+    stage_done(MergeStage::Clouds);
     // What A could not see (on its board), to tell symmetric alignments apart.
     let a_hidden: Vec<V> = sim::sample_surface::sample_surface(&a.mesh, cfg.icp_points / 4, 3)
         .into_iter()
@@ -336,6 +414,15 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
             limit: cfg.min_conditioning,
         });
     }
+    tracing::debug!(
+        "merge: chose rotation {:?}, translation {:?} m, rms {:.3} mm, conditioning {:.2e}, {} ICP iterations",
+        fit.transform.q.to_array_re(),
+        fit.transform.t.to_array(),
+        fit.rms_distance * 1e3,
+        fit.conditioning,
+        fit.iterations
+    );
+    stage_done(MergeStage::Alignment);
     let a_to_b = fit.transform;
     let b_to_a = a_to_b.inverse();
     // The box of the object in B's frame: B's box and A's moved into it.
@@ -364,6 +451,7 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
             })
             .collect()
     };
+    stage_done(MergeStage::Weights);
     // The fused SDF in B's frame: B where B saw, else A.
     let fused = |xs: &[V]| -> Result<Vec<f64>, MergeError> {
         let xa: Vec<V> = xs.iter().map(|x| b_to_a.transform_point(*x)).collect();
@@ -389,6 +477,14 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
             .collect())
     };
     let values = narrow_band(&fused, &coarse, origin, h, dims)?;
+    tracing::debug!(
+        "merge: fused SDF on a {}×{}×{} grid of {:.2} mm",
+        dims[0],
+        dims[1],
+        dims[2],
+        h * 1e3
+    );
+    stage_done(MergeStage::FusedSdf);
     let grid = ScalarGrid {
         origin,
         spacing: h,
@@ -399,6 +495,7 @@ pub fn merge_two_poses(a: &PartialSurface, b: &PartialSurface, cfg: &MergeConfig
     if mesh.faces.is_empty() {
         return Err(MergeError::Empty);
     }
+    stage_done(MergeStage::ZeroLevel);
     Ok(Merged { mesh, a_to_b, icp: fit })
 }
 

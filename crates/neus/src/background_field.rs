@@ -14,6 +14,7 @@
 
 use crate::occupancy::sphere_span;
 use crate::volume::{composite_density, composite_density_backward};
+use field::ConfigError;
 use field::{sh_encode, Activation, GradMode, HashGrid, HashGridConfig, Mlp, MlpConfig, MlpScratch, Touched, SH_DIM};
 use geom::SplitMix64;
 use serde::{Deserialize, Serialize};
@@ -54,8 +55,9 @@ impl Default for BackgroundConfig {
 }
 
 impl BackgroundConfig {
-    pub fn validate(&self) -> Result<(), String> {
-        self.grid.validate().map_err(|e| format!("background.{e}"))?;
+    /// Check ranges; keys are named as in the `[field.background]` table.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.grid.validate().map_err(|e| e.within("grid"))?;
         for (name, v) in [
             ("hidden", self.hidden),
             ("feature_dim", self.feature_dim),
@@ -63,7 +65,7 @@ impl BackgroundConfig {
             ("samples", self.samples),
         ] {
             if v == 0 {
-                return Err(format!("background.{name} must be at least 1"));
+                return Err(ConfigError::new(name, "must be at least 1"));
             }
         }
         Ok(())

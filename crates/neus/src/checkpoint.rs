@@ -214,7 +214,7 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
 pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError> {
     let st = read_safetensors(path)?;
     let loaded = load_from(&st, path)?;
-    let mut t = NeusTrainer::new(loaded.config.clone(), data).map_err(|e| invalid(path, e))?;
+    let mut t = NeusTrainer::new(loaded.config.clone(), data).map_err(|e| invalid(path, e.to_string()))?;
     t.field = loaded.field;
     t.occupancy = loaded.occupancy;
     t.step = loaded.step;

@@ -3,6 +3,7 @@
 use crate::background_field::BackgroundConfig;
 use crate::neus_field::{FieldConfig, FieldInit};
 use crate::stereo::StereoConfig;
+use field::ConfigError;
 pub use pganeus_io::CaptureSubject;
 use serde::{Deserialize, Serialize};
 
@@ -130,7 +131,8 @@ impl TrainConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    /// Check ranges; keys are named as in the config file (`field.grid.levels`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
         let positive = [
             ("iterations", self.iterations),
             ("batch_rays", self.batch_rays),
@@ -143,12 +145,12 @@ impl TrainConfig {
         ];
         for (name, v) in positive {
             if v == 0 {
-                return Err(format!("{name} must be at least 1"));
+                return Err(ConfigError::new(name, "must be at least 1"));
             }
         }
         for (name, v) in [("lr", self.lr), ("lr_final_ratio", self.lr_final_ratio)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be positive, got {v}"));
+                return Err(ConfigError::new(name, format!("must be positive, got {v}")));
             }
         }
         for (name, v) in [
@@ -157,22 +159,26 @@ impl TrainConfig {
             ("mask_weight", self.mask_weight),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} must be ≥ 0, got {v}"));
+                return Err(ConfigError::new(name, format!("must be ≥ 0, got {v}")));
             }
         }
-        if self.field.grid.levels == 0 || self.field.feature_dim == 0 {
-            return Err("field: at least one hash level and one feature".into());
+        self.field.grid.validate().map_err(|e| e.within("field.grid"))?;
+        if self.field.feature_dim == 0 {
+            return Err(ConfigError::new("field.feature_dim", "must be at least 1"));
         }
         if self.field.init == FieldInit::Board && self.field.sdf_hidden.len() != 1 {
-            return Err(format!(
-                "field.init = \"board\" needs exactly one hidden layer in field.sdf_hidden, got {:?}",
-                self.field.sdf_hidden
+            return Err(ConfigError::new(
+                "field.sdf_hidden",
+                format!(
+                    "field.init = \"board\" needs exactly one hidden layer, got {:?}",
+                    self.field.sdf_hidden
+                ),
             ));
         }
         if let Some(b) = &self.field.background {
-            b.validate()?;
+            b.validate().map_err(|e| e.within("field.background"))?;
         }
-        self.stereo.validate()
+        self.stereo.validate().map_err(|e| e.within("stereo"))
     }
 
     /// Weight of the stereo-point term at `step`: it ends at `stereo_steps` or half-way through the run,

@@ -83,10 +83,7 @@ impl Dataset {
             }
             let cam = Camera::from_world_mat(&index.cameras[i].world_mat, index.width, index.height)
                 .map_err(|e| invalid(&npz, format!("world_mat_{i}: {e}")))?;
-            // The same camera seen from unit coordinates: p_world = c + r p_unit.
-            let mut unit = cam;
-            unit.world_to_cam.t = cam.world_to_cam.t + cam.world_to_cam.q.rotate(centre);
-            unit.world_to_cam.t = unit.world_to_cam.t * (1.0 / radius);
+            let unit = cam.in_unit_frame(centre, radius);
             let img = pganeus_io::read_image(img_path)?.to_rgb();
             let rgb = img
                 .data

@@ -28,6 +28,7 @@ pub mod volume;
 
 pub use config::{CaptureSubject, TrainConfig};
 pub use dataset::{Dataset, DatasetError};
+pub use field::ConfigError;
 pub use neus_field::{FieldConfig, FieldInit, NeusField};
 pub use object_model::{ObjectError, ObjectModel};
-pub use trainer::{LossTerms, NeusTrainer, StepStats};
+pub use trainer::{LossTerms, NeusTrainer, StepStats, TrainError};

@@ -9,6 +9,7 @@
 
 use crate::occupancy::sphere_span;
 use crate::{CaptureSubject, Dataset};
+use field::ConfigError;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -52,27 +53,29 @@ impl Default for StereoConfig {
 }
 
 impl StereoConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    /// Check ranges; keys are named as in the `[stereo]` table.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |key: &str, problem: String| Err(ConfigError::new(key, problem));
         if self.neighbours < 2 {
-            return Err("stereo.neighbours must be at least 2 (the best two are averaged)".into());
+            return bad("neighbours", "must be at least 2 (the best two are averaged)".into());
         }
         if !(1..=4).contains(&self.patch_radius) {
-            return Err(format!("stereo.patch_radius must be 1 to 4, got {}", self.patch_radius));
+            return bad("patch_radius", format!("must be 1 to 4, got {}", self.patch_radius));
         }
         if self.hypotheses < 3 {
-            return Err("stereo.hypotheses must be at least 3".into());
+            return bad("hypotheses", format!("must be at least 3, got {}", self.hypotheses));
         }
         if !(self.min_ncc.is_finite() && self.min_ncc <= 1.0) {
-            return Err(format!("stereo.min_ncc must be at most 1, got {}", self.min_ncc));
+            return bad("min_ncc", format!("must be at most 1, got {}", self.min_ncc));
         }
         if !(self.voxel.is_finite() && self.voxel > 0.0) {
-            return Err(format!("stereo.voxel must be positive, got {}", self.voxel));
+            return bad("voxel", format!("must be positive, got {}", self.voxel));
         }
         if !(self.depth_agreement.is_finite() && self.depth_agreement > 0.0) {
-            return Err(format!(
-                "stereo.depth_agreement must be positive, got {}",
-                self.depth_agreement
-            ));
+            return bad(
+                "depth_agreement",
+                format!("must be positive, got {}", self.depth_agreement),
+            );
         }
         Ok(())
     }
@@ -232,6 +235,10 @@ pub fn stereo_points(data: &Dataset, views: &[usize], subject: CaptureSubject, c
         .into_par_iter()
         .map(|i| sweep(i, &cams, &greys, masks[i], subject, &nbrs[i], stride, cfg))
         .collect();
+    let found: usize = maps
+        .iter()
+        .map(|m| m.depth.iter().filter(|d| d.is_finite()).count())
+        .sum();
     // Keep points that a neighbour's own depth map confirms.
     let mut out = Vec::new();
     for (i, map) in maps.iter().enumerate() {
@@ -254,7 +261,17 @@ pub fn stereo_points(data: &Dataset, views: &[usize], subject: CaptureSubject, c
             }
         }
     }
-    voxel_means(&out, cfg.voxel)
+    let means = voxel_means(&out, cfg.voxel);
+    tracing::debug!(
+        "stereo: {} views at stride {stride}, {} depth hypotheses each: {found} depths found, {} confirmed by a \
+         neighbour, {} points after {:.4}-unit voxels",
+        views.len(),
+        cfg.hypotheses,
+        out.len(),
+        means.len(),
+        cfg.voxel
+    );
+    means
 }
 
 /// The mean of the points in each cube of edge `voxel` that holds at least two, in a stable order.

@@ -16,6 +16,7 @@ use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
+use field::ConfigError;
 use field::{Adam, AdamConfig, GradMode, MlpScratch, Touched};
 use geom::SplitMix64;
 use rayon::prelude::*;
@@ -142,11 +143,26 @@ fn split_by<'a, T>(mut s: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut [T]> {
     out
 }
 
+/// Why training could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    #[error("config: {0}")]
+    Config(ConfigError),
+    #[error("{}: the capture has no views", .0.display())]
+    NoViews(std::path::PathBuf),
+    #[error(
+        "{}: every mask is empty (no pixel above 127): an object capture needs the object marked; \
+         if the masks mark nothing on purpose, train it as a scene (--kind scene)",
+        .0.display()
+    )]
+    EmptyMasks(std::path::PathBuf),
+}
+
 impl NeusTrainer {
-    pub fn new(config: TrainConfig, data: Dataset) -> Result<Self, String> {
-        config.validate()?;
+    pub fn new(config: TrainConfig, data: Dataset) -> Result<Self, TrainError> {
+        config.validate().map_err(TrainError::Config)?;
         if data.views.is_empty() {
-            return Err("the capture has no views".into());
+            return Err(TrainError::NoViews(data.dir.clone()));
         }
         // An object is trained on what its masks mark: masks marking nothing in any view would have it fit
         // empty space for minutes. A scene's masks mark what is not scene, so empty ones are fine there.
@@ -154,11 +170,7 @@ impl NeusTrainer {
         if config.kind == CaptureSubject::Object && !empty.is_empty() {
             let folder = data.dir.join(pganeus_io::MASK_DIR);
             if empty.len() == data.views.len() {
-                return Err(format!(
-                    "{}: every mask is empty (no pixel above 127): an object capture needs the object marked; \
-                     if the masks mark nothing on purpose, train it as a scene (--kind scene)",
-                    folder.display()
-                ));
+                return Err(TrainError::EmptyMasks(folder));
             }
             tracing::warn!(
                 "{}: the masks of {} of {} views mark nothing: {:?}",
@@ -177,6 +189,25 @@ impl NeusTrainer {
                 train_views.push(i);
             }
         }
+        tracing::debug!(
+            "training the {} field: {} steps of {} rays, {} training and {} held-out views of {}×{}, \
+             unit sphere at {:?} radius {:.3} m, {} grid levels, background {}",
+            config.kind.name(),
+            config.iterations,
+            config.batch_rays,
+            train_views.len(),
+            holdout_views.len(),
+            data.width,
+            data.height,
+            data.centre.to_array(),
+            data.radius,
+            config.field.grid.levels,
+            if config.field.background.is_some() {
+                "field"
+            } else {
+                "colour"
+            }
+        );
         // The world's plane z = 0 (the board) in unit coordinates, where a scene field starts.
         let board_height = (-data.centre.z / data.radius) as f32;
         let field = NeusField::new(&config.field, config.seed, board_height);
@@ -560,6 +591,17 @@ impl NeusTrainer {
         if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
             self.refresh_occupancy();
         }
+        if self.step.is_multiple_of(100) {
+            tracing::debug!(
+                "step {}: {:.1} samples per ray, {} active levels, 1/s {:.0}, lr {:.2e}, {:.1} ms",
+                self.step,
+                m as f64 / r.max(1) as f64,
+                levels,
+                inv_s,
+                lr,
+                t0.elapsed().as_secs_f64() * 1e3
+            );
+        }
         StepStats {
             step: self.step,
             loss,
@@ -585,5 +627,12 @@ impl NeusTrainer {
         // Within a cell's half-diagonal plus the width of the NeuS density (a few 1/s).
         let band = 0.5 * 3f32.sqrt() * self.occupancy.cell_size() * 1.5 + 4.0 / self.field.inv_s();
         self.occupancy.update(&idx, &sdf, band);
+        tracing::debug!(
+            "step {}: occupancy refreshed on {} cells, band {:.4} (unit), {:.1} % occupied",
+            self.step,
+            idx.len(),
+            band,
+            100.0 * self.occupancy.occupied_fraction()
+        );
     }
 }

@@ -119,12 +119,11 @@ pub fn fit_colliding_bodies(
     on_start: &mut dyn FnMut(&str, usize, &StartResult),
 ) -> Result<CollidingFit, FitError> {
     if poses.len() != world.bodies.len() || weights.len() != poses.len() {
-        return Err(FitError::Config(format!(
-            "{} bodies, {} pose sequences, {} weight sequences",
-            world.bodies.len(),
-            poses.len(),
-            weights.len()
-        )));
+        return Err(FitError::SequenceCount {
+            bodies: world.bodies.len(),
+            poses: poses.len(),
+            weights: weights.len(),
+        });
     }
     let n = poses.first().map_or(0, |p| p.len());
     if n < 2 {

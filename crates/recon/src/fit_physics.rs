@@ -94,8 +94,25 @@ pub enum FitError {
     BadPose(usize),
     #[error("nothing to fit: every fit_* switch is off")]
     NothingToFit,
-    #[error("{0}")]
-    Config(String),
+    #[error("{bodies} bodies, {poses} pose sequences, {weights} weight sequences: one of each per body")]
+    SequenceCount {
+        bodies: usize,
+        poses: usize,
+        weights: usize,
+    },
+    #[error("body {body} has {poses} poses, body {first} {frames}: one video, one frame count")]
+    FrameCount {
+        body: usize,
+        poses: usize,
+        first: usize,
+        frames: usize,
+    },
+    #[error("rotation_weight must be ≥ 0, got {0}")]
+    RotationWeight(f64),
+    #[error("no body pair {0}")]
+    NoSuchPair(usize),
+    #[error("the world: {0}")]
+    World(sim::ConfigError),
 }
 
 /// One iteration's outcome.
@@ -210,12 +227,12 @@ impl PhysicsFit {
                 return Err(FitError::TooFewPoses(o.poses.len()));
             }
             if o.poses.len() != frames {
-                return Err(FitError::Config(format!(
-                    "body {} has {} poses, body {} {frames}: one video, one frame count",
-                    o.body,
-                    o.poses.len(),
-                    bodies[0]
-                )));
+                return Err(FitError::FrameCount {
+                    body: o.body,
+                    poses: o.poses.len(),
+                    first: bodies[0],
+                    frames,
+                });
             }
             let w = o.weights.unwrap_or_else(|| vec![1.0; frames]);
             if w.len() != frames {
@@ -243,10 +260,7 @@ impl PhysicsFit {
             return Err(FitError::TooFewPoses(0));
         }
         if !(cfg.rotation_weight.is_finite() && cfg.rotation_weight >= 0.0) {
-            return Err(FitError::Config(format!(
-                "rotation_weight must be ≥ 0, got {}",
-                cfg.rotation_weight
-            )));
+            return Err(FitError::RotationWeight(cfg.rotation_weight));
         }
         world.config.frames = frames;
         let mut unknowns: Vec<Unknown> = Vec::new();
@@ -301,7 +315,7 @@ impl PhysicsFit {
                 }
             }
         }
-        world.validate().map_err(|e| FitError::Config(e.to_string()))?;
+        world.validate().map_err(FitError::World)?;
         if unknowns.is_empty() {
             return Err(FitError::NothingToFit);
         }
@@ -526,6 +540,14 @@ impl PhysicsFit {
 
     /// The fit on the current window has converged: widen it, or finish.
     fn window_done(&mut self) {
+        tracing::debug!(
+            "physics fit: window of {} of {} frames done at iteration {}, loss {:.4e}, parameters {:?}",
+            self.window,
+            self.frames,
+            self.iteration,
+            self.loss,
+            self.values()
+        );
         if self.window >= self.frames {
             self.converged = true;
         } else {
@@ -678,10 +700,7 @@ pub fn fit_multi_start_bodies(
     }
     let own = match on {
         StartsOn::Scene => world.scene_contact[observed.first().map_or(0, |o| o.body)],
-        StartsOn::Pair(p) => *world
-            .pair_contact
-            .get(p)
-            .ok_or_else(|| FitError::Config(format!("no body pair {p}")))?,
+        StartsOn::Pair(p) => *world.pair_contact.get(p).ok_or(FitError::NoSuchPair(p))?,
     };
     let all: Vec<(f64, f64)> = std::iter::once((own.restitution, own.friction))
         .chain(starts.iter().copied())

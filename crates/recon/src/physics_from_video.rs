@@ -85,8 +85,8 @@ pub enum VideoPhysicsError {
     NoSuchBody(usize),
     #[error("nothing to fit: every fit_* switch is off")]
     NothingToFit,
-    #[error("{0}")]
-    Config(String),
+    #[error("the world: {0}")]
+    World(sim::ConfigError),
 }
 
 /// One step's outcome.
@@ -153,7 +153,7 @@ impl<'a> PhysicsFromVideo<'a> {
             .enumerate()
             .map(|(frame, f)| PreparedFrame::new(f, scene).map_err(|error| VideoPhysicsError::Frame { frame, error }))
             .collect::<Result<Vec<_>, _>>()?;
-        world.validate().map_err(|e| VideoPhysicsError::Config(e.to_string()))?;
+        world.validate().map_err(VideoPhysicsError::World)?;
         let o = world.body_param_offset(body);
         let mut wrt = Vec::new();
         let mut push = |on: bool, range: std::ops::Range<usize>| {

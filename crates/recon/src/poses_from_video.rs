@@ -563,6 +563,13 @@ impl<'a> PosesFromVideo<'a> {
                 if scores[other] < scores[0] * (1.0 - margin) {
                     best = other;
                 }
+                tracing::debug!(
+                    "frame {k}: {} starts scored {:?} ({:?}); kept {:?}",
+                    starts.len(),
+                    scores,
+                    starts.iter().map(|s| s.from).collect::<Vec<_>>(),
+                    starts[best].from
+                );
             }
             let f = &mut fits[best];
             for _ in screen..cfg.iterations {

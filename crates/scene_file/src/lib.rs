@@ -1,7 +1,8 @@
 //! The scene file of `simulate`, `target` and `fit-physics` (TOML, or JSON by
 //! extension): static shapes, bodies, contact parameters and time stepping,
 //! and the [`World`] it describes. Every problem is a [`SceneError`] naming
-//! the file and the field that holds it.
+//! the file and the field that holds it. The world's motion goes back out
+//! as a trajectory file through [`trajectory_file`].
 
 use geom::{Pose, Quat, TriMesh, Vec3};
 use serde::Deserialize;
@@ -10,11 +11,14 @@ use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimCon
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod trajectory_file;
+pub use trajectory_file::{contact_pairs, trajectory_file};
+
 /// Why a scene file gave no world.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
+    #[error("cannot read scene file {path}: {cause}")]
+    Read { path: PathBuf, cause: std::io::Error },
     #[error("{path}: {msg}")]
     Parse { path: PathBuf, msg: String },
     #[error("{path}: {field}: {msg}")]
@@ -274,7 +278,7 @@ impl SceneFile {
     pub fn load(path: &Path) -> Result<LoadedScene> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
-            source,
+            cause: source,
         })?;
         let parse = |msg: String| SceneError::Parse {
             path: path.to_path_buf(),

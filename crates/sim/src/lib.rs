@@ -25,4 +25,7 @@ pub use gradients::{simulate_with_gradients, TrajectoryGrad};
 pub use mass_properties_mesh::{mass_properties, MassProperties};
 pub use mesh_check::{check_closed_mesh, MeshCheckError};
 pub use state::{BodyState, STATE_LEN};
+/// This engine's name where a file records which engine made a motion (`contact.model` of a trajectory file).
+pub const ENGINE: &str = "pganeus";
+
 pub use world::{FrameContacts, Trajectory, World, BODY_PARAMS, BODY_PARAM_NAMES, PAIR_PARAMS};

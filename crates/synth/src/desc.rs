@@ -157,7 +157,7 @@ impl Physics {
     /// The name truth.json gives the model.
     pub fn model(self) -> &'static str {
         match self {
-            Physics::Pganeus => "pganeus",
+            Physics::Pganeus => sim::ENGINE,
             Physics::Rapier => "rapier",
         }
     }

@@ -10,8 +10,8 @@ use crate::rapier_motion::simulate_with_rapier;
 use crate::render::{render, scene_distance, RenderScene, Rendered};
 use geom::{Camera, TriMesh, Vec3};
 use pganeus_io::{
-    BodyState as IoState, CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Contact, Image, PlyEncoding, PlyMesh,
-    Pose as IoPose, StaticCapture, Trajectory, Truth, TruthBody, VideoBody,
+    CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Image, PlyEncoding, PlyMesh, Pose as IoPose, StaticCapture,
+    Truth, TruthBody,
 };
 use sim::{BodyState, SimConfig, World};
 use std::path::{Path, PathBuf};
@@ -365,7 +365,13 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             mask_bodies: ids.clone(),
             per_body_masks: true,
         });
-        truth_videos.push(video_truth(&vdesc.name, world, traj, scene.physics));
+        truth_videos.push(scene_file::trajectory_file(
+            &vdesc.name,
+            world,
+            traj,
+            scene.physics.model(),
+            Default::default(),
+        ));
     }
     let truth = Truth {
         gravity: SimConfig::default().gravity,
@@ -383,67 +389,6 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         truth,
         meshes,
     })
-}
-
-fn video_truth(name: &str, world: &World, traj: &sim::Trajectory<f64>, physics: Physics) -> Trajectory {
-    let contact = world.scene_contact.first().copied().unwrap_or_default();
-    let bodies = world
-        .bodies
-        .iter()
-        .enumerate()
-        .map(|(b, body)| {
-            let s = traj.frames[0][b];
-            VideoBody {
-                name: body.name.clone(),
-                initial: IoState {
-                    t: s.pose.t.to_array(),
-                    q: s.pose.q.to_array_re(),
-                    v: s.v.to_array(),
-                    omega: s.omega.to_array(),
-                },
-                poses: traj.frames.iter().map(|f| IoPose::from_geom(&f[b].pose)).collect(),
-                extra: Default::default(),
-            }
-        })
-        .collect();
-    let mut extra = serde_json::Map::new();
-    extra.insert(
-        "sim".into(),
-        serde_json::to_value(&world.config).expect("config serialises"),
-    );
-    Trajectory {
-        capture: name.into(),
-        fps: world.config.fps,
-        bodies,
-        contact: Contact {
-            restitution: contact.restitution,
-            friction: contact.friction,
-            model: physics.model().into(),
-            extra: pair_entries(world),
-        },
-        extra,
-    }
-}
-
-/// `contact.pairs` of a video with several bodies (FORMATS.md): each pair's names and values.
-fn pair_entries(world: &World) -> serde_json::Map<String, serde_json::Value> {
-    let mut extra = serde_json::Map::new();
-    let pairs: Vec<serde_json::Value> = world
-        .pairs()
-        .iter()
-        .zip(&world.pair_contact)
-        .map(|(&(i, j), c)| {
-            serde_json::json!({
-                "bodies": [world.bodies[i].name, world.bodies[j].name],
-                "restitution": c.restitution,
-                "friction": c.friction,
-            })
-        })
-        .collect();
-    if !pairs.is_empty() {
-        extra.insert("pairs".into(), serde_json::Value::Array(pairs));
-    }
-    extra
 }
 
 fn concat(meshes: &[TriMesh]) -> TriMesh {

@@ -5,7 +5,7 @@
 use super::mesh_cmds::capture_truth;
 use super::render::{holdout_psnr, zero_level_mesh};
 use super::train::{capture_kind, load_config};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use geom::TriMesh;
 use neus::{Dataset, NeusTrainer};
@@ -71,7 +71,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
     let kind = capture_kind(None, &data);
     let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
     cfg.iterations = a.iterations;
-    let mut t = NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?;
+    let mut t = NeusTrainer::new(cfg, data)?;
     let (mut total_secs, mut window_secs, mut rays, mut samples) = (0.0f64, 0.0f64, 0usize, 0usize);
     let wall = std::time::Instant::now();
     while t.step < a.iterations {

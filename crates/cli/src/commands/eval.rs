@@ -198,8 +198,8 @@ fn pair_errors(fit: &Trajectory, video: &Trajectory) -> Option<Value> {
     if video.contact.model != "pganeus" {
         return None;
     }
-    let ours = crate::output::contact_pairs(fit);
-    let out: Vec<Value> = crate::output::contact_pairs(video)
+    let ours = scene_file::contact_pairs(fit);
+    let out: Vec<Value> = scene_file::contact_pairs(video)
         .into_iter()
         .filter_map(|(names, truth)| {
             let (_, c) = ours.iter().find(|(n, _)| *n == names)?;

@@ -8,7 +8,6 @@ use super::checkpoint_of;
 use super::mesh_cmds::{bake_scene, world_cameras};
 use super::objects::parse_objects;
 use super::render_trajectory::{beside, read_mask, reference_frame, to8};
-use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
 use geom::{Pose, Quat, Vec3};
@@ -781,7 +780,7 @@ fn write_world(job: &Job, path: &Path, world: &World, losses: &[ImageLoss], extr
     let traj = world.simulate(&world.params());
     let mut e = extra;
     e.insert("frames".into(), metric_rows(losses));
-    let mut t = trajectory_json(&job.capture, world, &traj, e);
+    let mut t = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, e);
     t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
     pganeus_io::write_trajectory(path, &t)?;
     Ok(())
@@ -903,10 +902,6 @@ fn stage_ga(job: &mut Job, start: &World, tracking: bool, run: bool, file: &str)
 
 /// GA's poses as a trajectory file (poses only; the initial velocity is not GA's to say).
 fn write_ga(job: &Job, path: &Path, results: &[FramePose]) -> Result<()> {
-    let p = |x: &Pose<f64>| pganeus_io::Pose {
-        t: x.t.to_array(),
-        q: x.q.to_array_re(),
-    };
     let mut extra = Map::new();
     extra.insert(
         "frames".into(),
@@ -918,13 +913,8 @@ fn write_ga(job: &Job, path: &Path, results: &[FramePose]) -> Result<()> {
         fps: job.fps,
         bodies: vec![pganeus_io::VideoBody {
             name: job.name.clone(),
-            initial: pganeus_io::BodyState {
-                t: results[0].pose.t.to_array(),
-                q: results[0].pose.q.to_array_re(),
-                v: [0.0; 3],
-                omega: [0.0; 3],
-            },
-            poses: results.iter().map(|r| p(&r.pose)).collect(),
+            initial: pganeus_io::BodyState::from_geom(&results[0].pose, Vec3::zero(), Vec3::zero()),
+            poses: results.iter().map(|r| pganeus_io::Pose::from_geom(&r.pose)).collect(),
             extra: object_entry(&job.object, "object.ply"),
         }],
         contact: pganeus_io::Contact {
@@ -1180,12 +1170,9 @@ fn finish(
     extra.insert("stages".into(), Value::Object(stages));
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(job.video));
-    let mut t = trajectory_json(&job.capture, world, &traj, extra);
+    let mut t = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, extra);
     for (pose, r) in t.bodies[0].poses.iter_mut().zip(&reported) {
-        *pose = pganeus_io::Pose {
-            t: r.t.to_array(),
-            q: r.q.to_array_re(),
-        };
+        *pose = pganeus_io::Pose::from_geom(r);
     }
     t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
     // The object's mesh beside the trajectory, in the body frame.
@@ -1199,7 +1186,7 @@ fn finish(
         pganeus_io::PlyEncoding::BinaryLittleEndian,
     )?;
     if ga.is_some() {
-        let mut simulated = trajectory_json(&job.capture, world, &traj, Map::new());
+        let mut simulated = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, Map::new());
         simulated.bodies[0]
             .extra
             .extend(object_entry(&job.object, "object.ply"));

@@ -30,9 +30,8 @@ use super::fit::{
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
-use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
-use geom::Pose;
+use geom::{Pose, Vec3};
 use neus::checkpoint::load_field;
 use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
 use neus::ObjectModel;
@@ -507,12 +506,7 @@ fn write_ga(m: &Multi, path: &Path, results: &[Vec<FramePose>]) -> Result<()> {
             extra.insert("ga".into(), json!(rs.iter().map(ga_row).collect::<Vec<_>>()));
             pganeus_io::VideoBody {
                 name: body.name.clone(),
-                initial: pganeus_io::BodyState {
-                    t: rs[0].pose.t.to_array(),
-                    q: rs[0].pose.q.to_array_re(),
-                    v: [0.0; 3],
-                    omega: [0.0; 3],
-                },
+                initial: pganeus_io::BodyState::from_geom(&rs[0].pose, Vec3::zero(), Vec3::zero()),
                 poses: rs.iter().map(|r| pganeus_io::Pose::from_geom(&r.pose)).collect(),
                 extra,
             }
@@ -625,7 +619,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
     let traj = fit.world.simulate(&fit.world.params());
-    let mut t = trajectory_json(&m.capture, &fit.world, &traj, Map::new());
+    let mut t = scene_file::trajectory_file(&m.capture, &fit.world, &traj, sim::ENGINE, Map::new());
     for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
         tb.extra
             .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
@@ -651,7 +645,7 @@ fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
             friction: t.contact.friction,
         };
     }
-    let pairs = crate::output::contact_pairs(&t);
+    let pairs = scene_file::contact_pairs(&t);
     for (p, (i, j)) in w.pairs().into_iter().enumerate() {
         let mut names = [m.bodies[i].name.clone(), m.bodies[j].name.clone()];
         names.sort();
@@ -735,7 +729,7 @@ fn finish(
     let mut extra = Map::new();
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(m.video));
-    let mut t = trajectory_json(&m.capture, world, &traj, extra);
+    let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, extra);
     for (b, body) in m.bodies.iter().enumerate() {
         let mesh = format!("object_{}.ply", body.name);
         let tb = &mut t.bodies[b];

@@ -1,4 +1,3 @@
-use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use geom::Pose;
@@ -160,7 +159,10 @@ pub fn run(a: FitPhysicsArgs) -> Result<()> {
             serde_json::json!({"history": history, "pose_errors": errors, "poses": a.poses,
                 "starts": multi.starts, "winner": multi.winner}),
         );
-        pganeus_io::write_trajectory(out, &trajectory_json(&obs.capture, &w, &traj, extra))?;
+        pganeus_io::write_trajectory(
+            out,
+            &scene_file::trajectory_file(&obs.capture, &w, &traj, sim::ENGINE, extra),
+        )?;
         println!("wrote {}", out.display());
     }
     Ok(())

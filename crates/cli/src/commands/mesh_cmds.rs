@@ -548,8 +548,13 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         refine: !a.no_refine,
         ..mesh::MergeConfig::default()
     };
-    let mut merged = mesh::merge_two_poses(&pa, &pb, &cfg)
-        .map_err(|e| anyhow!("merging {} into {}: {e}", a.a.display(), a.b.display()))?;
+    let pb_merge = super::progress(mesh::MergeStage::ALL.len() as u64, "merge");
+    let mut merged = mesh::merge_two_poses_reporting(&pa, &pb, &cfg, &|stage| {
+        pb_merge.inc(1);
+        pb_merge.set_message(format!("merge: {} done", stage.name()));
+    })
+    .map_err(|e| anyhow!("merging {} into {}: {e}", a.a.display(), a.b.display()))?;
+    pb_merge.finish_and_clear();
     if let Some(n) = a.faces {
         merged.mesh = mesh::decimate(&merged.mesh, n);
     }

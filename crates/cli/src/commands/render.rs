@@ -157,13 +157,6 @@ pub fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
     neus::object_model::read_transform(path).map_err(|e| anyhow!("{e}"))
 }
 
-/// A world camera seen from the field's unit frame (`p_world = centre + radius · p_unit`).
-fn to_unit(cam: &Camera<f64>, centre: Vec3<f64>, radius: f64) -> Camera<f64> {
-    let mut c = *cam;
-    c.world_to_cam.t = (cam.world_to_cam.t + cam.world_to_cam.q.rotate(centre)) * (1.0 / radius);
-    c
-}
-
 /// An image to compare a render with, and its mask.
 struct Reference<'a> {
     rgb: &'a [[f32; 3]],
@@ -208,9 +201,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(data) = &data {
         for v in &data.views {
             // Back to the world through the capture's own scale_mat, then into the field's frame.
-            let mut world = v.camera;
-            world.world_to_cam.t =
-                (v.camera.world_to_cam.t * data.radius) - v.camera.world_to_cam.q.rotate(data.centre);
+            let world = v.camera.from_unit_frame(data.centre, data.radius);
             jobs.push(Job {
                 name: v.name.clone(),
                 camera: world,
@@ -251,7 +242,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             &field.field,
             &field.occupancy,
             &RenderSettings::of(field),
-            &to_unit(&camera, field.centre, field.radius),
+            &camera.in_unit_frame(field.centre, field.radius),
         );
         if let Some(q) = to_primary {
             for n in &mut img.normal {

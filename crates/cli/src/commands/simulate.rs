@@ -1,4 +1,3 @@
-use crate::output::trajectory_json;
 use anyhow::Result;
 use clap::Args;
 use scene_file::SceneFile;
@@ -39,7 +38,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     let traj = w.simulate_with_progress(&w.params(), &mut |k| pb.set_position(k as u64 + 1));
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
-    let out = trajectory_json(&scene.name, w, &traj, Default::default());
+    let out = scene_file::trajectory_file(&scene.name, w, &traj, sim::ENGINE, Default::default());
     pganeus_io::write_trajectory(&a.out, &out)?;
     for (b, body) in w.bodies.iter().enumerate() {
         let last = traj.frames.last().expect("frame 0 exists")[b];

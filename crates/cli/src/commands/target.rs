@@ -1,4 +1,3 @@
-use crate::output::trajectory_json;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use geom::Vec3;
@@ -81,7 +80,10 @@ pub fn run(a: TargetArgs) -> Result<()> {
         "target".into(),
         serde_json::json!({"body": solved.bodies[body].name, "point": point.to_array(), "frame": a.frame, "distance": stage.distance()}),
     );
-    pganeus_io::write_trajectory(&a.out, &trajectory_json(&scene.name, &solved, &traj, extra))?;
+    pganeus_io::write_trajectory(
+        &a.out,
+        &scene_file::trajectory_file(&scene.name, &solved, &traj, sim::ENGINE, extra),
+    )?;
     println!(
         "v0 = [{:.5}, {:.5}, {:.5}] m/s, omega0 = [{:.4}, {:.4}, {:.4}] rad/s; final distance {:.5} m; wrote {}",
         s0.v.x,

@@ -104,8 +104,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
         if let Some(n) = a.iterations {
             cfg.iterations = n;
         }
-        cfg.validate().map_err(|e| anyhow!("config: {e}"))?;
-        NeusTrainer::new(cfg, data).map_err(|e| anyhow!("{e}"))?
+        NeusTrainer::new(cfg, data)?
     };
     std::fs::create_dir_all(&a.out)?;
     pganeus_io::write_atomic(&a.out.join("config.toml"), toml::to_string(&trainer.config)?.as_bytes())?;

@@ -19,7 +19,7 @@ fn err(path: &Path, msg: String) -> IoError {
 fn read(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })
 }
 

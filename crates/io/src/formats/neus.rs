@@ -133,11 +133,11 @@ impl CaptureIndex {
 pub fn read_capture_info(path: &Path) -> Result<CaptureInfo> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     let info: CaptureInfo = serde_json::from_slice(&bytes).map_err(|source| IoError::Json {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     check_info(&info, path)?;
     Ok(info)
@@ -148,7 +148,7 @@ pub fn write_capture_info(path: &Path, info: &CaptureInfo) -> Result<()> {
     check_info(info, path)?;
     let mut bytes = serde_json::to_vec_pretty(info).map_err(|source| IoError::Json {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     bytes.push(b'\n');
     write_atomic(path, &bytes)

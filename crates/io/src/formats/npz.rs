@@ -617,7 +617,7 @@ fn try_npz_bytes(arrays: &[(&str, &NpyArray)]) -> std::result::Result<Vec<u8>, S
 fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })
 }
 

@@ -13,7 +13,7 @@ use crate::error::{IoError, Result};
 pub fn read_obj(path: &Path) -> Result<TriMesh> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     read_obj_bytes(&bytes, path)
 }

@@ -59,7 +59,7 @@ pub struct PlyWriteOptions {
 pub fn read_ply(path: &Path) -> Result<PlyMesh> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     read_ply_bytes(&bytes, path)
 }

@@ -148,7 +148,7 @@ fn sample_count(width: u32, height: u32, channels: u8) -> Option<usize> {
 pub fn read_png(path: &Path) -> Result<Image> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     read_png_bytes(&bytes, path)
 }
@@ -215,7 +215,7 @@ pub fn read_png_size(path: &Path) -> Result<(u32, u32)> {
     };
     let file = std::fs::File::open(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     let mut reader = BufReader::with_capacity(512, file);
     let mut signature = [0u8; 8];
@@ -224,7 +224,7 @@ pub fn read_png_size(path: &Path) -> Result<(u32, u32)> {
     check_signature(&signature).map_err(err)?;
     std::io::Seek::seek(&mut reader, std::io::SeekFrom::Start(0)).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     let mut decoder = png::Decoder::new(reader);
     let info = decoder.read_header_info().map_err(|e| err(describe(&e)))?;

@@ -264,7 +264,7 @@ impl SafeTensors {
 pub fn read_safetensors(path: &Path) -> Result<SafeTensors> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     read_safetensors_bytes(&bytes, path)
 }

@@ -74,6 +74,18 @@ pub struct BodyState {
     pub omega: [f64; 3],
 }
 
+impl BodyState {
+    /// A state of the geometry's pose and velocities (m/s, rad/s, world frame) as written in files.
+    pub fn from_geom(pose: &geom::Pose<f64>, v: geom::Vec3<f64>, omega: geom::Vec3<f64>) -> Self {
+        Self {
+            t: pose.t.to_array(),
+            q: pose.q.to_array_re(),
+            v: v.to_array(),
+            omega: omega.to_array(),
+        }
+    }
+}
+
 impl Default for BodyState {
     /// At rest at the identity pose.
     fn default() -> Self {
@@ -305,14 +317,14 @@ pub fn write_truth_bytes(truth: &Truth, path: &Path) -> Result<Vec<u8>> {
 fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })
 }
 
 fn to_json<T: Serialize>(value: &T, path: &Path) -> Result<Vec<u8>> {
     let mut bytes = serde_json::to_vec_pretty(value).map_err(|source| IoError::Json {
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     bytes.push(b'\n');
     Ok(bytes)
@@ -335,7 +347,7 @@ fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8], path: &Path) -> Resu
             }
             Err(IoError::Json {
                 path: path.to_path_buf(),
-                source: err,
+                cause: err,
             })
         }
     }

@@ -13,8 +13,8 @@ const MAGIC: &[u8; 8] = b"PGASDF01";
 
 #[derive(Debug, thiserror::Error)]
 pub enum GridError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {cause}")]
+    Io { path: PathBuf, cause: std::io::Error },
     #[error("{path}: not a pganeus SDF grid: {msg}")]
     Format { path: PathBuf, msg: String },
     #[error("grid bounds are invalid: {0}")]
@@ -217,7 +217,7 @@ impl SdfGrid {
     pub fn load(path: &Path) -> Result<Self, GridError> {
         let bytes = std::fs::read(path).map_err(|source| GridError::Io {
             path: path.to_path_buf(),
-            source,
+            cause: source,
         })?;
         Self::from_bytes(&bytes, path)
     }
@@ -226,7 +226,7 @@ impl SdfGrid {
     pub fn save(&self, path: &Path) -> Result<(), GridError> {
         let io = |source| GridError::Io {
             path: path.to_path_buf(),
-            source,
+            cause: source,
         };
         let tmp = path.with_extension("sdf.tmp");
         std::fs::write(&tmp, self.to_bytes()).map_err(io)?;

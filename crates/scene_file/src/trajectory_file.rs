@@ -1,23 +1,23 @@
-//! Turning simulated trajectories into `trajectory.json` (FORMATS.md).
+//! A simulated world's motion as a trajectory file (`trajectory.json`, and the
+//! videos of `truth.json`: docs/formats.md), and the body pairs' contact values
+//! read back from one. Every writer (`simulate`, `target`, `fit-physics`,
+//! `fit`, `synth`) goes through [`trajectory_file`].
 
 use pganeus_io::{BodyState as IoState, Contact, Pose as IoPose, Trajectory as IoTrajectory, VideoBody};
 use serde_json::{json, Map, Value};
-use sim::{BodyState, Trajectory, World};
+use sim::{ContactParams, Trajectory, World};
 
-fn io_state(s: &BodyState<f64>) -> IoState {
-    IoState {
-        t: s.pose.t.to_array(),
-        q: s.pose.q.to_array_re(),
-        v: s.v.to_array(),
-        omega: s.omega.to_array(),
-    }
-}
-
-/// The trajectory file of a simulated world. `extra` keys are added at the top level.
-pub fn trajectory_json(
+/// The trajectory file of `world` moving as `traj`, captured as `capture`:
+/// each body's poses, initial state, mass, contact values, velocities and
+/// scene-contact flags per frame; the body pairs' values and contact flags
+/// (`contact.pairs`, when there are pairs); the simulator's settings (`sim`).
+/// `model` names the engine that made the motion (`pganeus`, `rapier`);
+/// `extra` keys are added at the top level.
+pub fn trajectory_file(
     capture: &str,
     world: &World,
     traj: &Trajectory<f64>,
+    model: &str,
     extra: Map<String, Value>,
 ) -> IoTrajectory {
     let bodies = world
@@ -45,7 +45,10 @@ pub fn trajectory_json(
             );
             VideoBody {
                 name: body.name.clone(),
-                initial: io_state(&traj.frames[0][b]),
+                initial: {
+                    let s = &traj.frames[0][b];
+                    IoState::from_geom(&s.pose, s.v, s.omega)
+                },
                 poses: traj.frames.iter().map(|f| IoPose::from_geom(&f[b].pose)).collect(),
                 extra: e,
             }
@@ -66,7 +69,9 @@ pub fn trajectory_json(
         })
         .collect();
     let mut contact_extra = Map::new();
-    contact_extra.insert("pairs".into(), Value::Array(pairs));
+    if !pairs.is_empty() {
+        contact_extra.insert("pairs".into(), Value::Array(pairs));
+    }
     let mut top = extra;
     top.insert(
         "sim".into(),
@@ -80,7 +85,7 @@ pub fn trajectory_json(
         contact: Contact {
             restitution: c0.restitution,
             friction: c0.friction,
-            model: "pganeus".into(),
+            model: model.into(),
             extra: contact_extra,
         },
         extra: top,
@@ -89,7 +94,7 @@ pub fn trajectory_json(
 
 /// The pairs' values of a trajectory file's `contact.pairs`: each pair's body names (sorted), restitution
 /// and friction (entries without them are skipped).
-pub fn contact_pairs(t: &IoTrajectory) -> Vec<([String; 2], sim::ContactParams)> {
+pub fn contact_pairs(t: &IoTrajectory) -> Vec<([String; 2], ContactParams)> {
     let list = t
         .contact
         .extra
@@ -101,7 +106,7 @@ pub fn contact_pairs(t: &IoTrajectory) -> Vec<([String; 2], sim::ContactParams)>
         .filter_map(|p| {
             let mut names: [String; 2] = serde_json::from_value(p["bodies"].clone()).ok()?;
             names.sort();
-            let c = sim::ContactParams {
+            let c = ContactParams {
                 restitution: p["restitution"].as_f64()?,
                 friction: p["friction"].as_f64()?,
             };
