@@ -9,8 +9,9 @@
 //! - PNG images ([`read_png`], [`write_png`]), brought to 8-bit gray, RGB or
 //!   RGBA ([`Image`]); deterministic, fast encoding;
 //! - NumPy arrays: `.npy` ([`read_npy`], [`write_npy`]) and `.npz` archives
-//!   ([`read_npz`], [`write_npz`]), with a small ZIP reader (stored and
-//!   DEFLATE entries, CRC-checked) and writer (stored, deterministic);
+//!   ([`read_npz`], [`write_npz`]), the ZIP container through the `zip`
+//!   crate (stored and DEFLATE entries, CRC-checked; stored, deterministic
+//!   writing);
 //! - safetensors checkpoints ([`read_safetensors`], [`write_safetensors`],
 //!   [`SafeTensors`]): every offset and length checked on reading;
 //! - the NeuS capture folder of FORMATS.md, "A capture": [`open_capture`]

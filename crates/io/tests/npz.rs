@@ -410,7 +410,7 @@ fn bad_crc_is_an_error() {
     bytes[at] ^= 0x01;
     let msg = npz_err(&bytes);
     assert!(
-        msg.contains("mem.npz") && msg.contains("a.npy") && msg.contains("CRC"),
+        msg.contains("mem.npz") && msg.contains("a.npy") && msg.contains("checksum"),
         "{msg}"
     );
 
@@ -426,7 +426,7 @@ fn bad_crc_is_an_error() {
         )],
         b"",
     );
-    assert!(npz_err(&zip).contains("CRC"));
+    assert!(npz_err(&zip).contains("checksum"));
 }
 
 #[test]
@@ -444,23 +444,19 @@ fn truncated_or_damaged_zip_is_an_error() {
         assert!(read_npz_bytes(&bytes[..len], Path::new(P)).is_err(), "cut at {len}");
     }
     // Missing EOCD.
-    assert!(npz_err(b"just some bytes that are long enough to scan").contains("no end-of-central-directory"));
+    assert!(npz_err(b"just some bytes that are long enough to scan").contains("not a ZIP archive"));
     // Central directory offset pointing outside the file.
     let mut bad = bytes.clone();
     let n = bad.len();
     bad[n - 6..n - 2].copy_from_slice(&u32::MAX.wrapping_sub(7).to_le_bytes());
-    assert!(npz_err(&bad).contains("central directory"));
-    // ZIP64 markers.
-    let mut z64 = bytes.clone();
-    z64[n - 12..n - 10].copy_from_slice(&u16::MAX.to_le_bytes());
-    assert!(npz_err(&z64).contains("ZIP64"));
+    assert!(npz_err(&bad).contains("Invalid CDFH offset in EOCD"));
     // Unsupported compression method.
     let raw = npy_bytes(&arrays[0].1);
     let zip = hand_zip(&[("a.npy", 12, raw.clone(), crc32fast::hash(&raw), raw.len())], b"");
-    assert!(npz_err(&zip).contains("method 12"));
+    assert!(npz_err(&zip).contains("entry a.npy: unsupported Zip archive: Compression method not supported"));
     // Garbage DEFLATE data.
     let zip = hand_zip(&[("a.npy", 8, vec![0xff; 40], 0, raw.len())], b"");
-    assert!(npz_err(&zip).contains("DEFLATE"));
+    assert!(npz_err(&zip).contains("entry a.npy: corrupt deflate stream"));
     // A bad .npy inside names the entry.
     let zip = hand_zip(&[("x.npy", 0, b"nope".to_vec(), crc32fast::hash(b"nope"), 4)], b"");
     assert!(npz_err(&zip).contains("entry x.npy"));

@@ -156,6 +156,12 @@ pub enum TrainError {
         .0.display()
     )]
     EmptyMasks(std::path::PathBuf),
+    #[error(
+        "{}: no masks: an object is trained on what its masks mark; without masks, train the capture as a \
+         scene (--kind scene), which also models what lies beyond the unit sphere",
+        .0.display()
+    )]
+    NoMasks(std::path::PathBuf),
 }
 
 impl NeusTrainer {
@@ -166,6 +172,9 @@ impl NeusTrainer {
         }
         // An object is trained on what its masks mark: masks marking nothing in any view would have it fit
         // empty space for minutes. A scene's masks mark what is not scene, so empty ones are fine there.
+        if config.kind == CaptureSubject::Object && !data.has_masks() {
+            return Err(TrainError::NoMasks(data.dir.join(pganeus_io::MASK_DIR)));
+        }
         let empty = data.empty_masks();
         if config.kind == CaptureSubject::Object && !empty.is_empty() {
             let folder = data.dir.join(pganeus_io::MASK_DIR);

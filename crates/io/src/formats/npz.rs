@@ -12,15 +12,14 @@
 //! version 1.0 (2.0 only for a header longer than 65535 bytes), little-endian,
 //! C order, with the header padded so the data starts at a multiple of 64.
 //!
-//! `.npz` (`np.savez`): a ZIP archive holding one `<name>.npy` per array.
-//! The writer stores entries uncompressed with fixed timestamps
-//! (1980-01-01 00:00), so its output is deterministic. The reader takes
-//! entries stored or DEFLATE-compressed (`np.savez_compressed`), checks their
-//! CRC-32, accepts an archive comment, and skips entries whose names do not
-//! end in `.npy` (NumPy would return them as raw bytes). ZIP64 archives
-//! (over 4 GiB or 65535 entries) are refused with a clear error; the ZIP64
-//! fields NumPy writes into *local* headers of small files are fine, since
-//! sizes are taken from the central directory.
+//! `.npz` (`np.savez`): a ZIP archive holding one `<name>.npy` per array,
+//! read and written through the `zip` crate. The writer stores entries
+//! uncompressed with fixed timestamps (1980-01-01 00:00), so its output is
+//! deterministic. The reader takes entries stored or DEFLATE-compressed
+//! (`np.savez_compressed`), ZIP64 included, checks their CRC-32 and sizes,
+//! and skips entries whose names do not end in `.npy` (NumPy would return
+//! them as raw bytes). Names are UTF-8 when flagged so, else CP437, as
+//! NumPy's `zipfile` reads them.
 
 use std::path::Path;
 
@@ -544,15 +543,8 @@ impl Lexer<'_> {
 }
 
 // ---------------------------------------------------------------------------
-// .npz = ZIP
+// .npz = ZIP (the container through the `zip` crate)
 // ---------------------------------------------------------------------------
-
-const LOCAL_SIG: u32 = 0x0403_4b50;
-const CENTRAL_SIG: u32 = 0x0201_4b50;
-const EOCD_SIG: u32 = 0x0605_4b50;
-const ZIP64_LOCATOR_SIG: u32 = 0x0706_4b50;
-/// MS-DOS date of 1980-01-01: ((1980 - 1980) << 9) | (1 << 5) | 1.
-const DOS_DATE_1980: u16 = 0x0021;
 
 /// Reads every array of a `.npz` archive, in archive order, named without
 /// their `.npy` suffix.
@@ -592,8 +584,8 @@ pub fn write_npz(path: &Path, arrays: &[(&str, &NpyArray)]) -> Result<()> {
 /// the given order, with fixed timestamps, so the bytes depend only on the arrays.
 ///
 /// # Panics
-/// If an array's shape does not match its data, two arrays share a name, a
-/// name is empty, or the archive would need ZIP64 (4 GiB, 65535 entries).
+/// If an array's shape does not match its data, two arrays share a name, or a
+/// name is empty.
 /// [`write_npz`] returns these as errors instead.
 pub fn npz_bytes(arrays: &[(&str, &NpyArray)]) -> Vec<u8> {
     try_npz_bytes(arrays).unwrap_or_else(|msg| panic!("npz_bytes: {msg}"))
@@ -621,188 +613,50 @@ fn read_file(path: &Path) -> Result<Vec<u8>> {
     })
 }
 
-fn u16_at(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
-}
-
-fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
-}
-
-/// Writes a ZIP archive of stored entries.
-fn write_zip(entries: &[(String, Vec<u8>)]) -> std::result::Result<Vec<u8>, String> {
-    let too_big = || "the archive would exceed 4 GiB, which needs ZIP64 (not supported)".to_string();
-    if entries.len() > u16::MAX as usize {
-        return Err(format!("{} entries need ZIP64 (not supported)", entries.len()));
-    }
-    let mut out = Vec::new();
-    let mut central = Vec::new();
-    for (name, data) in entries {
-        let offset = u32::try_from(out.len()).map_err(|_| too_big())?;
-        let size = u32::try_from(data.len()).map_err(|_| too_big())?;
-        let name_len = u16::try_from(name.len()).map_err(|_| format!("entry name '{name}' is too long"))?;
-        let crc = crc32fast::hash(data);
-        // version needed 2.0, no flags, method 0 (stored), 00:00:00 1980-01-01.
-        let common = |v: &mut Vec<u8>| {
-            v.extend_from_slice(&20u16.to_le_bytes());
-            v.extend_from_slice(&0u16.to_le_bytes());
-            v.extend_from_slice(&0u16.to_le_bytes());
-            v.extend_from_slice(&0u16.to_le_bytes());
-            v.extend_from_slice(&DOS_DATE_1980.to_le_bytes());
-            v.extend_from_slice(&crc.to_le_bytes());
-            v.extend_from_slice(&size.to_le_bytes());
-            v.extend_from_slice(&size.to_le_bytes());
-            v.extend_from_slice(&name_len.to_le_bytes());
-            v.extend_from_slice(&0u16.to_le_bytes()); // extra field length
-        };
-        out.extend_from_slice(&LOCAL_SIG.to_le_bytes());
-        common(&mut out);
-        out.extend_from_slice(name.as_bytes());
-        out.extend_from_slice(data);
-
-        central.extend_from_slice(&CENTRAL_SIG.to_le_bytes());
-        central.extend_from_slice(&20u16.to_le_bytes()); // made by: MS-DOS, 2.0
-        common(&mut central);
-        central.extend_from_slice(&0u16.to_le_bytes()); // comment length
-        central.extend_from_slice(&0u16.to_le_bytes()); // disk number
-        central.extend_from_slice(&0u16.to_le_bytes()); // internal attributes
-        central.extend_from_slice(&0u32.to_le_bytes()); // external attributes
-        central.extend_from_slice(&offset.to_le_bytes());
-        central.extend_from_slice(name.as_bytes());
-    }
-    let cd_offset = u32::try_from(out.len()).map_err(|_| too_big())?;
-    let cd_size = u32::try_from(central.len()).map_err(|_| too_big())?;
-    out.extend_from_slice(&central);
-    u32::try_from(out.len() + 22).map_err(|_| too_big())?;
-    let n = entries.len() as u16;
-    out.extend_from_slice(&EOCD_SIG.to_le_bytes());
-    out.extend_from_slice(&0u16.to_le_bytes()); // this disk
-    out.extend_from_slice(&0u16.to_le_bytes()); // disk of the central directory
-    out.extend_from_slice(&n.to_le_bytes());
-    out.extend_from_slice(&n.to_le_bytes());
-    out.extend_from_slice(&cd_size.to_le_bytes());
-    out.extend_from_slice(&cd_offset.to_le_bytes());
-    out.extend_from_slice(&0u16.to_le_bytes()); // comment length
-    Ok(out)
-}
-
-/// Finds the end-of-central-directory record: its offset.
-fn find_eocd(b: &[u8]) -> Option<usize> {
-    if b.len() < 22 {
-        return None;
-    }
-    let last = b.len() - 22;
-    let first = last.saturating_sub(u16::MAX as usize);
-    let mut fallback = None;
-    for at in (first..=last).rev() {
-        if u32_at(b, at) == EOCD_SIG {
-            // A record whose comment reaches exactly the end of the file is
-            // the real one; otherwise the signature may be inside a comment.
-            if at + 22 + u16_at(b, at + 20) as usize == b.len() {
-                return Some(at);
-            }
-            fallback.get_or_insert(at);
-        }
-    }
-    fallback
-}
-
-/// Reads the entries of a ZIP archive: (name, uncompressed data).
+/// Reads the entries of a ZIP archive: (name, uncompressed data), directories left out.
 fn read_zip(b: &[u8]) -> std::result::Result<Vec<(String, Vec<u8>)>, String> {
-    let eocd = find_eocd(b).ok_or_else(|| {
-        if b.len() >= 4 && u32_at(b, 0) == LOCAL_SIG {
-            "no end-of-central-directory record: the ZIP archive is truncated".to_string()
+    let mut archive = zip::ZipArchive::new(std::io::Cursor::new(b)).map_err(|e| {
+        if b.starts_with(b"PK\x03\x04") {
+            format!("truncated or damaged ZIP archive (it begins as one): {e}")
         } else {
-            "not a ZIP archive (no end-of-central-directory record)".to_string()
+            format!("not a ZIP archive: {e}")
         }
     })?;
-    let zip64 = || "ZIP64 archives are not supported".to_string();
-    if eocd >= 20 && u32_at(b, eocd - 20) == ZIP64_LOCATOR_SIG {
-        return Err(zip64());
-    }
-    let (disk, cd_disk) = (u16_at(b, eocd + 4), u16_at(b, eocd + 6));
-    let (count_here, count) = (u16_at(b, eocd + 8), u16_at(b, eocd + 10));
-    let (cd_size, cd_offset) = (u32_at(b, eocd + 12), u32_at(b, eocd + 16));
-    if count == u16::MAX || cd_size == u32::MAX || cd_offset == u32::MAX {
-        return Err(zip64());
-    }
-    if disk != 0 || cd_disk != 0 || count_here != count {
-        return Err("multi-disk ZIP archives are not supported".to_string());
-    }
-    let cd_end = (cd_offset as usize)
-        .checked_add(cd_size as usize)
-        .filter(|&e| e <= eocd)
-        .ok_or("truncated: the central directory lies outside the file")?;
-
-    let mut entries = Vec::with_capacity(count as usize);
-    let mut at = cd_offset as usize;
-    for k in 0..count {
-        if at + 46 > cd_end || u32_at(b, at) != CENTRAL_SIG {
-            return Err(format!("central directory entry {k} is corrupt"));
+    let mut entries = Vec::with_capacity(archive.len().min(1 << 16));
+    for k in 0..archive.len() {
+        let label = archive.name_for_index(k).map_or(format!("{k}"), str::to_string);
+        let mut entry = archive.by_index(k).map_err(|e| format!("entry {label}: {e}"))?;
+        if entry.is_dir() {
+            continue;
         }
-        let flags = u16_at(b, at + 8);
-        let method = u16_at(b, at + 10);
-        let crc = u32_at(b, at + 16);
-        let comp_size = u32_at(b, at + 20);
-        let size = u32_at(b, at + 24);
-        let (name_len, extra_len, comment_len) = (
-            u16_at(b, at + 28) as usize,
-            u16_at(b, at + 30) as usize,
-            u16_at(b, at + 32) as usize,
-        );
-        let local = u32_at(b, at + 42);
-        let name_end = at + 46 + name_len;
-        if name_end > cd_end {
-            return Err(format!("central directory entry {k} is corrupt"));
-        }
-        let name = String::from_utf8_lossy(&b[at + 46..name_end]).into_owned();
-        at = name_end + extra_len + comment_len;
-
-        if comp_size == u32::MAX || size == u32::MAX || local == u32::MAX {
-            return Err(format!("entry {name}: {}", zip64()));
-        }
-        if flags & 1 != 0 {
-            return Err(format!("entry {name} is encrypted"));
-        }
-        let local = local as usize;
-        if local + 30 > b.len() || u32_at(b, local) != LOCAL_SIG {
-            return Err(format!("entry {name}: bad local header"));
-        }
-        let data_start = local + 30 + u16_at(b, local + 26) as usize + u16_at(b, local + 28) as usize;
-        let data = data_start
-            .checked_add(comp_size as usize)
-            .filter(|&e| e <= b.len())
-            .map(|e| &b[data_start..e])
-            .ok_or_else(|| format!("entry {name}: truncated data"))?;
-        let data = match method {
-            0 if comp_size == size => data.to_vec(),
-            0 => return Err(format!("entry {name}: stored sizes disagree ({comp_size} vs {size})")),
-            8 => {
-                let out = miniz_oxide::inflate::decompress_to_vec_with_limit(data, size as usize)
-                    .map_err(|e| format!("entry {name}: corrupt DEFLATE data ({e})"))?;
-                if out.len() != size as usize {
-                    return Err(format!(
-                        "entry {name}: inflates to {} bytes, the directory says {size}",
-                        out.len()
-                    ));
-                }
-                out
-            }
-            m => {
-                return Err(format!(
-                    "entry {name}: compression method {m} is not supported (only stored and DEFLATE)"
-                ))
-            }
-        };
-        let actual = crc32fast::hash(&data);
-        if actual != crc {
+        let name = entry.name().to_string();
+        let size = entry.size();
+        // Grown as it is read (a damaged directory may claim any size), and no further than it claims.
+        let mut data = Vec::new();
+        std::io::Read::read_to_end(&mut std::io::Read::take(&mut entry, size.saturating_add(1)), &mut data)
+            .map_err(|e| format!("entry {name}: {e}"))?;
+        if data.len() as u64 != size {
             return Err(format!(
-                "entry {name}: CRC-32 mismatch (stored {crc:08x}, computed {actual:08x})"
+                "entry {name}: holds {} bytes, the directory says {size}",
+                data.len()
             ));
         }
-        if !name.ends_with('/') {
-            entries.push((name, data));
-        }
+        entries.push((name, data));
     }
     Ok(entries)
+}
+
+/// Writes a ZIP archive of stored entries dated 1980-01-01 00:00, so the bytes depend only on the entries.
+fn write_zip(entries: &[(String, Vec<u8>)]) -> std::result::Result<Vec<u8>, String> {
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Stored)
+        .last_modified_time(zip::DateTime::default())
+        .large_file(entries.iter().any(|(_, d)| d.len() as u64 >= u32::MAX as u64));
+    for (name, data) in entries {
+        zip.start_file(name.as_str(), options)
+            .map_err(|e| format!("entry {name}: {e}"))?;
+        std::io::Write::write_all(&mut zip, data).map_err(|e| format!("entry {name}: {e}"))?;
+    }
+    Ok(zip.finish().map_err(|e| e.to_string())?.into_inner())
 }
