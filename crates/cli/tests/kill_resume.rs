@@ -78,3 +78,62 @@ fn a_killed_training_resumes_to_the_same_checkpoint() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Killed in the middle of writing its second checkpoint (half of it in the temporary file, through the
+/// `PGANEUS_DIE_WRITING` fault of `write_atomic`): the final name still holds the first checkpoint, whole,
+/// and the resumed training ends with the uninterrupted one's bytes.
+#[test]
+fn a_training_killed_while_writing_its_checkpoint_resumes_from_the_one_before() {
+    let d = testkit::scratch_dir("cli", "kill_mid_write");
+    tabletop(&d, (64, 48), 4, 2, &[]);
+    std::fs::write(
+        d.join("train.toml"),
+        "checkpoint_every = 10\n\n[field.grid]\nlog2_table_size = 12\n",
+    )
+    .unwrap();
+    let short = |out: &str, extra: &[&str]| {
+        let mut c = train(&d, out, extra);
+        c.arg("--no-preview");
+        c
+    };
+    let o = short("whole", &[]).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let whole = std::fs::read(d.join("whole/checkpoint.safetensors")).unwrap();
+
+    let o = short("cut", &[])
+        .env("PGANEUS_DIE_WRITING", "checkpoint.safetensors:2")
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "the fault did not fire: {}", text(&o));
+    let ckpt = d.join("cut/checkpoint.safetensors");
+    let first = std::fs::read(&ckpt).expect("the first checkpoint is under its name");
+    let st = pganeus_io::read_safetensors_bytes(&first, &ckpt).expect("and it is whole");
+    assert_eq!(
+        st.metadata.get("step").map(String::as_str),
+        Some("10"),
+        "{:?}",
+        st.metadata
+    );
+    let partial: Vec<_> = std::fs::read_dir(d.join("cut"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with(".checkpoint.safetensors.tmp")
+        })
+        .collect();
+    assert_eq!(
+        partial.len(),
+        1,
+        "the half-written checkpoint is left aside under a temporary name"
+    );
+
+    let o = short("cut", &["--resume"]).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        std::fs::read(&ckpt).unwrap() == whole,
+        "the resumed training's checkpoint differs from the uninterrupted one"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

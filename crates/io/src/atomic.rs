@@ -45,12 +45,36 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// Writes of the file named by `PGANEUS_DIE_WRITING` so far in this process.
+static WRITES_OF_WATCHED: AtomicU64 = AtomicU64::new(0);
+
+/// A fault to inject for tests of what a kill in the middle of a write leaves: with
+/// `PGANEUS_DIE_WRITING=NAME:K` set, the process dies (abort, no clean-up) half-way through its K-th write
+/// of a file named NAME, after half the bytes reached the temporary file and before the rename.
+fn dies_writing(target: &Path) -> bool {
+    let Ok(spec) = std::env::var("PGANEUS_DIE_WRITING") else {
+        return false;
+    };
+    let Some((name, k)) = spec.rsplit_once(':') else {
+        return false;
+    };
+    if target.file_name().is_none_or(|n| n.to_string_lossy() != name) {
+        return false;
+    }
+    WRITES_OF_WATCHED.fetch_add(1, Ordering::Relaxed) + 1 == k.parse::<u64>().unwrap_or(0)
+}
+
 fn write_then_rename(tmp: &Path, target: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let mut file = fs::OpenOptions::new()
         .write(true)
         .create(true)
         .truncate(true)
         .open(tmp)?;
+    if dies_writing(target) {
+        file.write_all(&bytes[..bytes.len() / 2])?;
+        file.sync_all()?;
+        std::process::abort();
+    }
     file.write_all(bytes)?;
     // fsync before rename, otherwise a crash can leave the new name on empty data.
     file.sync_all()?;
