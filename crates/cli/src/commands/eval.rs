@@ -269,7 +269,10 @@ pub fn run(a: EvalArgs) -> Result<()> {
             None
         }
     };
+    // Steps: the reported poses, each stage file, each body's mesh.
+    let pb = super::progress(4 + fit.bodies.len() as u64, "eval");
     let scores = score_poses(&fit, video, &refs, camera.as_ref());
+    pb.inc(1);
     // Where each fit put the true body's origin, frame by frame, beside the truth (the report's plots).
     let mut paths = serde_json::Map::new();
     paths.insert("truth".into(), Value::Object(scores.true_path));
@@ -293,6 +296,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
             stages.insert(stage.into(), s.summary);
             paths.insert(stage.into(), Value::Object(s.fitted_path));
         }
+        pb.inc(1);
     }
     if !stages.is_empty() {
         report["stages"] = Value::Object(stages);
@@ -301,6 +305,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     // The object's mesh against the true one, in the true body frame.
     let mut meshes = serde_json::Map::new();
     for (entry, r) in fit.bodies.iter().zip(&refs) {
+        pb.inc(1);
         let Some(m) = entry.extra.get("object").and_then(|o| o["mesh"].as_str()) else {
             continue;
         };
@@ -319,6 +324,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 "volume_iou": num(mesh::volume_iou(&ours, &r.mesh, 200_000, 5), 1.0, 4)}),
         );
     }
+    pb.finish_and_clear();
     if !meshes.is_empty() {
         report["meshes"] = Value::Object(meshes);
     }
