@@ -52,7 +52,7 @@ enum Command {
     BenchContact(commands::bench_contact::BenchContactArgs),
     /// Composed-rendering timings (rays/s; reference and fixed-camera fast path; JSON lines).
     BenchCompose(commands::bench_compose::BenchComposeArgs),
-    /// Train on a synthetic object capture and print speed, held-out PSNR and Chamfer distance as JSON lines.
+    /// Train on a synthetic object or scene capture and print speed, held-out PSNR and Chamfer distance as JSON lines.
     BenchTrain(commands::bench_train::BenchTrainArgs),
 }
 

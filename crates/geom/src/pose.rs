@@ -1,4 +1,4 @@
-//! Rigid poses `p_world = R(q) p_body + t` (FORMATS.md) and the exp/log maps
+//! Rigid poses `p_world = R(q) p_body + t` (docs/formats.md) and the exp/log maps
 //! of SE(3).
 
 use crate::{Mat3, Quat, Real, Vec3};

@@ -49,7 +49,7 @@ pub enum IoError {
         /// What is wrong, in plain words, with the line number.
         msg: String,
     },
-    /// The file parses but a value breaks the contract of FORMATS.md
+    /// The file parses but a value breaks the contract of docs/formats.md
     /// (not finite, non-unit quaternion, lengths that disagree, ...).
     #[error("{}: invalid value at `{field}`: {msg}", path.display())]
     Invalid {
@@ -88,7 +88,7 @@ pub enum IoError {
         /// What is wrong, in plain words.
         msg: String,
     },
-    /// A capture folder breaks the layout of FORMATS.md ("A capture"): a
+    /// A capture folder breaks the layout of docs/formats.md ("A capture"): a
     /// missing mask or camera, images of different sizes, ... `path` is the
     /// offending file (or folder).
     #[error("{}: {msg}", path.display())]

@@ -1,4 +1,4 @@
-//! File formats of pganeus, as fixed by `FORMATS.md`:
+//! File formats of pganeus, as fixed by `docs/formats.md`:
 //!
 //! - `truth.json` ([`Truth`]) and `trajectory.json` ([`Trajectory`]): checked on
 //!   reading (finite numbers, unit quaternions `[w, x, y, z]`, `fps > 0`) and
@@ -14,7 +14,7 @@
 //!   writing);
 //! - safetensors checkpoints ([`read_safetensors`], [`write_safetensors`],
 //!   [`SafeTensors`]): every offset and length checked on reading;
-//! - the NeuS capture folder of FORMATS.md, "A capture": [`open_capture`]
+//! - the NeuS capture folder of docs/formats.md, "A capture": [`open_capture`]
 //!   lists and checks `image/`, `mask/`, `mask_<name>/`, `cameras_sphere.npz`
 //!   ([`read_cameras_npz`], [`write_cameras_npz`]) and `capture.json`
 //!   ([`CaptureInfo`]).

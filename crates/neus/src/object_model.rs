@@ -1,6 +1,6 @@
 //! A reconstructed object as every later stage sees it (render, fit,
 //! simulate, eval): its field(s), its closed mesh and mass properties, and
-//! the body frame they share (FORMATS.md: origin at the centre of mass of the
+//! the body frame they share (docs/formats.md: origin at the centre of mass of the
 //! closed mesh, axes of the reference capture; `p_world = R(q) p_body + t`).
 //!
 //! Loaded from a `merge` output folder (two fields and their `transform.json`:
@@ -103,6 +103,62 @@ fn resolve(folder: &Path, p: &Path) -> PathBuf {
     }
 }
 
+/// Grid resolution of a run's zero level when it is the object's mesh.
+const RUN_MESH_RES: usize = 192;
+
+/// A 64-bit digest of `bytes` (FNV-1a over 8-byte words): what names a checkpoint's cached zero level.
+fn digest(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ bytes.len() as u64;
+    let mut words = bytes.chunks_exact(8);
+    for w in &mut words {
+        h = (h ^ u64::from_le_bytes(w.try_into().expect("8 bytes"))).wrapping_mul(0x0000_0100_0000_01b3);
+        h ^= h >> 29;
+    }
+    for &b in words.remainder() {
+        h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// The zero level of a run's field at [`RUN_MESH_RES`], the object's mesh, kept beside the checkpoint
+/// (`object_mesh.ply`, positions in double precision, so it is the very mesh extraction gives) under the
+/// checkpoint's digest (`object_mesh.json`): every `fit`, `render` and `eval` of the run used to extract
+/// it again (seconds each). A missing, stale or unreadable copy is made again; a folder that cannot be
+/// written only costs the extraction.
+fn zero_level_cached(ckpt: &Path, field: &LoadedField) -> TriMesh {
+    let dir = ckpt.parent().unwrap_or(Path::new("."));
+    let (mesh_path, key_path) = (dir.join("object_mesh.ply"), dir.join("object_mesh.json"));
+    let key = std::fs::read(ckpt)
+        .ok()
+        .map(|b| serde_json::json!({"checkpoint_digest": format!("{:016x}", digest(&b)), "res": RUN_MESH_RES}));
+    let stored = std::fs::read(&key_path)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
+    if key.is_some() && stored == key {
+        match pganeus_io::read_ply(&mesh_path) {
+            Ok(ply) if !ply.mesh.faces.is_empty() => {
+                tracing::debug!("{}: the cached zero level", mesh_path.display());
+                return ply.mesh;
+            }
+            _ => tracing::debug!("{}: unreadable, extracted again", mesh_path.display()),
+        }
+    }
+    let levels = field.config.field.grid.levels;
+    let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, RUN_MESH_RES);
+    if let Some(key) = key {
+        let opts = pganeus_io::PlyWriteOptions {
+            positions_f64: true,
+            ..Default::default()
+        };
+        let written = pganeus_io::write_ply_with(&mesh_path, &pganeus_io::PlyMesh::from_mesh(zero.clone()), &opts)
+            .and_then(|()| pganeus_io::write_atomic(&key_path, key.to_string().as_bytes()));
+        if let Err(e) = written {
+            tracing::debug!("the zero level is not cached: {e}");
+        }
+    }
+    zero
+}
+
 /// The capture's folder name, as truth.json names captures.
 fn capture_name(field: &LoadedField) -> String {
     field
@@ -172,9 +228,9 @@ impl ObjectModel {
     }
 
     fn load_run(run: &Path) -> Result<Self, ObjectError> {
-        let field = load_field(&checkpoint_in(run))?;
-        let levels = field.config.field.grid.levels;
-        let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, 192);
+        let ckpt = checkpoint_in(run);
+        let field = load_field(&ckpt)?;
+        let zero = zero_level_cached(&ckpt, &field);
         let (volume, com) = closed_volume(run, &zero)?;
         let capture_from_body = Pose::from_translation(com);
         Ok(Self {

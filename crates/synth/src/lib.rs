@@ -1,7 +1,7 @@
 //! Synthetic tabletop scenes with exact ground truth — the project's own
 //! stand-in for the paper's Blender data: analytic (or baked mesh) SDFs,
 //! sphere-traced with soft shadows, motion from the project's simulator, and
-//! captures written in the NeuS layout (FORMATS.md) with `truth.json`.
+//! captures written in the NeuS layout (docs/formats.md) with `truth.json`.
 
 mod build;
 pub mod cameras;

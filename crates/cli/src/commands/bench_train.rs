@@ -18,7 +18,7 @@ pub struct BenchTrainArgs {
     /// A dataset from `pganeus synth` (e.g. --preset tabletop --scale large).
     #[arg(long)]
     pub dataset: PathBuf,
-    /// The object capture in it.
+    /// The capture in it (an object's, or the scene's: `background`).
     #[arg(long, default_value = "toy_a")]
     pub capture: String,
     #[arg(long, default_value = "fast")]

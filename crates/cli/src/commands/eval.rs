@@ -1,7 +1,7 @@
 //! `eval`: a fit scored against the truth of a synthetic or evaluation scene.
 //! The fit's body frame (its object's centre of mass, the axes of its
 //! reference capture) is related to the truth's through `object.reference`
-//! (FORMATS.md): `X = T_capture⁻¹ ∘ P_reference` takes fit-body points to
+//! (docs/formats.md): `X = T_capture⁻¹ ∘ P_reference` takes fit-body points to
 //! truth-body points, so the fit's pose of the true body is `F ∘ X⁻¹`.
 
 use super::mesh_cmds::world_cameras;
@@ -34,7 +34,7 @@ pub struct EvalArgs {
     /// Where to write the scores (default: `eval.json` in the fit folder, or beside the trajectory file).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Per-frame rows as CSV (default: `eval.csv` beside `--out`).
+    /// Per-frame rows as CSV (default: `--out` with the extension `.csv`).
     #[arg(long)]
     pub csv: Option<PathBuf>,
 }

@@ -51,7 +51,7 @@ pub struct FitArgs {
     /// The body: NAME=DIR, DIR a `merge` output (or a single run folder).
     #[arg(long)]
     pub object: Vec<String>,
-    /// The first-pose guess (init.json, FORMATS.md), or `auto`: candidates from the first frame's mask and
+    /// The first-pose guess (init.json, docs/formats.md), or `auto`: candidates from the first frame's mask and
     /// the body's resting sides, the best refined by the image terms (the pose found is written to
     /// `init_auto.json` in the fit folder, in the same format).
     #[arg(long)]

@@ -1,4 +1,4 @@
-//! The capture folder of FORMATS.md ("A capture"), laid out as in NeuS
+//! The capture folder of docs/formats.md ("A capture"), laid out as in NeuS
 //! (Wang et al. 2021) so that NeuS data loads as is:
 //!
 //! ```text
@@ -388,7 +388,7 @@ fn read_dir_sorted(folder: &Path) -> Result<Vec<PathBuf>> {
     for entry in std::fs::read_dir(folder).map_err(io_err)? {
         paths.push(entry.map_err(io_err)?.path());
     }
-    // Sort by file name, the order of FORMATS.md (time, for a video).
+    // Sort by file name, the order of docs/formats.md (time, for a video).
     paths.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
     Ok(paths)
 }

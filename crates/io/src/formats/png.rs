@@ -1,4 +1,4 @@
-//! 8-bit PNG images: the `image/` and `mask/` files of a capture (FORMATS.md, "A capture").
+//! 8-bit PNG images: the `image/` and `mask/` files of a capture (docs/formats.md, "A capture").
 //!
 //! Reading accepts every PNG colour type and bit depth and brings it to 8-bit
 //! gray, RGB or RGBA ([`Image::channels`] 1, 3 or 4):

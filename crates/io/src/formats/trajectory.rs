@@ -1,11 +1,11 @@
-//! `truth.json` and `trajectory.json` (FORMATS.md, "Ground truth" and "Outputs").
+//! `truth.json` and `trajectory.json` (docs/formats.md, "Ground truth" and "Outputs").
 //!
 //! A `trajectory.json` has exactly the shape of one `videos[*]` entry of a
 //! `truth.json`, so both use [`Trajectory`]. Keys this module does not know are
 //! kept in the `extra` maps and written back, so per-frame losses, metrics and
 //! configs survive a read/modify/write cycle.
 //!
-//! Reading checks what FORMATS.md promises (finite numbers, unit quaternions,
+//! Reading checks what docs/formats.md promises (finite numbers, unit quaternions,
 //! `fps > 0`, one pose per frame for every body) and then normalises the
 //! quaternions exactly. Writing runs the same checks before serialising, so a
 //! file this module writes is always one it can read.
