@@ -1,6 +1,8 @@
 //! Captures named as published datasets name them train as the project's own: DTU as NeuS preprocessed it
 //! (`image/000000.png` with `mask/000.png`, `camera_mat_i` entries in the npz) and a BlendedMVS-style
-//! folder of JPEG images (`00000000.jpg`) with PNG masks.
+//! folder of JPEG images (`00000000.jpg`) with PNG masks. Both are also committed, small
+//! (`tests/data/dtu_scan_tiny`, `tests/data/blendedmvs_tiny`: four views of 64×48 of the tabletop toy),
+//! and trained from as they are; `PGANEUS_WRITE_FIXTURES=1` writes them anew from the renamed captures.
 
 use pganeus_io::{read_image, read_npz, Image};
 use std::path::{Path, PathBuf};
@@ -39,6 +41,39 @@ fn renamed(src: &Path, dst: &Path, image_name: impl Fn(usize) -> String, mask_na
     }
 }
 
+/// The committed fixtures' folder.
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data")
+}
+
+/// The sorted file names in `capture/sub`.
+fn names_in(capture: &Path, sub: &str) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(capture.join(sub))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn committed_dtu_and_blendedmvs_fixtures_train_as_they_are() {
+    let d = testkit::scratch_dir("cli", "fixtures");
+    let dtu = fixtures().join("dtu_scan_tiny");
+    assert_eq!(names_in(&dtu, "image")[0], "000000.png");
+    assert_eq!(names_in(&dtu, "mask")[0], "000.png");
+    let npz = read_npz(&dtu.join("cameras_sphere.npz")).unwrap();
+    assert!(
+        npz.iter().any(|(k, _)| k == "camera_mat_0"),
+        "DTU's npz has camera_mat entries"
+    );
+    train_a_few_steps(&dtu, &d.join("run_dtu"));
+    let bmvs = fixtures().join("blendedmvs_tiny");
+    assert_eq!(names_in(&bmvs, "image")[0], "00000000.jpg");
+    train_a_few_steps(&bmvs, &d.join("run_bmvs"));
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 fn train_a_few_steps(capture: &Path, run: &Path) {
     let o = bin()
         .arg("train")
@@ -68,6 +103,19 @@ fn dtu_and_blendedmvs_style_captures_load_and_train() {
     let bmvs = d.join("bmvs");
     renamed(&toy, &bmvs, |i| format!("{i:08}.jpg"), |i| format!("{i:03}.png"));
     train_a_few_steps(&bmvs, &d.join("run_bmvs"));
+    if std::env::var_os("PGANEUS_WRITE_FIXTURES").is_some() {
+        for (from, name) in [(&dtu, "dtu_scan_tiny"), (&bmvs, "blendedmvs_tiny")] {
+            let to = fixtures().join(name);
+            let _ = std::fs::remove_dir_all(&to);
+            for sub in ["image", "mask"] {
+                std::fs::create_dir_all(to.join(sub)).unwrap();
+                for name in names_in(from, sub) {
+                    std::fs::copy(from.join(sub).join(&name), to.join(sub).join(&name)).unwrap();
+                }
+            }
+            std::fs::copy(from.join("cameras_sphere.npz"), to.join("cameras_sphere.npz")).unwrap();
+        }
+    }
 
     // A mask short: refused, naming the counts.
     std::fs::remove_file(dtu.join("mask").join("003.png")).unwrap();

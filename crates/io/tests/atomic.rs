@@ -101,4 +101,5 @@ fn a_staged_folder_replaces_its_target_only_when_committed() {
     std::fs::write(staged.path().join("a"), "a").unwrap();
     staged.commit().unwrap();
     assert_eq!(dir_names(&fresh), ["a"]);
+    let _ = std::fs::remove_dir_all(&dir);
 }
