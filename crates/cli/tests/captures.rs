@@ -2,13 +2,14 @@
 //! (`image/000000.png` with `mask/000.png`, `camera_mat_i` entries in the npz) and a BlendedMVS-style
 //! folder of JPEG images (`00000000.jpg`) with PNG masks. Both are also committed, small
 //! (`tests/data/dtu_scan_tiny`, `tests/data/blendedmvs_tiny`: four views of 64×48 of the tabletop toy),
-//! and trained from as they are; `PGANEUS_WRITE_FIXTURES=1` writes them anew from the renamed captures.
+//! and trained from as they are; `PGANEUS_WRITE_FIXTURES=1` writes them anew from the renamed captures
+//! (with `--test-threads=1`, so the test that reads them does not run while they are rewritten).
 
 use pganeus_io::{read_image, read_npz, Image};
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{bin, tabletop, text};
+use common::{bin, copy_dir, tabletop, text};
 
 /// The tabletop preset's toy_a capture at 64×48 with four views.
 fn toy_capture(d: &Path) -> PathBuf {
@@ -48,12 +49,7 @@ fn fixtures() -> PathBuf {
 
 /// The sorted file names in `capture/sub`.
 fn names_in(capture: &Path, sub: &str) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(capture.join(sub))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
+    testkit::sorted_file_names(&capture.join(sub))
 }
 
 #[test]
@@ -107,13 +103,7 @@ fn dtu_and_blendedmvs_style_captures_load_and_train() {
         for (from, name) in [(&dtu, "dtu_scan_tiny"), (&bmvs, "blendedmvs_tiny")] {
             let to = fixtures().join(name);
             let _ = std::fs::remove_dir_all(&to);
-            for sub in ["image", "mask"] {
-                std::fs::create_dir_all(to.join(sub)).unwrap();
-                for name in names_in(from, sub) {
-                    std::fs::copy(from.join(sub).join(&name), to.join(sub).join(&name)).unwrap();
-                }
-            }
-            std::fs::copy(from.join("cameras_sphere.npz"), to.join("cameras_sphere.npz")).unwrap();
+            copy_dir(from, &to);
         }
     }
 

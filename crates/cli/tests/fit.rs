@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 mod common;
-use common::{bin, text};
+use common::{bin, copy_dir, text};
 
 /// The video's camera: 96×72, looking down at the toss from the front.
 fn camera() -> Camera<f64> {
@@ -38,18 +38,6 @@ fn run_ok(cmd: &mut Command) -> Output {
     let o = cmd.output().unwrap();
     assert!(o.status.success(), "{}", text(&o));
     o
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
 }
 
 struct Fixture {

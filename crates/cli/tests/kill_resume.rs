@@ -1,5 +1,6 @@
 //! `train` killed with SIGKILL at several moments (as its first checkpoint lands, and part way through two
-//! resumed runs) and resumed each time ends with the same checkpoint, byte for byte, as a training that was
+//! resumed runs), and killed half-way through writing a checkpoint, and resumed each time ends with the same
+//! checkpoint, byte for byte, as a training that was
 //! never interrupted: checkpoints are written to a temporary file and renamed (`pganeus_io::write_atomic`:
 //! a kill leaves the old file or the new one under the final name, never part of one), and hold the step,
 //! the random state and the optimiser's moments.
@@ -76,36 +77,20 @@ fn a_killed_training_resumes_to_the_same_checkpoint() {
         cut == whole,
         "the resumed training's checkpoint differs from the uninterrupted one"
     );
+    killed_while_writing_its_checkpoint(&d, &whole);
     let _ = std::fs::remove_dir_all(&d);
 }
 
 /// Killed in the middle of writing its second checkpoint (half of it in the temporary file, through the
 /// `PGANEUS_DIE_WRITING` fault of `write_atomic`): the final name still holds the first checkpoint, whole,
-/// and the resumed training ends with the uninterrupted one's bytes.
-#[test]
-fn a_training_killed_while_writing_its_checkpoint_resumes_from_the_one_before() {
-    let d = testkit::scratch_dir("cli", "kill_mid_write");
-    tabletop(&d, (64, 48), 4, 2, &[]);
-    std::fs::write(
-        d.join("train.toml"),
-        "checkpoint_every = 10\n\n[field.grid]\nlog2_table_size = 12\n",
-    )
-    .unwrap();
-    let short = |out: &str, extra: &[&str]| {
-        let mut c = train(&d, out, extra);
-        c.arg("--no-preview");
-        c
-    };
-    let o = short("whole", &[]).output().unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    let whole = std::fs::read(d.join("whole/checkpoint.safetensors")).unwrap();
-
-    let o = short("cut", &[])
+/// and the resumed training ends with the uninterrupted one's bytes (`whole`, trained in `d` as here).
+fn killed_while_writing_its_checkpoint(d: &Path, whole: &[u8]) {
+    let o = train(d, "cut_mid_write", &["--no-preview"])
         .env("PGANEUS_DIE_WRITING", "checkpoint.safetensors:2")
         .output()
         .unwrap();
     assert!(!o.status.success(), "the fault did not fire: {}", text(&o));
-    let ckpt = d.join("cut/checkpoint.safetensors");
+    let ckpt = d.join("cut_mid_write/checkpoint.safetensors");
     let first = std::fs::read(&ckpt).expect("the first checkpoint is under its name");
     let st = pganeus_io::read_safetensors_bytes(&first, &ckpt).expect("and it is whole");
     assert_eq!(
@@ -114,7 +99,7 @@ fn a_training_killed_while_writing_its_checkpoint_resumes_from_the_one_before() 
         "{:?}",
         st.metadata
     );
-    let partial: Vec<_> = std::fs::read_dir(d.join("cut"))
+    let partial: Vec<_> = std::fs::read_dir(d.join("cut_mid_write"))
         .unwrap()
         .filter_map(|e| e.ok())
         .filter(|e| {
@@ -129,11 +114,12 @@ fn a_training_killed_while_writing_its_checkpoint_resumes_from_the_one_before() 
         "the half-written checkpoint is left aside under a temporary name"
     );
 
-    let o = short("cut", &["--resume"]).output().unwrap();
+    let o = train(d, "cut_mid_write", &["--resume", "--no-preview"])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", text(&o));
     assert!(
         std::fs::read(&ckpt).unwrap() == whole,
         "the resumed training's checkpoint differs from the uninterrupted one"
     );
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -12,15 +12,6 @@ fn tempdir(name: &str) -> PathBuf {
     d
 }
 
-fn dir_names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 #[test]
 fn writes_replaces_and_leaves_no_temp_file() {
     let dir = tempdir("atomic_ok");
@@ -31,7 +22,7 @@ fn writes_replaces_and_leaves_no_temp_file() {
     assert_eq!(std::fs::read(&path).unwrap(), b"second, longer");
     write_atomic(&path, b"").unwrap();
     assert_eq!(std::fs::read(&path).unwrap(), b"");
-    assert_eq!(dir_names(&dir.join("a/b")), vec!["c.txt"]);
+    assert_eq!(testkit::sorted_file_names(&dir.join("a/b")), vec!["c.txt"]);
     std::fs::remove_dir_all(dir).unwrap();
 }
 
@@ -44,7 +35,7 @@ fn failed_rename_removes_temp_file() {
     let err = write_atomic(&target, b"data").unwrap_err();
     assert!(matches!(err, IoError::Write { .. }), "{err:?}");
     assert!(err.to_string().contains("taken"), "{err}");
-    assert_eq!(dir_names(&dir), vec!["taken"]);
+    assert_eq!(testkit::sorted_file_names(&dir), vec!["taken"]);
     assert!(target.join("inside").is_dir());
     std::fs::remove_dir_all(dir).unwrap();
 }
@@ -72,7 +63,7 @@ fn concurrent_writers_to_one_target_never_mix() {
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(bytes.len(), 4096);
     assert!(bytes.iter().all(|&b| b == bytes[0]), "mixed contents");
-    assert_eq!(dir_names(&dir), vec!["shared.bin"]);
+    assert_eq!(testkit::sorted_file_names(&dir), vec!["shared.bin"]);
     std::fs::remove_dir_all(dir).unwrap();
 }
 
@@ -87,19 +78,19 @@ fn a_staged_folder_replaces_its_target_only_when_committed() {
         let staged = pganeus_io::StagedDir::new(&target).unwrap();
         std::fs::write(staged.path().join("new.txt"), "new").unwrap();
     }
-    assert_eq!(dir_names(&target), ["old.txt"]);
-    assert_eq!(dir_names(&dir), ["out"]);
+    assert_eq!(testkit::sorted_file_names(&target), ["old.txt"]);
+    assert_eq!(testkit::sorted_file_names(&dir), ["out"]);
     // Committed: the new contents replace the old.
     let staged = pganeus_io::StagedDir::new(&target).unwrap();
     std::fs::write(staged.path().join("new.txt"), "new").unwrap();
     staged.commit().unwrap();
-    assert_eq!(dir_names(&target), ["new.txt"]);
-    assert_eq!(dir_names(&dir), ["out"]);
+    assert_eq!(testkit::sorted_file_names(&target), ["new.txt"]);
+    assert_eq!(testkit::sorted_file_names(&dir), ["out"]);
     // A target that did not exist is created.
     let fresh = dir.join("fresh");
     let staged = pganeus_io::StagedDir::new(&fresh).unwrap();
     std::fs::write(staged.path().join("a"), "a").unwrap();
     staged.commit().unwrap();
-    assert_eq!(dir_names(&fresh), ["a"]);
+    assert_eq!(testkit::sorted_file_names(&fresh), ["a"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -46,21 +46,11 @@ fn ours_as_official(st: &SafeTensors) -> Official {
         .iter()
         .map(|(name, t)| {
             let mut bytes = Vec::new();
-            for_le_bytes(&t.data, &mut bytes);
+            t.data.extend_le_bytes(&mut bytes);
             (name.clone(), (t.data.dtype().to_string(), t.shape.clone(), bytes))
         })
         .collect();
     (st.metadata.clone(), tensors)
-}
-
-fn for_le_bytes(d: &TensorData, out: &mut Vec<u8>) {
-    match d {
-        TensorData::F32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        TensorData::F64(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        TensorData::U8(v) => out.extend_from_slice(v),
-        TensorData::I64(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        TensorData::U32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-    }
 }
 
 #[test]

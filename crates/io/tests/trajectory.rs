@@ -62,15 +62,6 @@ fn tempdir(name: &str) -> PathBuf {
     d
 }
 
-fn dir_names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 #[test]
 fn formats_md_example_parses() {
     let truth = read_truth_bytes(FORMATS_EXAMPLE.as_bytes(), Path::new(TRUTH)).unwrap();
@@ -280,7 +271,10 @@ fn invalid_trajectory_is_not_written() {
     assert_eq!(field, "bodies[0].poses[2].t[0]");
     assert!(msg.contains("trajectory.json"), "{msg}");
     assert_eq!(std::fs::read(&path).unwrap(), before, "target was touched");
-    assert_eq!(dir_names(path.parent().unwrap()), vec!["trajectory.json"]);
+    assert_eq!(
+        testkit::sorted_file_names(path.parent().unwrap()),
+        vec!["trajectory.json"]
+    );
 
     // Nothing is created either when the target did not exist.
     let fresh = dir.join("fresh.json");

@@ -175,6 +175,12 @@ pub fn load_field(path: &Path) -> Result<LoadedField, CheckpointError> {
     load_from(&st, path)
 }
 
+/// [`load_field`] from the file's bytes already in memory; `path` is only used in errors.
+pub fn load_field_bytes(bytes: &[u8], path: &Path) -> Result<LoadedField, CheckpointError> {
+    let st = pganeus_io::read_safetensors_bytes(bytes, path)?;
+    load_from(&st, path)
+}
+
 fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointError> {
     if meta(st, path, "format")? != FORMAT {
         return Err(invalid(path, format!("not a {FORMAT} checkpoint")));

@@ -7,7 +7,7 @@
 //! the two-pose switching of Eq. 3–4) or from a single `train` run (one field;
 //! its zero level is the mesh).
 
-use crate::checkpoint::{load_field, CheckpointError, LoadedField};
+use crate::checkpoint::{load_field, load_field_bytes, CheckpointError, LoadedField};
 use crate::switching::{route, Route};
 use geom::{Camera, Pose, Quat, TriMesh, Vec3};
 use serde::Deserialize;
@@ -124,17 +124,15 @@ fn digest(bytes: &[u8]) -> u64 {
 /// (`object_mesh.ply`, positions in double precision, so it is the very mesh extraction gives) under the
 /// checkpoint's digest (`object_mesh.json`): every `fit`, `render` and `eval` of the run used to extract
 /// it again (seconds each). A missing, stale or unreadable copy is made again; a folder that cannot be
-/// written only costs the extraction.
-fn zero_level_cached(ckpt: &Path, field: &LoadedField) -> TriMesh {
+/// written only costs the extraction. `checkpoint_digest`: [`digest`] of the checkpoint's bytes.
+fn zero_level_cached(ckpt: &Path, checkpoint_digest: u64, field: &LoadedField) -> TriMesh {
     let dir = ckpt.parent().unwrap_or(Path::new("."));
     let (mesh_path, key_path) = (dir.join("object_mesh.ply"), dir.join("object_mesh.json"));
-    let key = std::fs::read(ckpt)
-        .ok()
-        .map(|b| serde_json::json!({"checkpoint_digest": format!("{:016x}", digest(&b)), "res": RUN_MESH_RES}));
+    let key = serde_json::json!({"checkpoint_digest": format!("{checkpoint_digest:016x}"), "res": RUN_MESH_RES});
     let stored = std::fs::read(&key_path)
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
-    if key.is_some() && stored == key {
+    if stored.as_ref() == Some(&key) {
         match pganeus_io::read_ply(&mesh_path) {
             Ok(ply) if !ply.mesh.faces.is_empty() => {
                 tracing::debug!("{}: the cached zero level", mesh_path.display());
@@ -145,16 +143,14 @@ fn zero_level_cached(ckpt: &Path, field: &LoadedField) -> TriMesh {
     }
     let levels = field.config.field.grid.levels;
     let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, RUN_MESH_RES);
-    if let Some(key) = key {
-        let opts = pganeus_io::PlyWriteOptions {
-            positions_f64: true,
-            ..Default::default()
-        };
-        let written = pganeus_io::write_ply_with(&mesh_path, &pganeus_io::PlyMesh::from_mesh(zero.clone()), &opts)
-            .and_then(|()| pganeus_io::write_atomic(&key_path, key.to_string().as_bytes()));
-        if let Err(e) = written {
-            tracing::debug!("the zero level is not cached: {e}");
-        }
+    let opts = pganeus_io::PlyWriteOptions {
+        positions_f64: true,
+        ..Default::default()
+    };
+    let written = pganeus_io::write_ply_with(&mesh_path, &pganeus_io::PlyMesh::from_mesh(zero.clone()), &opts)
+        .and_then(|()| pganeus_io::write_atomic(&key_path, key.to_string().as_bytes()));
+    if let Err(e) = written {
+        tracing::debug!("the zero level is not cached: {e}");
     }
     zero
 }
@@ -229,8 +225,10 @@ impl ObjectModel {
 
     fn load_run(run: &Path) -> Result<Self, ObjectError> {
         let ckpt = checkpoint_in(run);
-        let field = load_field(&ckpt)?;
-        let zero = zero_level_cached(&ckpt, &field);
+        // Read once: the field and the digest that names its cached zero level.
+        let bytes = std::fs::read(&ckpt).map_err(|e| invalid(&ckpt, e.to_string()))?;
+        let field = load_field_bytes(&bytes, &ckpt)?;
+        let zero = zero_level_cached(&ckpt, digest(&bytes), &field);
         let (volume, com) = closed_volume(run, &zero)?;
         let capture_from_body = Pose::from_translation(com);
         Ok(Self {

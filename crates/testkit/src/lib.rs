@@ -91,6 +91,16 @@ pub fn check_jacobian(
     Ok(worst)
 }
 
+/// The names of the entries of `dir`, sorted.
+pub fn sorted_file_names(dir: &std::path::Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 /// A fresh, empty folder for one test under the system temp dir, unique to
 /// this process, `prefix` and `name` (removed first if a run left it behind).
 pub fn scratch_dir(prefix: &str, name: &str) -> std::path::PathBuf {

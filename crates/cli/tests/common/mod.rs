@@ -49,3 +49,24 @@ pub fn tabletop(d: &Path, (width, height): (u32, u32), views: usize, frames: usi
     assert!(o.status.success(), "{}", text(&o));
     d.join("data")
 }
+
+/// `from` copied into `to`, folders included.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// Why a command's outcome is not a clean refusal (exit code 1, every needle in its error output, no
+/// panic), or `None` when it is one.
+pub fn not_refused(o: &Output, needles: &[&str]) -> Option<String> {
+    let err = String::from_utf8_lossy(&o.stderr);
+    let clean = o.status.code() == Some(1) && needles.iter().all(|n| err.contains(n)) && !err.contains("panicked");
+    (!clean).then(|| format!("exit {:?}, wanted {needles:?}: {}", o.status.code(), text(o)))
+}

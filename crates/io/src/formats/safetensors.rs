@@ -92,7 +92,8 @@ impl TensorData {
         }
     }
 
-    fn extend_le_bytes(&self, out: &mut Vec<u8>) {
+    /// Appends the elements to `out` as little-endian bytes (the file's buffer layout).
+    pub fn extend_le_bytes(&self, out: &mut Vec<u8>) {
         match self {
             TensorData::F32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
             TensorData::F64(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
