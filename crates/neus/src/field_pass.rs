@@ -239,3 +239,44 @@ impl FieldPass {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::neus_field::FieldConfig;
+
+    /// With the view weights zeroed, switching the view direction on leaves every colour as it was; with
+    /// random ones (the plain start) it does not.
+    #[test]
+    fn zeroed_view_weights_make_the_switch_to_view_dependence_seamless() {
+        let origins = [[0.1, -0.6, 0.2], [-0.5, 0.1, 0.3], [0.0, 0.0, -0.7]];
+        let dirs = [[0.0, 1.0, 0.0], [0.8, 0.0, -0.6], [0.0, 0.6, 0.8]];
+        let offsets = [0, 4, 8, 12];
+        let t: Vec<f32> = (0..12).map(|i| 0.3 + 0.05 * i as f32).collect();
+        let rgb = |field: &NeusField, view_independent: bool| {
+            let mut pass = FieldPass::default();
+            let set = PassSettings {
+                active_levels: 8,
+                fd_eps: 1e-3,
+                view_independent,
+            };
+            pass.forward(field, &origins, &dirs, &offsets, &t, set);
+            pass.rgb
+        };
+        let mut field = NeusField::new(&FieldConfig::default(), 7, 0.0);
+        let jolt = |f: &NeusField| {
+            rgb(f, true)
+                .iter()
+                .zip(rgb(f, false))
+                .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max))
+                .fold(0.0, f32::max)
+        };
+        assert!(
+            jolt(&field) > 1e-3,
+            "random view weights change the colour: {}",
+            jolt(&field)
+        );
+        field.zero_view_weights();
+        assert_eq!(jolt(&field), 0.0);
+    }
+}

@@ -139,6 +139,18 @@ impl NeusField {
         }
     }
 
+    /// Zero the colour MLP's weights from the view direction's higher harmonics (all but the constant one).
+    /// While a run ignores the view direction those inputs are 0 and their weights get no gradient, so random
+    /// weights would stay as initialised and jolt every colour the step the direction comes on (a 4 dB drop
+    /// in held-out PSNR on the tabletop scene). From zero the view dependence grows from what the images ask.
+    pub fn zero_view_weights(&mut self) {
+        let n_in = self.color.input_dim();
+        let w = self.color.weight_range(0);
+        for row in self.color_params[w].chunks_exact_mut(n_in) {
+            row[1..SH_DIM].fill(0.0);
+        }
+    }
+
     /// The sharpness `s` of Φ_s.
     pub fn inv_s(&self) -> f32 {
         (self.extra[0] * 10.0).exp().clamp(1e-3, 1e6)

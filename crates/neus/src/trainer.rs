@@ -219,7 +219,10 @@ impl NeusTrainer {
         );
         // The world's plane z = 0 (the board) in unit coordinates, where a scene field starts.
         let board_height = (-data.centre.z / data.radius) as f32;
-        let field = NeusField::new(&config.field, config.seed, board_height);
+        let mut field = NeusField::new(&config.field, config.seed, board_height);
+        if config.view_independent_steps > 0 {
+            field.zero_view_weights();
+        }
         let bg_optim = field.background.as_ref().map(BackgroundOptim::new);
         let adam = [
             Adam::new(field.grid_params.len()),

@@ -5,7 +5,7 @@
 
 use geom::{Camera, Intrinsics, Pose, Quat, SplitMix64, Vec3};
 use neus::checkpoint::LoadedField;
-use neus::compose::{prerender_scene, render_composed, Behind, Composer, Layer, RayGradient};
+use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer, RayGradient};
 use neus::occupancy::OccupancyGrid;
 use neus::render_view::{render_view, RenderSettings};
 use neus::FieldInit;
@@ -72,7 +72,22 @@ fn loss_and_grads(n: usize, which: usize, seed: u64) -> Vec<RayGradient> {
         .collect()
 }
 
-fn value(c: &Composer, g: &[RayGradient]) -> f64 {
+/// What a render leaves for [`value`]: each ray's outputs and the object's opacity.
+struct Rendered {
+    out: Vec<ComposedRay>,
+    object_opacity: Vec<f32>,
+}
+
+impl From<&Composer> for Rendered {
+    fn from(c: &Composer) -> Self {
+        Self {
+            out: c.out.clone(),
+            object_opacity: c.object_opacity.clone(),
+        }
+    }
+}
+
+fn value(c: &Rendered, g: &[RayGradient]) -> f64 {
     c.out
         .iter()
         .zip(g)
@@ -145,40 +160,66 @@ fn check_pose_gradients_in(
         Some(p) => Behind::Scene(p),
         None => Behind::Colour([0.0; 3]),
     };
-    for which in 0..3 {
-        let grads = loss_and_grads(o.len(), which, 11 + which as u64);
-        let mut c = Composer::default();
-        let layers = layers_at(&pose);
-        c.forward(&layers, 1, behind, &o, &d);
-        let covered = c.object_opacity.iter().filter(|&&a| a > 0.5).count();
-        let expected = if silhouette {
-            covered > 10 && covered < o.len() - 10
-        } else {
-            covered == o.len()
-        };
-        assert!(expected, "the object covers {covered} of {} pixels", o.len());
-        let analytic = c.backward(&layers, &grads);
-        for k in 0..6 {
-            // The least-squares slope over six evenly spaced offsets: f32 rendering noise averages out.
-            let h = if k < 3 { 1e-5 } else { 2e-4 } * if which == 1 { 2.0 } else { 1.0 };
-            let moved = |s: f64| {
+    let grads: Vec<Vec<RayGradient>> = (0..3)
+        .map(|which| loss_and_grads(o.len(), which, 11 + which as u64))
+        .collect();
+    let analytic: Vec<[f64; 6]> = grads
+        .iter()
+        .map(|grads| {
+            let mut c = Composer::default();
+            let layers = layers_at(&pose);
+            c.forward(&layers, 1, behind, &o, &d);
+            let covered = c.object_opacity.iter().filter(|&&a| a > 0.5).count();
+            let expected = if silhouette {
+                covered > 10 && covered < o.len() - 10
+            } else {
+                covered == o.len()
+            };
+            assert!(expected, "the object covers {covered} of {} pixels", o.len());
+            c.backward(&layers, grads)[0]
+        })
+        .collect();
+    // Central differences: the least-squares slope over six evenly spaced offsets (f32 rendering noise
+    // averages out), at steps of `base` for colour and opacity and twice that for depth. Every offset is then a
+    // multiple of `base` (±1, ±2, ±3, ±4, ±6), so each moved pose is rendered once for all three outputs.
+    let multiples = [-6, -4, -3, -2, -1, 1, 2, 3, 4, 6];
+    let offsets = [-3.0, -2.0, -1.0, 1.0, 2.0, 3.0];
+    let mut fd = [[0.0f64; 6]; 3];
+    // One composer for every render: its buffers are reused rather than allocated anew each time.
+    let mut c = Composer::default();
+    for k in 0..6 {
+        let base = if k < 3 { 1e-5 } else { 2e-4 };
+        let renders: Vec<Rendered> = multiples
+            .iter()
+            .map(|&m| {
                 let mut e = [0.0; 6];
-                e[k] = s * h;
+                e[k] = m as f64 * base;
                 let rot = Quat::exp(Vec3::new(e[3], e[4], e[5]));
                 let p = Pose::new(rot * pose.q, pose.t + Vec3::new(e[0], e[1], e[2]));
-                let mut c = Composer::default();
                 c.forward(&layers_at(&p), 1, behind, &o, &d);
-                value(&c, &grads)
+                Rendered::from(&c)
+            })
+            .collect();
+        for (which, grads) in grads.iter().enumerate() {
+            let factor = if which == 1 { 2 } else { 1 };
+            let h = base * factor as f64;
+            let moved = |s: f64| {
+                let m = s as i32 * factor;
+                value(&renders[multiples.iter().position(|&x| x == m).unwrap()], grads)
             };
-            let offsets = [-3.0, -2.0, -1.0, 1.0, 2.0, 3.0];
-            let fd =
+            fd[which][k] =
                 offsets.iter().map(|&s| s * moved(s)).sum::<f64>() / (h * offsets.iter().map(|s| s * s).sum::<f64>());
+        }
+    }
+    for which in 0..3 {
+        for k in 0..6 {
+            let fd = fd[which][k];
             let block = if k < 3 { 0..3 } else { 3..6 };
-            let scale = analytic[0][block].iter().map(|v| v * v).sum::<f64>().sqrt();
-            let err = (analytic[0][k] - fd).abs() / scale.max(1e-9);
+            let scale = analytic[which][block].iter().map(|v| v * v).sum::<f64>().sqrt();
+            let err = (analytic[which][k] - fd).abs() / scale.max(1e-9);
             eprintln!(
                 "output {which} component {k}: analytic {:.5e} differences {fd:.5e} error {err:.2e}",
-                analytic[0][k]
+                analytic[which][k]
             );
             // NeuS's section opacity has a kink where a ray grazes the surface (cos = 0, `iter_cos`), right
             // at the silhouette where depth jumps from the object to the scene: differences over a window
@@ -188,7 +229,7 @@ fn check_pose_gradients_in(
             assert!(
                 err <= tolerance,
                 "output {which}, component {k}: analytic {:.6e}, differences {fd:.6e} (relative to the block's norm {scale:.3e}: {err:.2e})",
-                analytic[0][k]
+                analytic[which][k]
             );
         }
     }

@@ -1,0 +1,622 @@
+//! `pganeus fit` end to end, with one body and with several. One test binary, so that the two long tests
+//! share the two cores.
+
+mod common;
+
+mod one_body {
+    //! `pganeus fit` end to end on a CI-sized video: a ball (an untrained sphere
+    //! field saved as a run, so nothing is trained here) tossed onto a board (an
+    //! untrained board field as the scene run), simulated by `simulate`, filmed
+    //! by `render --trajectory`, then fitted from a guess 1 cm and 10° off; and
+    //! the bad inputs `fit` must refuse without writing anything.
+
+    use geom::{Camera, Intrinsics, Pose, Quat, Vec3};
+    use neus::checkpoint::save_field;
+    use neus::untrained_field::untrained_field;
+    use neus::{CaptureSubject, FieldInit};
+    use std::path::{Path, PathBuf};
+    use std::process::{Command, Output};
+
+    use super::common::{bin, copy_dir, text};
+
+    /// The video's camera: 96×72, looking down at the toss from the front.
+    fn camera() -> Camera<f64> {
+        let (w, h) = (96, 72);
+        let k = Intrinsics {
+            fx: 1.1 * w as f64,
+            fy: 1.1 * w as f64,
+            cx: 0.5 * w as f64,
+            cy: 0.5 * h as f64,
+            skew: 0.0,
+        };
+        Camera::look_at(
+            Vec3::new(0.05, -0.33, 0.25),
+            Vec3::new(0.05, 0.01, 0.02),
+            Vec3::new(0.0, 0.0, 1.0),
+            k,
+            w,
+            h,
+        )
+    }
+
+    fn run_ok(cmd: &mut Command) -> Output {
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+        o
+    }
+
+    struct Fixture {
+        d: PathBuf,
+        scene: PathBuf,
+        ball: PathBuf,
+        video: PathBuf,
+        truth: pganeus_io::Trajectory,
+        /// Where the ball's body frame sat in its capture (the sphere's centre of mass).
+        com: Vec3<f64>,
+    }
+
+    /// A scene run, a ball run, the ball's simulated toss and its video.
+    fn fixture(d: &Path) -> Fixture {
+        let scene = d.join("scene");
+        let ball = d.join("ball");
+        std::fs::create_dir_all(&scene).unwrap();
+        std::fs::create_dir_all(&ball).unwrap();
+        let mut board = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+        board.config.kind = CaptureSubject::Scene;
+        board.capture = PathBuf::from("background");
+        save_field(&board, &scene.join("checkpoint.safetensors")).unwrap();
+        let sphere = untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3);
+        save_field(&sphere, &ball.join("checkpoint.safetensors")).unwrap();
+        // The body the simulator moves is the run's zero level, as `fit` builds it.
+        // Loading the run as an object extracts that zero level once and caches it beside the checkpoint
+        // (`object_mesh.ply`), where `render` and `fit` find it again.
+        neus::ObjectModel::load(&ball).unwrap();
+        let mesh = pganeus_io::read_mesh(&ball.join("object_mesh.ply")).unwrap();
+        let com = sim::mass_properties(&mesh, 1.0).center_of_mass;
+        let scene_file = r#"
+[sim]
+fps = 30
+frames = 10
+[contact]
+restitution = 0.5
+friction = 0.3
+[[scene]]
+shape = "plane"
+[[body]]
+name = "ball"
+mesh = "ball/object_mesh.ply"
+density = 1000
+t = [-0.04, 0.0, 0.06]
+v = [0.6, 0.1, 0.3]
+omega = [0.0, 4.0, 0.0]
+"#;
+        std::fs::write(d.join("toss.toml"), scene_file).unwrap();
+        run_ok(
+            bin()
+                .args(["simulate", "--scene"])
+                .arg(d.join("toss.toml"))
+                .arg("--out")
+                .arg(d.join("truth.json")),
+        );
+        let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
+        let cam = camera();
+        let cams = serde_json::json!([{"width": cam.width, "height": cam.height, "world_mat": cam.world_mat()}]);
+        std::fs::write(d.join("cams.json"), cams.to_string()).unwrap();
+        let video = d.join("toss");
+        run_ok(
+            bin()
+                .args(["render", "--trajectory"])
+                .arg(d.join("truth.json"))
+                .arg("--scene")
+                .arg(&scene)
+                .arg("--object")
+                .arg(format!("ball={}", ball.display()))
+                .arg("--camera")
+                .arg(d.join("cams.json"))
+                .arg("--out")
+                .arg(&video),
+        );
+        Fixture {
+            d: d.to_path_buf(),
+            scene,
+            ball,
+            video,
+            truth,
+            com,
+        }
+    }
+
+    /// An `init.json` for `name` placing the ball's capture pose at `pose` in frame 0 (body frame → world).
+    fn init_for(name: &str, pose: Pose<f64>, com: Vec3<f64>) -> String {
+        // p_frame0 = R(q) p_capture + t with p_capture = p_body + com.
+        let t = pose.t - pose.q.rotate(com);
+        serde_json::json!({name: {"capture": "toy_b", "t": t.to_array(), "q": pose.q.to_array_re()}}).to_string()
+    }
+
+    const SMALL_FIT: &str = r#"
+launch_frames = 3
+rounds = 1
+pga_multi_start = false
+[first_pose]
+iterations = 60
+rays_per_step = 256
+[pa]
+iterations = 40
+rays_per_frame = 128
+window_steps = 10
+[ga]
+contact_points = 8
+[ga.pose]
+iterations = 25
+rays_per_step = 256
+lr_translation = 0.001
+lr_rotation = 0.01
+[pga]
+iterations = 20
+[auto_init]
+screened = 4
+screen_iterations = 10
+refined = 2
+[auto_init.refine]
+iterations = 40
+rays_per_step = 256
+"#;
+
+    fn fit_cmd(f: &Fixture, video: &Path, object: &str, init: &Path, out: &Path) -> Command {
+        fit_cmd_with(f, video, object, init, out, &f.d.join("small.toml"))
+    }
+
+    fn fit_cmd_with(f: &Fixture, video: &Path, object: &str, init: &Path, out: &Path, config: &Path) -> Command {
+        let mut c = bin();
+        c.arg("fit")
+            .arg(video)
+            .arg("--scene")
+            .arg(&f.scene)
+            .arg("--object")
+            .arg(object)
+            .arg("--init")
+            .arg(init)
+            .arg("--config")
+            .arg(config)
+            .arg("--out")
+            .arg(out);
+        c
+    }
+
+    #[test]
+    fn fit_recovers_a_toss_and_refuses_bad_inputs() {
+        let d = testkit::scratch_dir("cli", "fit");
+        let f = fixture(&d);
+        std::fs::write(d.join("small.toml"), SMALL_FIT).unwrap();
+        let truth_poses: Vec<Pose<f64>> = f.truth.bodies[0]
+            .poses
+            .iter()
+            .map(|p| Pose::new(Quat::cst(p.q), Vec3::cst(p.t)))
+            .collect();
+        // A guess 1 cm and 10° off, as two marker detections give.
+        let p0 = truth_poses[0];
+        let off = Pose::new(
+            Quat::exp(Vec3::new(0.0, 0.0, 10f64.to_radians())) * p0.q,
+            p0.t + Vec3::new(0.008, -0.006, 0.0),
+        );
+        std::fs::write(d.join("init.json"), init_for("ball", off, f.com)).unwrap();
+        let object = format!("ball={}", f.ball.display());
+        let out = d.join("fit");
+        let t = std::time::Instant::now();
+        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
+        eprintln!("{}\nfit took {:.1} s", text(&o), t.elapsed().as_secs_f64());
+        for file in [
+            "trajectory.json",
+            "pa.json",
+            "ga.json",
+            "pga.json",
+            "first_pose.json",
+            "config.toml",
+            "log.jsonl",
+            "strip.png",
+            "animation.png",
+            "object.ply",
+            "render/009.png",
+        ] {
+            assert!(out.join(file).exists(), "{file} is missing");
+        }
+        let fitted = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
+        let b = &fitted.bodies[0];
+        let reference = &b.extra["object"]["reference"];
+        assert_eq!(reference["capture"], "toy_b");
+        let (mut worst, mut sum) = (0.0f64, 0.0);
+        for (k, (p, truth)) in b.poses.iter().zip(&truth_poses).enumerate() {
+            let e = (Vec3::cst(p.t) - truth.t).norm();
+            eprintln!("frame {k}: {:.2} mm", e * 1e3);
+            worst = worst.max(e);
+            sum += e;
+        }
+        let ious: Vec<f64> = fitted.extra["frames"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["iou"].as_f64().unwrap())
+            .collect();
+        eprintln!(
+            "fit vs truth: mean {:.2} mm, worst {:.2} mm; IoU worst {:.3}; v0 {:?} (true {:?})",
+            sum / b.poses.len() as f64 * 1e3,
+            worst * 1e3,
+            ious.iter().cloned().fold(1.0, f64::min),
+            b.initial.v,
+            f.truth.bodies[0].initial.v
+        );
+        // Measured (2026-11-24): mean 2.2 mm, worst 4.2 mm (the last frames, rolling, where depth comes from the
+        // physics alone: the ball is 14 px wide), IoU worst 0.88, v0 8 mm/s off. Each bound leaves room for
+        // the random pixel batches, not for a fit that lost the ball (before the mask-centred starts: 24 mm).
+        assert!(worst < 0.006, "worst frame {:.2} mm off", worst * 1e3);
+        assert!(ious.iter().all(|&i| i > 0.85), "IoU {ious:?}");
+        let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
+        assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);
+
+        // Run again: the finished fit is left as it is.
+        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
+        assert!(text(&o).contains("already finished"), "{}", text(&o));
+        // A fit stopped before its end (no trajectory.json yet) resumes: every stage is read back, nothing
+        // refitted.
+        std::fs::remove_file(out.join("trajectory.json")).unwrap();
+        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
+        for needle in ["resuming", "first pose: from", "PA: from", "GA: from"] {
+            assert!(text(&o).contains(needle), "{needle}: {}", text(&o));
+        }
+        assert!(out.join("trajectory.json").exists());
+        // Other settings into the same folder need --force.
+        std::fs::write(d.join("other.toml"), SMALL_FIT.replace("rounds = 1", "rounds = 2")).unwrap();
+        let o = fit_cmd_with(&f, &f.video, &object, &d.join("init.json"), &out, &d.join("other.toml"))
+            .output()
+            .unwrap();
+        assert!(!o.status.success() && text(&o).contains("--force"), "{}", text(&o));
+
+        first_pose_without_a_guess(&f, &object, &truth_poses[0]);
+        refusals(&f, &object);
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// `--init auto`: the first stage alone finds the ball in flight (its silhouette's size gives the depth).
+    fn first_pose_without_a_guess(f: &Fixture, object: &str, truth: &Pose<f64>) {
+        let out = f.d.join("auto");
+        let o = run_ok(fit_cmd(f, &f.video, object, Path::new("auto"), &out).args(["--stages", "first"]));
+        eprintln!("{}", text(&o));
+        let found: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("first_pose.json")).unwrap()).unwrap();
+        let t: Vec<f64> = found["t"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let e = (Vec3::new(t[0], t[1], t[2]) - truth.t).norm();
+        eprintln!("--init auto: first pose {:.2} mm off", e * 1e3);
+        let guess: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("init_auto.json")).unwrap()).unwrap();
+        assert_eq!(guess["ball"]["capture"], "toy_b");
+        assert!(e < 0.004, "--init auto: first pose {:.2} mm off", e * 1e3);
+    }
+
+    /// Each bad input: a message with the needle, a non-zero exit and no output folder.
+    fn refusals(f: &Fixture, object: &str) {
+        let d = &f.d;
+        let good_init = d.join("init.json");
+        let expect = |name: &str, video: &Path, object: &str, init: &Path, needle: &str| {
+            let out = d.join(format!("refused_{name}"));
+            let o = fit_cmd(f, video, object, init, &out).output().unwrap();
+            assert!(!o.status.success(), "{name}: accepted\n{}", text(&o));
+            assert!(text(&o).contains(needle), "{name}: {}", text(&o));
+            assert!(!out.exists(), "{name}: wrote {}", out.display());
+        };
+        // A camera that moves.
+        let moving = d.join("moving");
+        copy_dir(&f.video, &moving);
+        let npz = moving.join("cameras_sphere.npz");
+        let mut cams = pganeus_io::read_cameras_npz(&npz, 10).unwrap();
+        cams[4].world_mat[0][3] += 5.0;
+        pganeus_io::write_cameras_npz(&npz, &cams).unwrap();
+        expect("moving", &moving, object, &good_init, "fixed camera");
+        // No mask folder for the body.
+        let unmasked = d.join("unmasked");
+        copy_dir(&f.video, &unmasked);
+        std::fs::remove_dir_all(unmasked.join("mask")).unwrap();
+        std::fs::remove_dir_all(unmasked.join("mask_ball")).unwrap();
+        expect("unmasked", &unmasked, object, &good_init, "no mask_ball/");
+        // Masks empty in every frame.
+        let empty = d.join("empty");
+        copy_dir(&f.video, &empty);
+        for dir in ["mask", "mask_ball"] {
+            for e in std::fs::read_dir(empty.join(dir)).unwrap() {
+                let p = e.unwrap().path();
+                let mut m = pganeus_io::read_png(&p).unwrap();
+                m.data.iter_mut().for_each(|v| *v = 0);
+                pganeus_io::write_png(&p, &m).unwrap();
+            }
+        }
+        expect("empty", &empty, object, &good_init, "empty in every frame");
+        // An object folder that is neither a merge nor a run.
+        let nothing = d.join("nothing");
+        std::fs::create_dir_all(&nothing).unwrap();
+        expect(
+            "no_merge",
+            &f.video,
+            &format!("ball={}", nothing.display()),
+            &good_init,
+            "neither a merge output",
+        );
+        // A guess for a body the video has no mask for.
+        let mut two: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&good_init).unwrap()).unwrap();
+        two["cup"] = two["ball"].clone();
+        std::fs::write(d.join("two.json"), two.to_string()).unwrap();
+        expect("extra_guess", &f.video, object, &d.join("two.json"), "\"cup\"");
+        // A guess whose object projects outside the image.
+        let far = init_for("ball", Pose::from_translation(Vec3::new(3.0, 0.0, 0.03)), f.com);
+        std::fs::write(d.join("far.json"), far).unwrap();
+        expect("outside", &f.video, object, &d.join("far.json"), "outside the image");
+    }
+}
+
+mod several_bodies {
+    //! `pganeus fit` with several bodies, end to end on a CI-sized video (96×72,
+    //! 8 frames): three balls (one untrained sphere field saved as a run, so
+    //! nothing is trained here) on a board (an untrained board field as the scene run): one rolls
+    //! into a second at rest, which it knocks on; a third is tossed apart from
+    //! them. `simulate` moves them with pair values unlike the board's,
+    //! `render --trajectory` films them with a mask per body, and `fit` recovers
+    //! every body's poses, the collision frame and the launches from guesses
+    //! 8 mm and 10° off (the same code as two bodies: no special case).
+
+    use geom::{Camera, Intrinsics, Pose, Quat, Vec3};
+    use neus::checkpoint::save_field;
+    use neus::untrained_field::untrained_field;
+    use neus::{CaptureSubject, FieldInit};
+    use std::process::{Command, Output};
+
+    use super::common::{bin, text};
+
+    fn run_ok(cmd: &mut Command) -> Output {
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+        o
+    }
+
+    /// 96×72, looking down at the three balls from the front.
+    fn camera() -> Camera<f64> {
+        let (w, h) = (96, 72);
+        let k = Intrinsics {
+            fx: 1.2 * w as f64,
+            fy: 1.2 * w as f64,
+            cx: 0.5 * w as f64,
+            cy: 0.5 * h as f64,
+            skew: 0.0,
+        };
+        Camera::look_at(
+            Vec3::new(-0.02, -0.36, 0.3),
+            Vec3::new(-0.02, 0.03, 0.02),
+            Vec3::new(0.0, 0.0, 1.0),
+            k,
+            w,
+            h,
+        )
+    }
+
+    const SMALL_FIT: &str = r#"
+launch_frames = 3
+pga_multi_start = false
+[first_pose]
+iterations = 40
+rays_per_step = 192
+[ga]
+hypotheses = false
+[ga.pose]
+iterations = 15
+rays_per_step = 192
+lr_translation = 0.001
+lr_rotation = 0.01
+[pga]
+iterations = 25
+"#;
+
+    const NAMES: [&str; 3] = ["rolling", "struck", "tossed"];
+
+    #[test]
+    fn fit_recovers_three_balls_one_knocking_another() {
+        let d = testkit::scratch_dir("cli", "fit_bodies");
+        let scene = d.join("scene");
+        let ball = d.join("ball");
+        std::fs::create_dir_all(&scene).unwrap();
+        std::fs::create_dir_all(&ball).unwrap();
+        let mut board = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+        board.config.kind = CaptureSubject::Scene;
+        board.capture = "background".into();
+        save_field(&board, &scene.join("checkpoint.safetensors")).unwrap();
+        let sphere = untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3);
+        save_field(&sphere, &ball.join("checkpoint.safetensors")).unwrap();
+        // Loading the run as an object extracts that zero level once and caches it beside the checkpoint
+        // (`object_mesh.ply`), where `render` and `fit` find it again.
+        neus::ObjectModel::load(&ball).unwrap();
+        let mesh = pganeus_io::read_mesh(&ball.join("object_mesh.ply")).unwrap();
+        let com = sim::mass_properties(&mesh, 1.0).center_of_mass;
+        let radius = mesh
+            .vertices
+            .iter()
+            .map(|v| (Vec3::cst(*v) - com).norm())
+            .fold(0.0, f64::max);
+        // The scene file places the centre of mass: just above the board.
+        let z = radius + 0.001;
+        let scene_file = format!(
+            r#"
+[sim]
+fps = 30
+frames = 8
+[contact]
+restitution = 0.5
+friction = 0.3
+[[scene]]
+shape = "plane"
+[[body]]
+name = "rolling"
+mesh = "ball/object_mesh.ply"
+density = 1000
+t = [-0.16, 0.0, {z}]
+v = [1.2, 0.0, 0.0]
+[[body]]
+name = "struck"
+mesh = "ball/object_mesh.ply"
+density = 1000
+t = [0.0, 0.008, {z}]
+[[body]]
+name = "tossed"
+mesh = "ball/object_mesh.ply"
+density = 1000
+t = [-0.02, 0.11, {z2}]
+v = [-0.3, 0.0, 0.2]
+[[pair]]
+bodies = ["rolling", "struck"]
+restitution = 0.85
+friction = 0.15
+"#,
+            z2 = z + 0.05
+        );
+        std::fs::write(d.join("balls.toml"), scene_file).unwrap();
+        run_ok(
+            bin()
+                .args(["simulate", "--scene"])
+                .arg(d.join("balls.toml"))
+                .arg("--out")
+                .arg(d.join("truth.json")),
+        );
+        let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
+        let cam = camera();
+        let cams = serde_json::json!([{"width": cam.width, "height": cam.height, "world_mat": cam.world_mat()}]);
+        std::fs::write(d.join("cams.json"), cams.to_string()).unwrap();
+        let video = d.join("balls");
+        let mut render = bin();
+        render
+            .args(["render", "--trajectory"])
+            .arg(d.join("truth.json"))
+            .arg("--scene")
+            .arg(&scene)
+            .arg("--camera")
+            .arg(d.join("cams.json"))
+            .arg("--out")
+            .arg(&video);
+        for n in NAMES {
+            render.arg("--object").arg(format!("{n}={}", ball.display()));
+        }
+        run_ok(&mut render);
+
+        // The frame the simulator first reports the two balls touching.
+        let pair = &truth.contact.extra["pairs"][0];
+        let touch = pair["contact"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .position(|c| c.as_bool() == Some(true))
+            .expect("the rolling ball reaches the struck one");
+        let true_poses = |b: usize| -> Vec<Pose<f64>> {
+            truth.bodies[b]
+                .poses
+                .iter()
+                .map(|p| Pose::new(Quat::cst(p.q), Vec3::cst(p.t)))
+                .collect()
+        };
+        // Guesses 8 mm and 10° off: p_frame0 = R(q) p_capture + t, with p_capture = p_body + com.
+        let mut init = serde_json::Map::new();
+        for (b, n) in NAMES.iter().enumerate() {
+            let p0 = true_poses(b)[0];
+            let off = Pose::new(
+                Quat::exp(Vec3::new(0.0, 0.0, 10f64.to_radians())) * p0.q,
+                p0.t + Vec3::new(0.006, -0.005, 0.0) * if b % 2 == 0 { 1.0 } else { -1.0 },
+            );
+            let t = off.t - off.q.rotate(com);
+            init.insert(
+                n.to_string(),
+                serde_json::json!({"capture": "toy_b", "t": t.to_array(), "q": off.q.to_array_re()}),
+            );
+        }
+        std::fs::write(d.join("init.json"), serde_json::Value::Object(init).to_string()).unwrap();
+        std::fs::write(d.join("small.toml"), SMALL_FIT).unwrap();
+        let out = d.join("fit");
+        let mut fit = bin();
+        fit.arg("fit")
+            .arg(&video)
+            .arg("--scene")
+            .arg(&scene)
+            .arg("--init")
+            .arg(d.join("init.json"))
+            .arg("--config")
+            .arg(d.join("small.toml"))
+            .arg("--out")
+            .arg(&out);
+        for n in NAMES {
+            fit.arg("--object").arg(format!("{n}={}", ball.display()));
+        }
+        let t = std::time::Instant::now();
+        let o = run_ok(&mut fit);
+        eprintln!("{}\nfit took {:.1} s", text(&o), t.elapsed().as_secs_f64());
+        for file in [
+            "trajectory.json",
+            "ga_tracked.json",
+            "pga_tracked.json",
+            "ga.json",
+            "pga.json",
+            "first_pose.json",
+            "strip.png",
+            "object_struck.ply",
+            "render/007.png",
+        ] {
+            assert!(out.join(file).exists(), "{file} is missing");
+        }
+        // GA's poses put the collision within a frame of the simulator's report.
+        let log = std::fs::read_to_string(out.join("log.jsonl")).unwrap();
+        let found: Vec<u64> = log
+            .lines()
+            .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+            .filter_map(|v| v["first_contact"].as_u64())
+            .collect();
+        eprintln!("collision: frame {touch} (simulator), {found:?} (found)");
+        assert!(
+            found.iter().any(|&k| (k as i64 - touch as i64).abs() <= 1),
+            "collision found in frames {found:?}, the simulator's is {touch}"
+        );
+        let fitted = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
+        for (b, n) in NAMES.iter().enumerate() {
+            let body = fitted
+                .bodies
+                .iter()
+                .find(|x| x.name == *n)
+                .expect("every body in the output");
+            let truth_b = true_poses(b);
+            let errors: Vec<f64> = body
+                .poses
+                .iter()
+                .zip(&truth_b)
+                .map(|(p, t)| (Vec3::cst(p.t) - t.t).norm() * 1e3)
+                .collect();
+            let ious: Vec<f64> = body.extra["frames"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|r| r["iou"].as_f64().unwrap())
+                .collect();
+            let worst = errors.iter().cloned().fold(0.0, f64::max);
+            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+            eprintln!(
+                "{n}: position mm {errors:.1?}; IoU worst {:.3}; v0 {:?} (true {:?})",
+                ious.iter().cloned().fold(1.0, f64::min),
+                body.initial.v,
+                truth.bodies[b].initial.v
+            );
+            // Measured (2026-11-25): rolling 2.2 mm on average (worst 6.3, the impact), struck 2.1 (4.0), tossed
+            // 8.0 (12.3: a 14 px ball in flight, its depth along the line of sight from its silhouette's size);
+            // IoU worst 0.90. Each body's bound leaves room for the pixel batches, not for a body lost, swapped
+            // or stuck; accuracy at scale is measured on the two-body synth at 320×240 (README).
+            let bound = [5.0, 5.0, 12.0][b];
+            assert!(mean < bound, "{n}: {mean:.2} mm off on average (bound {bound} mm)");
+            assert!(worst < 20.0, "{n}: worst frame {worst:.2} mm off");
+            assert!(ious.iter().all(|&i| i > 0.75), "{n}: IoU {ious:?}");
+        }
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}
