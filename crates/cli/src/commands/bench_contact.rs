@@ -4,7 +4,8 @@
 //! with the true contact values (`unfitted`) and then fitted to Rapier's poses
 //! by `fit-physics` (v0, ω0, k_n, μ; multi-start unless `--single-start`).
 //! One JSON line per scene and model: the pose error in every frame (mean,
-//! max, max rotation) before and after the fit.
+//! max, max rotation) before and after the fit, and beside them Rapier's own
+//! spread: its motion at half the time step against the reference.
 
 use anyhow::{anyhow, Result};
 use clap::Args;
@@ -37,12 +38,17 @@ pub struct BenchContactArgs {
 /// against `poses`.
 fn errors(world: &World, params: &[f64], poses: &[Pose<f64>]) -> (f64, f64, f64) {
     let traj = world.simulate(params);
+    pose_errors(traj.frames.iter().map(|f| &f[0].pose), poses)
+}
+
+/// Mean and max translation error (m) and max rotation error (degrees) of `moved` against `poses`.
+fn pose_errors<'a>(moved: impl Iterator<Item = &'a Pose<f64>>, poses: &[Pose<f64>]) -> (f64, f64, f64) {
     let (mut sum, mut max, mut rot) = (0.0, 0.0f64, 0.0f64);
-    for (f, p) in traj.frames.iter().zip(poses) {
-        let e = (f[0].pose.t - p.t).norm();
+    for (m, p) in moved.zip(poses) {
+        let e = (m.t - p.t).norm();
         sum += e;
         max = max.max(e);
-        rot = rot.max(geom::rotation_distance(f[0].pose.q, p.q).to_degrees());
+        rot = rot.max(geom::rotation_distance(m.q, p.q).to_degrees());
     }
     (sum / poses.len() as f64, max, rot)
 }
@@ -87,6 +93,12 @@ pub fn run(a: BenchContactArgs) -> Result<()> {
         let theirs = simulate_videos(&scene, Path::new("."))?;
         let (world, _) = &ours[0];
         let poses: Vec<Pose<f64>> = theirs[0].1.frames.iter().map(|f| f[0].pose).collect();
+        // The reference against itself at half the time step: where a scene is so sensitive that Rapier
+        // moves this far, no model can be held closer to it than that.
+        let mut finer = scene.clone();
+        finer.videos[0].substeps *= 2;
+        let finer = simulate_videos(&finer, Path::new("."))?;
+        let spread = pose_errors(finer[0].1.frames.iter().map(|f| &f[0].pose), &poses);
         for model in [ContactModel::MeanPoint, ContactModel::MultiPoint] {
             let mut w = world.clone();
             w.config.contact_model = model;
@@ -110,6 +122,7 @@ pub fn run(a: BenchContactArgs) -> Result<()> {
                         ContactModel::MultiPoint => "multi_point",
                     },
                     "frames": poses.len(), "unfitted": mm(unfitted), "fitted": mm(fitted),
+                    "rapier_half_step": mm(spread),
                     "restitution": p[6], "friction": p[7],
                     "true_contact": [scene.videos[0].contact.restitution, scene.videos[0].contact.friction],
                     "winner": multi.winner, "seconds": (t0.elapsed().as_secs_f64() * 10.0).round() / 10.0,

@@ -1,0 +1,149 @@
+//! Dev probe: how the motion of synth's contact scenes moves with the solvers' time steps and knobs, ours
+//! and Rapier's (both deterministic, so every difference is the change made).
+//!
+//! ```sh
+//! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x/4x its substeps, ours
+//! cargo run --release --example contact_probe -- search     # 40 random spinning drops onto the ramp
+//! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
+//! ```
+use geom::Pose;
+use sim::ContactModel;
+use std::path::Path;
+use synth::{contact_scenes, simulate_videos, Physics};
+
+fn errs(a: &[Pose<f64>], b: &[Pose<f64>]) -> String {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| {
+            format!(
+                "{:.1}/{:.0}",
+                (p.t - q.t).norm() * 1e3,
+                geom::rotation_distance(p.q, q.q).to_degrees()
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn max_err(a: &[Pose<f64>], b: &[Pose<f64>]) -> (f64, f64) {
+    a.iter().zip(b).fold((0.0f64, 0.0f64), |(e, r), (p, q)| {
+        (
+            e.max((p.t - q.t).norm() * 1e3),
+            r.max(geom::rotation_distance(p.q, q.q).to_degrees()),
+        )
+    })
+}
+
+fn rapier_poses(scene: &synth::SynthScene, factor: usize) -> Vec<Pose<f64>> {
+    let mut s = scene.clone();
+    s.physics = Physics::Rapier;
+    s.videos[0].substeps *= factor;
+    let t = simulate_videos(&s, Path::new(".")).unwrap();
+    t[0].1.frames.iter().map(|f| f[0].pose).collect()
+}
+
+fn ours_poses(scene: &synth::SynthScene, model: ContactModel, factor: usize) -> Vec<Pose<f64>> {
+    let mut w = simulate_videos(scene, Path::new(".")).unwrap()[0].0.clone();
+    w.config.contact_model = model;
+    w.config.substeps *= factor;
+    w.simulate(&w.params()).frames.iter().map(|f| f[0].pose).collect()
+}
+
+/// Rapier against itself at finer steps, and ours against each.
+fn self_consistency(scene: &synth::SynthScene) -> String {
+    let r1 = rapier_poses(scene, 1);
+    let r2 = rapier_poses(scene, 2);
+    let r4 = rapier_poses(scene, 4);
+    let o = ours_poses(scene, ContactModel::MultiPoint, 1);
+    let o4 = ours_poses(scene, ContactModel::MultiPoint, 4);
+    let f = |e: (f64, f64)| format!("{:.1} mm/{:.0}°", e.0, e.1);
+    let turn = geom::rotation_distance(r1[0].q, r1[r1.len() - 1].q).to_degrees();
+    format!(
+        "rapier x2 vs x1 {} | x4 vs x2 {} | ours vs rapier x1 {} | ours vs x4 {} | ours x4 vs ours {} | turned {turn:.0}°",
+        f(max_err(&r2, &r1)),
+        f(max_err(&r4, &r2)),
+        f(max_err(&o, &r1)),
+        f(max_err(&o, &r4)),
+        f(max_err(&o4, &o))
+    )
+}
+
+fn main() {
+    let name = std::env::args().nth(1).unwrap_or_else(|| "ramp-drop".into());
+    if name == "self" {
+        for s in contact_scenes() {
+            println!("{:>14}: {}", s.name, self_consistency(&s));
+        }
+        return;
+    }
+    if name == "search" {
+        let base = contact_scenes().into_iter().find(|s| s.name == "ramp-drop").unwrap();
+        let mut rng = geom::SplitMix64::new(5);
+        for i in 0..40 {
+            let mut s = base.clone();
+            let axis = geom::Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let q = geom::Quat::exp(axis * 1.5);
+            let b = &mut s.videos[0].bodies[0];
+            b.q = [q.w, q.x, q.y, q.z];
+            b.omega = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-2.0, 2.0)];
+            b.t[0] = rng.range(-0.04, 0.04);
+            let label = format!(
+                "{i:>2} q {:?} omega {:?} x {:.3}",
+                b.q.map(|v| (v * 100.0).round() / 100.0),
+                b.omega.map(|v| (v * 10.0).round() / 10.0),
+                b.t[0]
+            );
+            println!("{label}: {}", self_consistency(&s));
+        }
+        return;
+    }
+    let scene = contact_scenes().into_iter().find(|s| s.name == name).unwrap();
+    let ours = simulate_videos(&scene, Path::new(".")).unwrap();
+    let rapier = |substeps_factor: usize| {
+        let mut s = scene.clone();
+        s.physics = Physics::Rapier;
+        s.videos[0].substeps *= substeps_factor;
+        let t = simulate_videos(&s, Path::new(".")).unwrap();
+        t[0].1.frames.iter().map(|f| f[0]).collect::<Vec<_>>()
+    };
+    let r1 = rapier(1);
+    let poses: Vec<Pose<f64>> = r1.iter().map(|s| s.pose).collect();
+    let r2: Vec<Pose<f64>> = rapier(2).iter().map(|s| s.pose).collect();
+    let r4: Vec<Pose<f64>> = rapier(4).iter().map(|s| s.pose).collect();
+    println!("rapier x2 substeps vs rapier: {}", errs(&r2, &poses));
+    println!("rapier x4 substeps vs rapier: {}", errs(&r4, &poses));
+    println!("rapier x4 vs rapier x2:       {}", errs(&r4, &r2));
+    for (i, s) in r1.iter().enumerate().take(10) {
+        println!("rapier frame {i}: t {:?} v {:?} w {:?}", s.pose.t, s.v, s.omega);
+    }
+    let base = ours[0].0.clone();
+    type Knob = (&'static str, fn(&mut sim::World));
+    let knobs: [Knob; 8] = [
+        ("multi_point", |_| {}),
+        ("mean_point", |w| w.config.contact_model = ContactModel::MeanPoint),
+        ("substeps x4", |w| w.config.substeps *= 4),
+        ("sweeps 50", |w| w.config.solver_sweeps = 50),
+        ("threshold 2 mm", |w| w.config.contact_threshold = 0.002),
+        ("no speculative", |w| w.config.speculative_contacts = false),
+        ("restitution threshold 0", |w| {
+            w.config.restitution_threshold = Some(0.0)
+        }),
+        ("substeps x4 sweeps 50", |w| {
+            w.config.substeps *= 4;
+            w.config.solver_sweeps = 50
+        }),
+    ];
+    for (label, knob) in knobs {
+        let mut w = base.clone();
+        w.config.contact_model = ContactModel::MultiPoint;
+        knob(&mut w);
+        let t = w.simulate(&w.params());
+        let p: Vec<Pose<f64>> = t.frames.iter().map(|f| f[0].pose).collect();
+        println!("{label:>24}: {}", errs(&p, &poses));
+        if label == "multi_point" {
+            for (i, s) in t.frames.iter().enumerate().take(10) {
+                println!("ours frame {i}: t {:?} v {:?} w {:?}", s[0].pose.t, s[0].v, s[0].omega);
+            }
+        }
+    }
+}
