@@ -3,7 +3,7 @@
 //!
 //! ```sh
 //! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x/4x its substeps, ours
-//! cargo run --release --example contact_probe -- search     # 40 random spinning drops onto the ramp
+//! cargo run --release --example contact_probe -- search 300 # random spinning drops onto the ramp (default 40)
 //! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
 //! ```
 use geom::Pose;
@@ -79,14 +79,17 @@ fn main() {
     if name == "search" {
         let base = contact_scenes().into_iter().find(|s| s.name == "ramp-drop").unwrap();
         let mut rng = geom::SplitMix64::new(5);
-        for i in 0..40 {
+        let n: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(40);
+        for i in 0..n {
             let mut s = base.clone();
             let axis = geom::Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
             let q = geom::Quat::exp(axis * 1.5);
             let b = &mut s.videos[0].bodies[0];
-            b.q = [q.w, q.x, q.y, q.z];
-            b.omega = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-2.0, 2.0)];
-            b.t[0] = rng.range(-0.04, 0.04);
+            // Rounded as a scene file would write them (the motion is that sensitive).
+            let r = |v: f64, k: f64| (v * k).round() / k;
+            b.q = [q.w, q.x, q.y, q.z].map(|v| r(v, 100.0));
+            b.omega = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-2.0, 2.0)].map(|v| r(v, 10.0));
+            b.t[0] = r(rng.range(-0.04, 0.04), 1000.0);
             let label = format!(
                 "{i:>2} q {:?} omega {:?} x {:.3}",
                 b.q.map(|v| (v * 100.0).round() / 100.0),
