@@ -5,6 +5,7 @@
 //! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x/4x its substeps, ours
 //! cargo run --release --example contact_probe -- search 300 # random spinning drops onto the ramp (default 40)
 //! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
+//! cargo run --release --example contact_probe -- preset:tabletop  # a preset's videos, the same spreads
 //! ```
 use geom::Pose;
 use sim::ContactModel;
@@ -73,6 +74,51 @@ fn main() {
     if name == "self" {
         for s in contact_scenes() {
             println!("{:>14}: {}", s.name, self_consistency(&s));
+        }
+        return;
+    }
+    if let Some(preset) = name.strip_prefix("preset:") {
+        // A preset's videos: Rapier against itself at 2× and 4× its substeps, and ours (multi-point) at 4×
+        // against ours.
+        let scene = synth::preset(preset, synth::Scale::Small).unwrap();
+        let run = |physics: Physics, factor: usize, model: ContactModel| {
+            let mut s = scene.clone();
+            s.physics = physics;
+            for v in &mut s.videos {
+                v.substeps *= factor;
+            }
+            simulate_videos(&s, Path::new("."))
+                .unwrap()
+                .into_iter()
+                .map(|(mut w, t)| {
+                    if physics == Physics::Pganeus {
+                        w.config.contact_model = model;
+                        w.simulate(&w.params())
+                    } else {
+                        t
+                    }
+                })
+                .map(|t| t.frames.iter().map(|f| f[0].pose).collect::<Vec<Pose<f64>>>())
+                .collect::<Vec<_>>()
+        };
+        let r1 = run(Physics::Rapier, 1, ContactModel::MultiPoint);
+        let r2 = run(Physics::Rapier, 2, ContactModel::MultiPoint);
+        let r4 = run(Physics::Rapier, 4, ContactModel::MultiPoint);
+        for model in [ContactModel::MeanPoint, ContactModel::MultiPoint] {
+            let o1 = run(Physics::Pganeus, 1, model);
+            let o4 = run(Physics::Pganeus, 4, model);
+            for (i, v) in scene.videos.iter().enumerate() {
+                let f = |e: (f64, f64)| format!("{:.1} mm/{:.0}°", e.0, e.1);
+                println!(
+                    "{} {model:?}: rapier x2 vs x1 {} | x4 vs x2 {} | ours vs rapier {} | ours x4 vs rapier x4 {} | ours x4 vs ours {}",
+                    v.name,
+                    f(max_err(&r2[i], &r1[i])),
+                    f(max_err(&r4[i], &r2[i])),
+                    f(max_err(&o1[i], &r1[i])),
+                    f(max_err(&o4[i], &r4[i])),
+                    f(max_err(&o4[i], &o1[i]))
+                );
+            }
         }
         return;
     }
