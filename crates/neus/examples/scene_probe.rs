@@ -30,6 +30,9 @@ fn main() {
     if lift != 0.0 {
         let bh = ((lift - t.data.centre.z) / t.data.radius) as f32;
         t.field = NeusField::new(&cfg.field, cfg.seed, bh);
+        if cfg.view_independent_steps > 0 {
+            t.field.zero_view_weights();
+        }
     }
     eprintln!("centre {:?} radius {}", t.data.centre, t.data.radius);
     let ts = std::time::Instant::now();

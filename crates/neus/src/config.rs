@@ -12,7 +12,8 @@ use serde::{Deserialize, Serialize};
 pub struct TrainConfig {
     /// Object or scene. Default object.
     pub kind: CaptureSubject,
-    /// Optimiser steps. Default 3000 (objects); 1500 for scenes (about 9 minutes at 320×240 on two cores).
+    /// Optimiser steps. Default 3000 (objects); half the object preset's for scenes: 1500 with `fast` (about
+    /// 9 minutes at 320×240 on two cores), 10000 with `quality`.
     pub iterations: usize,
     /// Rays per step. Default 2048.
     pub batch_rays: usize,
@@ -42,8 +43,8 @@ pub struct TrainConfig {
     /// Weight of the stereo-point term (mean |SDF| at multi-view stereo points, `neus::stereo`) at the start;
     /// it falls linearly to 0 at `stereo_steps`. Default 0 (objects); 0.5 for scenes.
     pub stereo_weight: f32,
-    /// The step where the stereo-point term ends (at the latest half-way through the run). Default 0; 1000 for
-    /// scenes.
+    /// The step where the stereo-point term ends (at the latest half-way through the run, so step 750 of a
+    /// default 1500-step scene run). Default 0; 1000 for scenes.
     pub stereo_steps: usize,
     /// How the stereo points are found.
     pub stereo: StereoConfig,
@@ -100,8 +101,9 @@ impl TrainConfig {
             CaptureSubject::Object => base,
             CaptureSubject::Scene => Self {
                 kind,
-                // A scene step costs 2–3 object steps (every ray meets the board); 1500 steps reach the
-                // targets of a tabletop scene (≤ 3 mm, ≥ 28 dB held out) within 10 minutes on two cores.
+                // A scene step costs 2–3 object steps (every ray meets the board): half the steps. With `fast`,
+                // 1500 steps reach the targets of a tabletop scene (≤ 3 mm, ≥ 28 dB held out) within 10
+                // minutes on two cores.
                 iterations: base.iterations / 2,
                 view_independent_steps: 1000,
                 stereo_weight: 0.5,

@@ -25,8 +25,9 @@ pub struct BenchTrainArgs {
     pub preset: String,
     #[arg(long)]
     pub config: Option<PathBuf>,
-    #[arg(long, default_value_t = 3000)]
-    pub iterations: usize,
+    /// Training steps (default: the preset's for the capture's kind: 3000 for an object, 1500 for a scene).
+    #[arg(long)]
+    pub iterations: Option<usize>,
     /// Report every this many steps.
     #[arg(long, default_value_t = 250)]
     pub every: usize,
@@ -70,17 +71,20 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
     let data = Dataset::load(&capture).with_context(|| format!("loading {}", capture.display()))?;
     let kind = capture_kind(None, &data);
     let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
-    cfg.iterations = a.iterations;
+    if let Some(n) = a.iterations {
+        cfg.iterations = n;
+    }
+    let iterations = cfg.iterations;
     let mut t = NeusTrainer::new(cfg, data)?;
     let (mut total_secs, mut window_secs, mut rays, mut samples) = (0.0f64, 0.0f64, 0usize, 0usize);
     let wall = std::time::Instant::now();
-    while t.step < a.iterations {
+    while t.step < iterations {
         let s = t.step();
         total_secs += s.seconds;
         window_secs += s.seconds;
         rays += s.rays;
         samples += s.samples;
-        let done = t.step == a.iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
+        let done = t.step == iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
         if t.step % a.every == 0 || done {
             let psnr = holdout_psnr(&t);
             let levels = t.config.active_levels(t.step);
