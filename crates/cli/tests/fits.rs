@@ -3,6 +3,62 @@
 
 mod common;
 
+use common::text;
+use geom::{Camera, Intrinsics, Vec3};
+use neus::checkpoint::save_field;
+use neus::untrained_field::untrained_field;
+use neus::{CaptureSubject, FieldInit};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn run_ok(cmd: &mut Command) -> Output {
+    let o = cmd.output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    o
+}
+
+/// A 96×72 video camera at `eye` looking at `target`, focal length `focal` image widths.
+fn camera(focal: f64, eye: Vec3<f64>, target: Vec3<f64>) -> Camera<f64> {
+    let (w, h) = (96, 72);
+    let k = Intrinsics {
+        fx: focal * w as f64,
+        fy: focal * w as f64,
+        cx: 0.5 * w as f64,
+        cy: 0.5 * h as f64,
+        skew: 0.0,
+    };
+    Camera::look_at(eye, target, Vec3::new(0.0, 0.0, 1.0), k, w, h)
+}
+
+/// `cam` as a `--camera` file in `d` (cams.json).
+fn camera_file(d: &Path, cam: &Camera<f64>) -> PathBuf {
+    let cams = serde_json::json!([{"width": cam.width, "height": cam.height, "world_mat": cam.world_mat()}]);
+    let path = d.join("cams.json");
+    std::fs::write(&path, cams.to_string()).unwrap();
+    path
+}
+
+/// The runs both tests fit with, in `d`: an untrained board field as the scene run (`scene/`) and an
+/// untrained sphere field as the ball's run (`ball/`), so nothing is trained here. Returns the ball's mesh:
+/// loading the run as an object extracts its zero level once and caches it beside the checkpoint
+/// (`ball/object_mesh.ply`), the body the simulator moves as `fit` builds it; `render` and `fit` find it
+/// again there.
+fn untrained_runs(d: &Path) -> (PathBuf, PathBuf, geom::TriMesh) {
+    let scene = d.join("scene");
+    let ball = d.join("ball");
+    std::fs::create_dir_all(&scene).unwrap();
+    std::fs::create_dir_all(&ball).unwrap();
+    let mut board = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+    board.config.kind = CaptureSubject::Scene;
+    board.capture = PathBuf::from("background");
+    save_field(&board, &scene.join("checkpoint.safetensors")).unwrap();
+    let sphere = untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3);
+    save_field(&sphere, &ball.join("checkpoint.safetensors")).unwrap();
+    neus::ObjectModel::load(&ball).unwrap();
+    let mesh = pganeus_io::read_mesh(&ball.join("object_mesh.ply")).unwrap();
+    (scene, ball, mesh)
+}
+
 mod one_body {
     //! `pganeus fit` end to end on a CI-sized video: a ball (an untrained sphere
     //! field saved as a run, so nothing is trained here) tossed onto a board (an
@@ -10,39 +66,16 @@ mod one_body {
     //! by `render --trajectory`, then fitted from a guess 1 cm and 10° off; and
     //! the bad inputs `fit` must refuse without writing anything.
 
-    use geom::{Camera, Intrinsics, Pose, Quat, Vec3};
-    use neus::checkpoint::save_field;
-    use neus::untrained_field::untrained_field;
-    use neus::{CaptureSubject, FieldInit};
+    use geom::{Camera, Pose, Quat, Vec3};
     use std::path::{Path, PathBuf};
-    use std::process::{Command, Output};
+    use std::process::Command;
 
     use super::common::{bin, copy_dir, text};
+    use super::{camera_file, run_ok, untrained_runs};
 
     /// The video's camera: 96×72, looking down at the toss from the front.
     fn camera() -> Camera<f64> {
-        let (w, h) = (96, 72);
-        let k = Intrinsics {
-            fx: 1.1 * w as f64,
-            fy: 1.1 * w as f64,
-            cx: 0.5 * w as f64,
-            cy: 0.5 * h as f64,
-            skew: 0.0,
-        };
-        Camera::look_at(
-            Vec3::new(0.05, -0.33, 0.25),
-            Vec3::new(0.05, 0.01, 0.02),
-            Vec3::new(0.0, 0.0, 1.0),
-            k,
-            w,
-            h,
-        )
-    }
-
-    fn run_ok(cmd: &mut Command) -> Output {
-        let o = cmd.output().unwrap();
-        assert!(o.status.success(), "{}", text(&o));
-        o
+        super::camera(1.1, Vec3::new(0.05, -0.33, 0.25), Vec3::new(0.05, 0.01, 0.02))
     }
 
     struct Fixture {
@@ -57,21 +90,7 @@ mod one_body {
 
     /// A scene run, a ball run, the ball's simulated toss and its video.
     fn fixture(d: &Path) -> Fixture {
-        let scene = d.join("scene");
-        let ball = d.join("ball");
-        std::fs::create_dir_all(&scene).unwrap();
-        std::fs::create_dir_all(&ball).unwrap();
-        let mut board = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
-        board.config.kind = CaptureSubject::Scene;
-        board.capture = PathBuf::from("background");
-        save_field(&board, &scene.join("checkpoint.safetensors")).unwrap();
-        let sphere = untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3);
-        save_field(&sphere, &ball.join("checkpoint.safetensors")).unwrap();
-        // The body the simulator moves is the run's zero level, as `fit` builds it.
-        // Loading the run as an object extracts that zero level once and caches it beside the checkpoint
-        // (`object_mesh.ply`), where `render` and `fit` find it again.
-        neus::ObjectModel::load(&ball).unwrap();
-        let mesh = pganeus_io::read_mesh(&ball.join("object_mesh.ply")).unwrap();
+        let (scene, ball, mesh) = untrained_runs(d);
         let com = sim::mass_properties(&mesh, 1.0).center_of_mass;
         let scene_file = r#"
 [sim]
@@ -99,9 +118,7 @@ omega = [0.0, 4.0, 0.0]
                 .arg(d.join("truth.json")),
         );
         let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
-        let cam = camera();
-        let cams = serde_json::json!([{"width": cam.width, "height": cam.height, "world_mat": cam.world_mat()}]);
-        std::fs::write(d.join("cams.json"), cams.to_string()).unwrap();
+        let cams = camera_file(d, &camera());
         let video = d.join("toss");
         run_ok(
             bin()
@@ -112,7 +129,7 @@ omega = [0.0, 4.0, 0.0]
                 .arg("--object")
                 .arg(format!("ball={}", ball.display()))
                 .arg("--camera")
-                .arg(d.join("cams.json"))
+                .arg(&cams)
                 .arg("--out")
                 .arg(&video),
         );
@@ -366,38 +383,14 @@ mod several_bodies {
     //! every body's poses, the collision frame and the launches from guesses
     //! 8 mm and 10° off (the same code as two bodies: no special case).
 
-    use geom::{Camera, Intrinsics, Pose, Quat, Vec3};
-    use neus::checkpoint::save_field;
-    use neus::untrained_field::untrained_field;
-    use neus::{CaptureSubject, FieldInit};
-    use std::process::{Command, Output};
+    use geom::{Camera, Pose, Quat, Vec3};
 
     use super::common::{bin, text};
-
-    fn run_ok(cmd: &mut Command) -> Output {
-        let o = cmd.output().unwrap();
-        assert!(o.status.success(), "{}", text(&o));
-        o
-    }
+    use super::{camera_file, run_ok, untrained_runs};
 
     /// 96×72, looking down at the three balls from the front.
     fn camera() -> Camera<f64> {
-        let (w, h) = (96, 72);
-        let k = Intrinsics {
-            fx: 1.2 * w as f64,
-            fy: 1.2 * w as f64,
-            cx: 0.5 * w as f64,
-            cy: 0.5 * h as f64,
-            skew: 0.0,
-        };
-        Camera::look_at(
-            Vec3::new(-0.02, -0.36, 0.3),
-            Vec3::new(-0.02, 0.03, 0.02),
-            Vec3::new(0.0, 0.0, 1.0),
-            k,
-            w,
-            h,
-        )
+        super::camera(1.2, Vec3::new(-0.02, -0.36, 0.3), Vec3::new(-0.02, 0.03, 0.02))
     }
 
     const SMALL_FIT: &str = r#"
@@ -422,20 +415,7 @@ iterations = 25
     #[test]
     fn fit_recovers_three_balls_one_knocking_another() {
         let d = testkit::scratch_dir("cli", "fit_bodies");
-        let scene = d.join("scene");
-        let ball = d.join("ball");
-        std::fs::create_dir_all(&scene).unwrap();
-        std::fs::create_dir_all(&ball).unwrap();
-        let mut board = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
-        board.config.kind = CaptureSubject::Scene;
-        board.capture = "background".into();
-        save_field(&board, &scene.join("checkpoint.safetensors")).unwrap();
-        let sphere = untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3);
-        save_field(&sphere, &ball.join("checkpoint.safetensors")).unwrap();
-        // Loading the run as an object extracts that zero level once and caches it beside the checkpoint
-        // (`object_mesh.ply`), where `render` and `fit` find it again.
-        neus::ObjectModel::load(&ball).unwrap();
-        let mesh = pganeus_io::read_mesh(&ball.join("object_mesh.ply")).unwrap();
+        let (scene, ball, mesh) = untrained_runs(&d);
         let com = sim::mass_properties(&mesh, 1.0).center_of_mass;
         let radius = mesh
             .vertices
@@ -487,9 +467,7 @@ friction = 0.15
                 .arg(d.join("truth.json")),
         );
         let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
-        let cam = camera();
-        let cams = serde_json::json!([{"width": cam.width, "height": cam.height, "world_mat": cam.world_mat()}]);
-        std::fs::write(d.join("cams.json"), cams.to_string()).unwrap();
+        let cams = camera_file(&d, &camera());
         let video = d.join("balls");
         let mut render = bin();
         render
@@ -498,7 +476,7 @@ friction = 0.15
             .arg("--scene")
             .arg(&scene)
             .arg("--camera")
-            .arg(d.join("cams.json"))
+            .arg(&cams)
             .arg("--out")
             .arg(&video);
         for n in NAMES {
