@@ -25,6 +25,8 @@ pub struct RayRounds {
     pub sdf: Vec<f32>,
     pub cos: Vec<f32>,
     pub rgb: Vec<[f32; 3]>,
+    /// The SDF's gradient (finite differences; normals come from it).
+    pub grad: Vec<[f32; 3]>,
     /// NeuS section opacity.
     pub alpha: Vec<f32>,
     /// Each sample's round and index in that round's pass.
@@ -124,6 +126,7 @@ impl RayRounds {
         self.sdf.clear();
         self.cos.clear();
         self.rgb.clear();
+        self.grad.clear();
         self.alpha.clear();
         self.src.clear();
         for i in 0..n {
@@ -141,6 +144,7 @@ impl RayRounds {
                     self.sdf.push(p.sdf[s]);
                     self.cos.push(p.cos[s]);
                     self.rgb.push(p.rgb[s]);
+                    self.grad.push(p.grad[s]);
                     self.alpha.push(section_alpha(p.sdf[s], p.cos[s], dt[k], inv_s, 1.0));
                     self.src.push((r as u32, s as u32));
                 }

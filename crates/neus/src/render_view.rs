@@ -2,9 +2,10 @@
 //! and PSNR against a capture's images.
 
 use crate::background_field::BackgroundScratch;
-use crate::field_pass::{FieldPass, PassSettings};
+use crate::field_pass::PassSettings;
 use crate::neus_field::NeusField;
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
+use crate::ray_rounds::RayRounds;
 use crate::volume::{render_ray, RayInputs};
 use geom::Camera;
 
@@ -18,6 +19,8 @@ pub struct ViewImage {
     /// Σ w n (unit coordinates' axes are the world's).
     pub normal: Vec<[f32; 3]>,
     pub opacity: Vec<f32>,
+    /// Samples at which the field was evaluated.
+    pub samples: usize,
 }
 
 /// Settings for rendering (the trainer's, or finer).
@@ -30,8 +33,9 @@ pub struct RenderSettings {
     pub fd_eps: f32,
     /// Colour from the point alone (the field is still in its view-independent first steps).
     pub view_independent: bool,
-    /// The composed renderer stops a ray through a field once its transmittance through that field is
-    /// below this (0: never; see [`crate::ray_rounds`]).
+    /// A ray through a field stops once its transmittance through that field is below this (0: never; see
+    /// [`crate::ray_rounds`]): the image changes by less than this, and a surface's far side is never
+    /// evaluated.
     pub stop_transmittance: f32,
 }
 
@@ -43,7 +47,7 @@ pub struct RenderScratch {
     t: Vec<f32>,
     dt: Vec<f32>,
     offsets: Vec<usize>,
-    pass: FieldPass,
+    eval: RayRounds,
     alpha: Vec<f32>,
     w: Vec<f32>,
     bg: BackgroundScratch,
@@ -103,20 +107,29 @@ pub fn render_rays(
         sample_ray(occupancy, *o, *d, march, 0.5, &mut sc.t, &mut sc.dt);
         sc.offsets.push(sc.t.len());
     }
-    sc.pass.forward(field, origins, dirs, &sc.offsets, &sc.t, set.pass());
-    let p = &sc.pass;
+    sc.eval.forward(
+        field,
+        origins,
+        dirs,
+        &sc.offsets,
+        &sc.t,
+        &sc.dt,
+        set.pass(),
+        set.stop_transmittance,
+    );
+    let p = &sc.eval;
     let inv_s = field.inv_s();
     field.colour_behind(origins, dirs, |_| 0.5, &mut sc.bg);
     (0..origins.len())
         .map(|i| {
-            let (a, b) = (sc.offsets[i], sc.offsets[i + 1]);
+            let (a, b) = (p.offsets[i], p.offsets[i + 1]);
             sc.alpha.resize(b - a, 0.0);
             sc.w.resize(b - a, 0.0);
             let x = RayInputs {
                 sdf: &p.sdf[a..b],
                 cos: &p.cos[a..b],
-                dt: &sc.dt[a..b],
-                t: &sc.t[a..b],
+                dt: &p.dt[a..b],
+                t: &p.t[a..b],
                 rgb: &p.rgb[a..b],
                 inv_s,
                 anneal: 1.0,
@@ -152,6 +165,7 @@ pub fn render_view(
         depth: Vec::with_capacity(n),
         normal: Vec::with_capacity(n),
         opacity: Vec::with_capacity(n),
+        samples: 0,
     };
     // About 2,000 rays per chunk: a scene's rays all carry samples (up to 4 SDF
     // evaluations × the sample cap each), and the MLP scratch grows with them.
@@ -168,7 +182,9 @@ pub fn render_view(
                 d.push(r.dir.to_array().map(|v| v as f32));
             }
         }
-        for (out, nrm) in render_rays(field, occupancy, set, &o, &d, &mut scratch) {
+        let rays = render_rays(field, occupancy, set, &o, &d, &mut scratch);
+        img.samples += scratch.eval.t.len();
+        for (out, nrm) in rays {
             img.rgb.push(out.rgb);
             img.depth.push(out.depth);
             img.normal.push(nrm);

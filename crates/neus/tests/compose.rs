@@ -446,6 +446,42 @@ fn rays_stopped_early_change_the_image_by_less_than_the_threshold() {
 }
 
 #[test]
+fn a_view_whose_rays_stop_early_changes_by_less_than_the_threshold() {
+    let (r, cam, _) = sunk_rig();
+    // The camera in the scene field's unit frame.
+    let mut unit = cam;
+    let (c, rad) = (r.scene.centre, r.scene.radius);
+    unit.world_to_cam.t = (unit.world_to_cam.t + unit.world_to_cam.q.rotate(c)) * (1.0 / rad);
+    let render = |stop: f32| {
+        let set = RenderSettings {
+            stop_transmittance: stop,
+            ..RenderSettings::of(&r.scene)
+        };
+        render_view(&r.scene.field, &r.scene.occupancy, &set, &unit)
+    };
+    let (all, stopped) = (render(0.0), render(1e-3));
+    let mut worst = 0.0f32;
+    for p in 0..all.rgb.len() {
+        for k in 0..3 {
+            worst = worst.max((all.rgb[p][k] - stopped.rgb[p][k]).abs());
+        }
+        worst = worst.max((all.opacity[p] - stopped.opacity[p]).abs());
+    }
+    eprintln!(
+        "samples {} -> {}, worst change {worst:.2e}",
+        all.samples, stopped.samples
+    );
+    assert!(worst <= 1e-3, "worst change {worst}");
+    // The board is opaque: what lies under it is never evaluated.
+    assert!(
+        stopped.samples * 10 < all.samples * 8,
+        "{} of {} samples",
+        stopped.samples,
+        all.samples
+    );
+}
+
+#[test]
 fn pose_gradients_of_the_fast_path_match_central_differences() {
     let (r, cam, pose) = sunk_rig();
     check_pose_gradients(&r, &r.object, &r.capture_from_body, &cam, pose, true);

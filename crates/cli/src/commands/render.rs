@@ -74,7 +74,7 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
             .fd_eps(t.config.active_levels(t.step))
             .min(2.0 / g.max_resolution as f32 * 4.0),
         view_independent: t.step < t.config.view_independent_steps,
-        stop_transmittance: 0.0,
+        stop_transmittance: 1e-3,
     };
     let views = &t.holdout_views;
     let sum: f32 = views
