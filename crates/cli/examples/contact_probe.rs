@@ -2,7 +2,7 @@
 //! and Rapier's (both deterministic, so every difference is the change made).
 //!
 //! ```sh
-//! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x/4x its substeps, ours
+//! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x..16x its substeps, ours
 //! cargo run --release --example contact_probe -- search 300 # random spinning drops onto the ramp (default 40)
 //! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
 //! cargo run --release --example contact_probe -- preset:tabletop  # a preset's videos, the same spreads
@@ -55,14 +55,18 @@ fn self_consistency(scene: &synth::SynthScene) -> String {
     let r1 = rapier_poses(scene, 1);
     let r2 = rapier_poses(scene, 2);
     let r4 = rapier_poses(scene, 4);
+    let r8 = rapier_poses(scene, 8);
+    let r16 = rapier_poses(scene, 16);
     let o = ours_poses(scene, ContactModel::MultiPoint, 1);
     let o4 = ours_poses(scene, ContactModel::MultiPoint, 4);
     let f = |e: (f64, f64)| format!("{:.1} mm/{:.0}°", e.0, e.1);
     let turn = geom::rotation_distance(r1[0].q, r1[r1.len() - 1].q).to_degrees();
     format!(
-        "rapier x2 vs x1 {} | x4 vs x2 {} | ours vs rapier x1 {} | ours vs x4 {} | ours x4 vs ours {} | turned {turn:.0}°",
+        "rapier x2 vs x1 {} | x4 vs x2 {} | x8 vs x4 {} | x16 vs x8 {} | ours vs rapier x1 {} | ours vs x4 {} | ours x4 vs ours {} | turned {turn:.0}°",
         f(max_err(&r2, &r1)),
         f(max_err(&r4, &r2)),
+        f(max_err(&r8, &r4)),
+        f(max_err(&r16, &r8)),
         f(max_err(&o, &r1)),
         f(max_err(&o, &r4)),
         f(max_err(&o4, &o))
