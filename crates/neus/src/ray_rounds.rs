@@ -4,8 +4,10 @@
 //! once its own transmittance through this field is below a threshold. Its
 //! later samples could add at most that much to any composite the field joins
 //! (the composite's transmittance is never above the field's own), so the
-//! image changes by less than the threshold while a surface's far side and
-//! what lies behind it are never evaluated. Forward and backward run over all
+//! colours change by less than the threshold while a surface's far side and
+//! what lies behind it are evaluated at most to the end of the round in which
+//! the ray became opaque (rounds end at a third, two thirds and all of each
+//! ray's samples). Forward and backward run over all
 //! rounds' samples as one list in ray order.
 
 use crate::field_pass::{FieldPass, InputGrads, PassSettings, SampleGrads};

@@ -34,8 +34,8 @@ pub struct RenderSettings {
     /// Colour from the point alone (the field is still in its view-independent first steps).
     pub view_independent: bool,
     /// A ray through a field stops once its transmittance through that field is below this (0: never; see
-    /// [`crate::ray_rounds`]): the image changes by less than this, and a surface's far side is never
-    /// evaluated.
+    /// [`crate::ray_rounds`]): colour and opacity change by less than this, and the samples past the round
+    /// (a third of the ray's samples) in which the ray became opaque are never evaluated.
     pub stop_transmittance: f32,
 }
 

@@ -287,7 +287,7 @@ fn a_posed_object_renders_as_its_field_from_the_inversely_moved_camera() {
     let pose = Pose::new(Quat::exp(Vec3::new(0.3, -0.5, 1.2)), Vec3::new(0.1, -0.05, 0.04));
     let cam = camera(pose.t + Vec3::new(0.11, 0.04, 0.07), pose.t, 40, 30);
     let mut layer = Layer::object(&r.object, &r.capture_from_body, &pose, 0);
-    // Every sample, as `render_view` takes them.
+    // Every sample, in both renderers.
     layer.settings.stop_transmittance = 0.0;
     let set = layer.settings;
     let bg = r.object.field.background();
@@ -460,19 +460,26 @@ fn a_view_whose_rays_stop_early_changes_by_less_than_the_threshold() {
         render_view(&r.scene.field, &r.scene.occupancy, &set, &unit)
     };
     let (all, stopped) = (render(0.0), render(1e-3));
-    let mut worst = 0.0f32;
+    // Colour, opacity and the normal (Σ w n, unit normals) move by at most the weight left out; the depth
+    // (Σ w t) by at most that times the farthest sample's distance.
+    let far = (unit.world_to_cam.t.norm() + 1.0) as f32;
+    let (mut worst, mut worst_depth) = (0.0f32, 0.0f32);
     for p in 0..all.rgb.len() {
         for k in 0..3 {
             worst = worst.max((all.rgb[p][k] - stopped.rgb[p][k]).abs());
+            worst = worst.max((all.normal[p][k] - stopped.normal[p][k]).abs());
         }
         worst = worst.max((all.opacity[p] - stopped.opacity[p]).abs());
+        worst_depth = worst_depth.max((all.depth[p] - stopped.depth[p]).abs());
     }
     eprintln!(
-        "samples {} -> {}, worst change {worst:.2e}",
+        "samples {} -> {}, worst change {worst:.2e}, depth {worst_depth:.2e} (farthest {far:.2})",
         all.samples, stopped.samples
     );
     assert!(worst <= 1e-3, "worst change {worst}");
-    // The board is opaque: what lies under it is never evaluated.
+    assert!(worst_depth <= 1e-3 * far, "worst depth change {worst_depth}");
+    // The board is opaque: the samples under it (past the round in which the ray became opaque) are never
+    // evaluated.
     assert!(
         stopped.samples * 10 < all.samples * 8,
         "{} of {} samples",
