@@ -155,6 +155,12 @@ impl RayRounds {
         }
     }
 
+    /// Each ray's transmittance through the field over its evaluated samples (after [`Self::forward`]): a ray
+    /// below the threshold was stopped, and what lies behind it adds less than that to its colour.
+    pub fn transmittance(&self) -> &[f32] {
+        &self.trans
+    }
+
     /// From the gradients of each evaluated sample's SDF, cosine and colour (ray order, as
     /// [`Self::forward`] left them) to each sample's point and direction (unit frame; overwritten).
     pub fn backward_inputs(

@@ -23,6 +23,9 @@ pub struct ViewImage {
     pub samples: usize,
 }
 
+/// Where rendering stops a ray (its transmittance through the field, see [`RenderSettings::stop_transmittance`]).
+pub const STOP_TRANSMITTANCE: f32 = 1e-3;
+
 /// Settings for rendering (the trainer's, or finer).
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -51,6 +54,10 @@ pub struct RenderScratch {
     alpha: Vec<f32>,
     w: Vec<f32>,
     bg: BackgroundScratch,
+    /// The rays the background field is evaluated for, and what it gives every ray (zero where stopped).
+    open_o: Vec<[f32; 3]>,
+    open_d: Vec<[f32; 3]>,
+    behind: Vec<[f32; 3]>,
 }
 
 impl RenderSettings {
@@ -65,7 +72,7 @@ impl RenderSettings {
             active_levels: g.levels,
             fd_eps: 2.0 / g.max_resolution as f32,
             view_independent: l.step < c.view_independent_steps,
-            stop_transmittance: 1e-3,
+            stop_transmittance: STOP_TRANSMITTANCE,
         }
     }
 
@@ -119,7 +126,22 @@ pub fn render_rays(
     );
     let p = &sc.eval;
     let inv_s = field.inv_s();
-    field.colour_behind(origins, dirs, |_| 0.5, &mut sc.bg);
+    // What lies behind, for the rays still open (a stopped ray's background adds less than the threshold,
+    // and on a scene nearly every ray stops at the board).
+    let stop = set.stop_transmittance;
+    let open = |i: &usize| p.transmittance()[*i] >= stop;
+    sc.open_o.clear();
+    sc.open_d.clear();
+    for i in (0..origins.len()).filter(open) {
+        sc.open_o.push(origins[i]);
+        sc.open_d.push(dirs[i]);
+    }
+    field.colour_behind(&sc.open_o, &sc.open_d, |_| 0.5, &mut sc.bg);
+    sc.behind.clear();
+    sc.behind.resize(origins.len(), [0.0; 3]);
+    for (i, c) in (0..origins.len()).filter(open).zip(&sc.bg.out) {
+        sc.behind[i] = *c;
+    }
     (0..origins.len())
         .map(|i| {
             let (a, b) = (p.offsets[i], p.offsets[i + 1]);
@@ -133,7 +155,7 @@ pub fn render_rays(
                 rgb: &p.rgb[a..b],
                 inv_s,
                 anneal: 1.0,
-                background: sc.bg.out[i],
+                background: sc.behind[i],
             };
             let o = render_ray(&x, &mut sc.alpha, &mut sc.w);
             let mut n = [0.0f32; 3];

@@ -4,7 +4,7 @@ use clap::Args;
 use geom::Camera;
 use geom::{Pose, Vec3};
 use neus::checkpoint::load_field;
-use neus::render_view::{psnr, render_view, RenderSettings};
+use neus::render_view::{psnr, render_view, RenderSettings, STOP_TRANSMITTANCE};
 use neus::switching::{route, Route};
 use neus::{Dataset, NeusTrainer};
 use pganeus_io::Image;
@@ -74,7 +74,7 @@ pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
             .fd_eps(t.config.active_levels(t.step))
             .min(2.0 / g.max_resolution as f32 * 4.0),
         view_independent: t.step < t.config.view_independent_steps,
-        stop_transmittance: 1e-3,
+        stop_transmittance: STOP_TRANSMITTANCE,
     };
     let views = &t.holdout_views;
     let sum: f32 = views
