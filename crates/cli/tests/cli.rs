@@ -746,6 +746,12 @@ fn mesh_tools_merge_compare_and_bake() {
         serde_json::from_str(&std::fs::read_to_string(d.join("given/transform.json")).unwrap()).unwrap();
     assert_eq!(t["T_1to2"], known["T_1to2"], "{t}");
     assert_eq!(t["icp_iterations"], 0, "{t}");
+    // The inputs relative to the merge's folder: the tree reads the same from any working directory.
+    assert_eq!(
+        (t["a"].as_str(), t["b"].as_str()),
+        (Some("../a.obj"), Some("../b.obj")),
+        "{t}"
+    );
     assert!(t["residual"].as_f64().unwrap() < 1e-4, "{t}");
 
     // Bad input: an open mesh (the last face gone) and an empty one, named in the message;

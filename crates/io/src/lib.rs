@@ -27,6 +27,7 @@
 mod atomic;
 mod error;
 pub mod formats;
+mod paths;
 
 pub use atomic::{write_atomic, StagedDir};
 pub use error::{IoError, Result};
@@ -55,3 +56,4 @@ pub use formats::trajectory::{
     write_truth, write_truth_bytes, Background, BodyState, Contact, Pose, StaticCapture, Trajectory, Truth, TruthBody,
     VideoBody, QUAT_UNIT_TOLERANCE,
 };
+pub use paths::{path_relative_to, resolve_from};

@@ -93,16 +93,6 @@ fn checkpoint_in(p: &Path) -> PathBuf {
     }
 }
 
-/// A path written in `transform.json`: as written if it exists (absolute, or relative to the working
-/// directory of `merge`), else relative to the folder that holds the file.
-fn resolve(folder: &Path, p: &Path) -> PathBuf {
-    if p.exists() || p.is_absolute() {
-        p.to_path_buf()
-    } else {
-        folder.join(p)
-    }
-}
-
 /// Grid resolution of a run's zero level when it is the object's mesh.
 const RUN_MESH_RES: usize = 192;
 
@@ -184,7 +174,7 @@ impl ObjectModel {
         let text = std::fs::read_to_string(&tpath).map_err(|e| invalid(&tpath, e.to_string()))?;
         let a_to_b = transform_of(&tpath, &text)?;
         let t: MergeSources = serde_json::from_str(&text).map_err(|e| invalid(&tpath, e.to_string()))?;
-        let (a, b) = (resolve(dir, &t.a), resolve(dir, &t.b));
+        let (a, b) = (pganeus_io::resolve_from(dir, &t.a), pganeus_io::resolve_from(dir, &t.b));
         for p in [&a, &b] {
             if !checkpoint_in(p).exists() {
                 return Err(invalid(

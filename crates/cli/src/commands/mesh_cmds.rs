@@ -570,7 +570,8 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         "R_1to2": r, "T_1to2": merged.a_to_b.t.to_array(), "q_1to2": merged.a_to_b.q.to_array_re(),
         "residual": merged.icp.residual, "rms_distance": merged.icp.rms_distance, "icp_iterations": merged.icp.iterations,
         "icp_conditioning": merged.icp.conditioning,
-        "reference": "b", "a": a.a, "b": a.b, "board_margin": a.board_margin,
+        "reference": "b", "a": pganeus_io::path_relative_to(&a.out, &a.a), "b": pganeus_io::path_relative_to(&a.out, &a.b),
+        "board_margin": a.board_margin,
         "object": {
             "note": "the merged object in b's capture frame; the simulator's body frame has its origin at the centre of mass (uniform density)",
             "volume_m3": body.volume, "centre_of_mass": body.center_of_mass.to_array(),
