@@ -8,15 +8,28 @@ use std::path::{Path, PathBuf};
 mod common;
 use common::{bin, repo, tabletop_toml, text};
 
-/// `pganeus ARGS` on `threads` threads; it must succeed.
-fn run(threads: usize, args: &[&str], dir: &Path) {
-    let o = bin()
-        .current_dir(dir)
-        .env("RAYON_NUM_THREADS", threads.to_string())
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{args:?}: {}", text(&o));
+/// `pganeus ARGS(t)` on one thread and on two at the same time (a one-thread run leaves a core idle); both
+/// must succeed.
+fn run_both(args: impl Fn(usize) -> Vec<String>, dir: &Path) {
+    let children: Vec<_> = [1usize, 2]
+        .into_iter()
+        .map(|t| {
+            let a = args(t);
+            let child = bin()
+                .current_dir(dir)
+                .env("RAYON_NUM_THREADS", t.to_string())
+                .args(&a)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            (a, child)
+        })
+        .collect();
+    for (a, child) in children {
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "{a:?}: {}", text(&o));
+    }
 }
 
 /// Every file under `dir` (relative path → bytes), leaving out `skip` names (logs with timings).
@@ -63,47 +76,26 @@ fn one_thread_and_two_give_the_same_bytes() {
     let two_body = repo().join("scenes/two_body.toml");
     // A small hash table: the same code paths, a checkpoint of a few MB instead of 150.
     std::fs::write(d.join("train.toml"), "[field.grid]\nlog2_table_size = 14\n").unwrap();
-    for t in [1, 2] {
-        run(t, &["synth", "--scene", "scene.toml", "--out", &format!("data{t}")], &d);
-        run(
-            t,
-            &[
-                "simulate",
-                "--scene",
-                two_body.to_str().unwrap(),
-                "--out",
-                &format!("sim{t}.json"),
-            ],
-            &d,
-        );
-        run(
-            t,
-            &[
-                "train",
-                "data1/toy_a",
-                "--out",
-                &format!("run{t}"),
-                "--iterations",
-                "30",
-            ],
-            &d,
-        );
-        run(
-            t,
-            &[
-                "merge",
-                "a.obj",
-                "b.obj",
-                "--res",
-                "64",
-                "--faces",
-                "2000",
-                "--out",
-                &format!("merged{t}"),
-            ],
-            &d,
-        );
-    }
+    let words = |s: &str| s.split_whitespace().map(str::to_string).collect::<Vec<_>>();
+    // The datasets first: both trainings read data1.
+    run_both(|t| words(&format!("synth --scene scene.toml --out data{t}")), &d);
+    run_both(
+        |t| {
+            let mut a = words("simulate --scene");
+            a.push(two_body.to_str().unwrap().to_string());
+            a.extend(words(&format!("--out sim{t}.json")));
+            a
+        },
+        &d,
+    );
+    run_both(
+        |t| words(&format!("train data1/toy_a --out run{t} --iterations 30")),
+        &d,
+    );
+    run_both(
+        |t| words(&format!("merge a.obj b.obj --res 64 --faces 2000 --out merged{t}")),
+        &d,
+    );
     same(&d.join("data1"), &d.join("data2"), &[]);
     assert!(std::fs::read(d.join("sim1.json")).unwrap() == std::fs::read(d.join("sim2.json")).unwrap());
     // The training log has wall-clock times; the checkpoint, config and preview mesh must agree.

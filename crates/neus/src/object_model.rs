@@ -110,15 +110,15 @@ fn digest(bytes: &[u8]) -> u64 {
     h
 }
 
-/// The zero level of a run's field at [`RUN_MESH_RES`], the object's mesh, kept beside the checkpoint
+/// The zero level of a run's field at `res` ([`RUN_MESH_RES`]), the object's mesh, kept beside the checkpoint
 /// (`object_mesh.ply`, positions in double precision, so it is the very mesh extraction gives) under the
 /// checkpoint's digest (`object_mesh.json`): every `fit`, `render` and `eval` of the run used to extract
 /// it again (seconds each). A missing, stale or unreadable copy is made again; a folder that cannot be
 /// written only costs the extraction. `checkpoint_digest`: [`digest`] of the checkpoint's bytes.
-fn zero_level_cached(ckpt: &Path, checkpoint_digest: u64, field: &LoadedField) -> TriMesh {
+fn zero_level_cached(ckpt: &Path, checkpoint_digest: u64, field: &LoadedField, res: usize) -> TriMesh {
     let dir = ckpt.parent().unwrap_or(Path::new("."));
     let (mesh_path, key_path) = (dir.join("object_mesh.ply"), dir.join("object_mesh.json"));
-    let key = serde_json::json!({"checkpoint_digest": format!("{checkpoint_digest:016x}"), "res": RUN_MESH_RES});
+    let key = serde_json::json!({"checkpoint_digest": format!("{checkpoint_digest:016x}"), "res": res});
     let stored = std::fs::read(&key_path)
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
@@ -132,7 +132,7 @@ fn zero_level_cached(ckpt: &Path, checkpoint_digest: u64, field: &LoadedField) -
         }
     }
     let levels = field.config.field.grid.levels;
-    let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, RUN_MESH_RES);
+    let zero = crate::surface::zero_level_mesh(&field.field, levels, field.centre, field.radius, res);
     let opts = pganeus_io::PlyWriteOptions {
         positions_f64: true,
         ..Default::default()
@@ -157,10 +157,16 @@ fn capture_name(field: &LoadedField) -> String {
 impl ObjectModel {
     /// Load a `merge` output folder (`transform.json`, `merged.ply`) or a `train` run folder.
     pub fn load(path: &Path) -> Result<Self, ObjectError> {
+        Self::load_with_mesh_res(path, RUN_MESH_RES)
+    }
+
+    /// [`Self::load`], a run's zero level extracted on a `res`³ grid (cached under that resolution) instead of
+    /// the default 192³: coarser is faster where the mesh's detail does not matter (tests).
+    pub fn load_with_mesh_res(path: &Path, res: usize) -> Result<Self, ObjectError> {
         if path.join("transform.json").exists() {
             Self::load_merge(path)
         } else if checkpoint_in(path).exists() {
-            Self::load_run(path)
+            Self::load_run(path, res)
         } else {
             Err(invalid(
                 path,
@@ -213,12 +219,12 @@ impl ObjectModel {
         })
     }
 
-    fn load_run(run: &Path) -> Result<Self, ObjectError> {
+    fn load_run(run: &Path, res: usize) -> Result<Self, ObjectError> {
         let ckpt = checkpoint_in(run);
         // Read once: the field and the digest that names its cached zero level.
         let bytes = std::fs::read(&ckpt).map_err(|e| invalid(&ckpt, e.to_string()))?;
         let field = load_field_bytes(&bytes, &ckpt)?;
-        let zero = zero_level_cached(&ckpt, digest(&bytes), &field);
+        let zero = zero_level_cached(&ckpt, digest(&bytes), &field, res);
         let (volume, com) = closed_volume(run, &zero)?;
         let capture_from_body = Pose::from_translation(com);
         Ok(Self {

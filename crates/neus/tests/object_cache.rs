@@ -6,6 +6,9 @@ use neus::checkpoint::save_field;
 use neus::untrained_field::untrained_field;
 use neus::{FieldInit, ObjectModel};
 
+/// Coarser than a fit's 192³: the cache, not the mesh, is under test.
+const RES: usize = 64;
+
 #[test]
 fn a_runs_zero_level_is_cached_beside_its_checkpoint() {
     let d = testkit::scratch_dir("neus", "object_cache");
@@ -16,11 +19,11 @@ fn a_runs_zero_level_is_cached_beside_its_checkpoint() {
     )
     .unwrap();
     let t = std::time::Instant::now();
-    let first = ObjectModel::load(&d).unwrap();
+    let first = ObjectModel::load_with_mesh_res(&d, RES).unwrap();
     let extracted = t.elapsed();
     assert!(d.join("object_mesh.ply").exists() && d.join("object_mesh.json").exists());
     let t = std::time::Instant::now();
-    let second = ObjectModel::load(&d).unwrap();
+    let second = ObjectModel::load_with_mesh_res(&d, RES).unwrap();
     let cached = t.elapsed();
     println!("first load {extracted:?}, cached {cached:?}");
     // The very same mesh (double-precision positions), so every later stage sees the same body.
@@ -38,7 +41,7 @@ fn a_runs_zero_level_is_cached_beside_its_checkpoint() {
         &ckpt,
     )
     .unwrap();
-    let other = ObjectModel::load(&d).unwrap();
+    let other = ObjectModel::load_with_mesh_res(&d, RES).unwrap();
     assert!(
         other.volume < 0.5 * first.volume,
         "{} vs {}",
@@ -47,7 +50,7 @@ fn a_runs_zero_level_is_cached_beside_its_checkpoint() {
     );
     // A damaged cache is made again, not trusted.
     std::fs::write(d.join("object_mesh.ply"), b"ply\ngarbage").unwrap();
-    let again = ObjectModel::load(&d).unwrap();
+    let again = ObjectModel::load_with_mesh_res(&d, RES).unwrap();
     assert_eq!(again.mesh.vertices, other.mesh.vertices);
     let _ = std::fs::remove_dir_all(&d);
 }

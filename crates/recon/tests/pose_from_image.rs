@@ -91,7 +91,7 @@ fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
         truth.t + Vec3::new(0.015, -0.01, 0.008),
     );
     let cfg = PoseFitConfig {
-        iterations: 120,
+        iterations: 80,
         rays_per_step: 512,
         ..PoseFitConfig::default()
     };
@@ -205,7 +205,7 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         pose: ball_pose,
     }];
     let cfg = PoseFitConfig {
-        iterations: 120,
+        iterations: 80,
         rays_per_step: 512,
         ..PoseFitConfig::default()
     };
