@@ -110,6 +110,41 @@ pub fn lift_out(body: &RigidBody, scene: &Shape, pose: Pose<f64>) -> (Pose<f64>,
     (p, p.t.z - pose.t.z)
 }
 
+/// Within this of the scene (m), a body that the first frames show on the scene is settled onto it
+/// ([`settle_along_ray`]); further off, it is taken to hop.
+pub const SETTLE_BAND: f64 = 0.01;
+
+/// A pose on the scene's surface, moved along the line of sight: the body slid along the ray from the camera
+/// `eye` through its origin until its lowest contact point touches the scene (clearance 0, within 0.1 mm).
+/// One view pins a body's depth least, and a body resting or sliding on the board touches it: moving along
+/// the ray keeps its image in place (up to its size, a fraction of a percent per millimetre at table
+/// distances) and puts it on the board, where the contact penalty of the next stages holds it. `None`
+/// when no point within 3 cm along the ray touches (the body is elsewhere).
+pub fn settle_along_ray(body: &RigidBody, scene: &Shape, eye: Vec3<f64>, pose: &Pose<f64>) -> Option<Pose<f64>> {
+    let dir = (pose.t - eye).normalize_or(Vec3::new(0.0, 0.0, -1.0));
+    let at = |s: f64| Pose::new(pose.q, pose.t + dir * s);
+    let clear = |s: f64| clearance(body, scene, &at(s));
+    // Bracket the root: the clearance falls moving away from a camera that looks down on the board.
+    let (mut a, mut b) = (-0.03, 0.03);
+    let (fa, fb) = (clear(a), clear(b));
+    if !(fa.is_finite() && fb.is_finite()) || fa.signum() == fb.signum() {
+        return None;
+    }
+    for _ in 0..40 {
+        let m = 0.5 * (a + b);
+        let fm = clear(m);
+        if fm.abs() < 1e-4 {
+            return Some(at(m));
+        }
+        if fm.signum() == fa.signum() {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    Some(at(0.5 * (a + b)))
+}
+
 /// The launch `(v0, ω0)` (world frame) of poses one frame apart: least squares over `poses` of
 /// `t_k = t_0 + v0 k dt + ½ g (k dt)²` (without the gravity term when the body starts on the scene), and the
 /// mean turn rate.
@@ -239,6 +274,43 @@ mod tests {
         // On the board, the gravity term is left out.
         let (v, _) = launch_guess(&poses[..2], fps, g, true);
         assert!((v[2] - (v0.z - 0.5 * 9.81 / fps)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_floating_pose_settles_onto_the_board_along_the_line_of_sight() {
+        use sim::sdf::{Cuboid, Plane};
+        use sim::{ContactSampling, MassSpec};
+        let board = Shape::Plane(Plane {
+            normal: [0.0, 0.0, 1.0],
+            offset: 0.0,
+        });
+        let half = 0.02;
+        let body = RigidBody::from_shape(
+            "block",
+            &Shape::Cuboid(Cuboid { half: [half; 3] }),
+            MassSpec::Mass(0.1),
+            ContactSampling::default(),
+        )
+        .unwrap();
+        let eye = Vec3::new(0.0, -0.5, 0.4);
+        // 3 mm above the board, turned about the vertical.
+        let floating = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.3)), Vec3::new(0.05, 0.02, half + 0.003));
+        let settled = settle_along_ray(&body, &board, eye, &floating).unwrap();
+        assert!(clearance(&body, &board, &settled).abs() < 1e-4);
+        assert!((settled.t.z - half).abs() < 1e-4, "{:?}", settled.t);
+        // On the same line of sight, further from the camera, the same way up.
+        let unit = |v: Vec3<f64>| v * (1.0 / v.norm());
+        let (d0, d1) = (unit(floating.t - eye), unit(settled.t - eye));
+        assert!(d0.cross(d1).norm() < 1e-9);
+        assert!((settled.t - eye).norm() > (floating.t - eye).norm());
+        assert_eq!(settled.q.to_array_re(), floating.q.to_array_re());
+        // Sunk 2 mm: raised toward the camera.
+        let sunk = Pose::new(floating.q, Vec3::new(0.05, 0.02, half - 0.002));
+        let raised = settle_along_ray(&body, &board, eye, &sunk).unwrap();
+        assert!((raised.t.z - half).abs() < 1e-4 && (raised.t - eye).norm() < (sunk.t - eye).norm());
+        // Far above the board (a toss): nothing along 3 cm of the ray touches.
+        let flying = Pose::new(floating.q, Vec3::new(0.05, 0.02, 0.2));
+        assert!(settle_along_ray(&body, &board, eye, &flying).is_none());
     }
 
     #[test]
