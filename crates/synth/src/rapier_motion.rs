@@ -170,13 +170,16 @@ pub(crate) fn simulate_with_rapier(
     };
     let pairs = world.pairs();
     let mut frames = vec![read(&pw)];
-    let mut contacts = vec![FrameContacts::default()];
+    // Every frame's record has a slot per body and per pair, frame 0's too (nothing touched yet), as the
+    // project's simulator writes them: the truth file reads one per body.
+    let none = FrameContacts {
+        scene: vec![false; handles.len()],
+        scene_points: vec![0; handles.len()],
+        pairs: vec![false; pairs.len()],
+    };
+    let mut contacts = vec![none.clone()];
     for _ in 1..cfg.frames {
-        let mut touched = FrameContacts {
-            scene: vec![false; handles.len()],
-            scene_points: vec![0; handles.len()],
-            pairs: vec![false; pairs.len()],
-        };
+        let mut touched = none.clone();
         for _ in 0..cfg.substeps {
             pw.step();
             for (bi, &(_, c)) in handles.iter().enumerate() {

@@ -41,6 +41,15 @@ fn rapier_moves_the_synth_bodies_like_a_physical_engine() {
         let (fps, substeps) = (world.config.fps, world.config.substeps);
         let n = ours.frames.len();
         assert_eq!(theirs.frames.len(), n, "{video}");
+        // The contact record has the simulator's shape in every frame (frame 0's was empty, and writing
+        // truth.json indexed it: `synth --physics rapier` panicked).
+        let shape = |t: &sim::Trajectory<f64>| {
+            t.contacts
+                .iter()
+                .map(|c| (c.scene.len(), c.scene_points.len(), c.pairs.len()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(shape(&theirs), shape(&ours), "{video}");
         for b in 0..ours.frames[0].len() {
             let at = |t: &sim::Trajectory<f64>, k: usize| t.frames[k][b].pose.t;
             // Frame 0 is the given start in both.
