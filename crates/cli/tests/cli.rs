@@ -817,21 +817,8 @@ max_resolution = 64
 /// a fog filling most of the sphere.
 fn board_and_wall_stand(run: &Path) {
     let f = neus::checkpoint::load_field(&run.join("checkpoint.safetensors")).unwrap();
-    let height = |x: f64, y: f64| f.field.surface_height(f.centre, f.radius, x, y, -0.05, 0.2);
-    // The board's top (z = 0) at points of the board away from the obstacles.
-    let spots = [(-0.15, -0.05), (-0.05, 0.05), (0.1, -0.05), (0.05, 0.1), (-0.2, -0.15)];
-    let heights: Vec<f64> = spots
-        .iter()
-        .map(|&(x, y)| height(x, y).unwrap_or(f64::INFINITY))
-        .collect();
-    let mut abs: Vec<f64> = heights.iter().map(|h| h.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let (median, worst) = (abs[abs.len() / 2], abs[abs.len() - 1]);
-    // The wall (7 cm high, at x = 0.22 m): a flat start alone paints it onto the board.
-    let wall: Vec<f64> = [-0.06, 0.0, 0.06]
-        .iter()
-        .map(|&y| height(0.22, y).unwrap_or(f64::NAN))
-        .collect();
+    let h = testkit::TabletopHeights::measure(|x, y| f.field.surface_height(f.centre, f.radius, x, y, -0.05, 0.2));
+    let (median, worst) = h.board_error();
     // The last two log lines (steps 550 and 600): occupancy and the batch PSNR.
     let log = std::fs::read_to_string(run.join("log.jsonl")).unwrap();
     let lines: Vec<serde_json::Value> = log
@@ -843,18 +830,17 @@ fn board_and_wall_stand(run: &Path) {
     let occupied = last[1]["occupied"].as_f64().unwrap();
     let psnr = last.iter().map(|l| l["psnr"].as_f64().unwrap()).sum::<f64>() / 2.0;
     eprintln!(
-        "scene run: occupied {occupied:.3}, batch PSNR {psnr:.1} dB, board heights (mm) {:?}, wall top (mm) {:?}",
-        heights.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>(),
-        wall.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>()
+        "scene run: occupied {occupied:.3}, batch PSNR {psnr:.1} dB, {}",
+        h.in_mm()
     );
-    // Measured (library twin): the wall's top 57–76 mm; painted onto the board it is below 10 mm.
-    for h in &wall {
-        assert!((h - 0.07).abs() < 0.015, "the wall's top at {:.1} mm, not 70", h * 1e3);
+    // Measured: the wall's top 71–76 mm; painted onto the board it is below 10 mm.
+    for w in &h.wall {
+        assert!((w - 0.07).abs() < 0.015, "the wall's top at {:.1} mm, not 70", w * 1e3);
     }
-    // Measured: median 2.6 mm, worst 4.3 mm (at 96×72 a pixel spans ~13 mm of the board).
+    // Measured: median 1.9 mm, worst 2.4 mm (at 96×72 a pixel spans ~13 mm of the board).
     assert!(median < 0.003, "board height off by {:.1} mm (median)", median * 1e3);
     assert!(worst < 0.005, "board height off by {:.1} mm (worst)", worst * 1e3);
-    // Empty space is known to be empty (measured 0.124; a fog fills most of the grid).
+    // Empty space is known to be empty (measured 0.104; a fog fills most of the grid).
     assert!(occupied < 0.2, "occupancy {occupied:.3}");
     assert!(psnr > 20.0, "batch PSNR {psnr:.1} dB");
 }

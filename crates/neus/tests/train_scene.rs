@@ -50,41 +50,22 @@ fn check_scene(preset: &str) {
     let stats: Vec<_> = (0..600).map(|_| t.step()).collect();
     let last = stats.last().unwrap();
     let psnr: f32 = stats[550..].iter().map(|s| s.psnr).sum::<f32>() / 50.0;
-    // The board's top (z = 0) at points of the board away from the obstacles.
-    let spots = [(-0.15, -0.05), (-0.05, 0.05), (0.1, -0.05), (0.05, 0.1), (-0.2, -0.15)];
-    let heights: Vec<f64> = spots
-        .iter()
-        .map(|&(x, y)| {
-            t.field
-                .surface_height(t.data.centre, t.data.radius, x, y, -0.05, 0.2)
-                .unwrap_or(f64::INFINITY)
-        })
-        .collect();
-    let mut abs: Vec<f64> = heights.iter().map(|h| h.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let (median, worst) = (abs[abs.len() / 2], abs[abs.len() - 1]);
-    // The wall (7 cm high, at x = 0.22 m in both presets) stands: a flat start alone paints it onto the board.
-    let wall: Vec<f64> = [-0.06, 0.0, 0.06]
-        .iter()
-        .map(|&y| {
-            t.field
-                .surface_height(t.data.centre, t.data.radius, 0.22, y, -0.05, 0.2)
-                .unwrap_or(f64::NAN)
-        })
-        .collect();
+    let h = testkit::TabletopHeights::measure(|x, y| {
+        t.field.surface_height(t.data.centre, t.data.radius, x, y, -0.05, 0.2)
+    });
+    let (median, worst) = h.board_error();
     eprintln!(
-        "{preset}: occupied {:.3}, inv_s {:.0}, batch PSNR {psnr:.1} dB, board heights (mm) {:?}, wall top (mm) {:?}",
+        "{preset}: occupied {:.3}, inv_s {:.0}, batch PSNR {psnr:.1} dB, {}",
         last.occupied,
         last.inv_s,
-        heights.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>(),
-        wall.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>()
+        h.in_mm()
     );
-    for h in &wall {
+    for w in &h.wall {
         // Measured 57–76 mm (tabletop) and 65–74 mm (backdrop); painted onto the board it is below 10 mm.
         assert!(
-            (h - 0.07).abs() < 0.015,
+            (w - 0.07).abs() < 0.015,
             "{preset}: the wall's top at {:.1} mm, not 70",
-            h * 1e3
+            w * 1e3
         );
     }
     // Measured: median 2.6 / 2.1 mm, worst 4.3 / 4.2 mm (tabletop / backdrop; at 96×72 a pixel spans ~13 mm

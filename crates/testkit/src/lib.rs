@@ -148,3 +148,47 @@ pub fn jpeg_bytes(data: &[u8], width: u32, height: u32, channels: u8, quality: u
         .expect("a JPEG the encoder accepts");
     out
 }
+
+/// A scene field's surface over the synth tabletop layout (board and wall shared by the `tabletop` and
+/// `backdrop` presets), from `height(x, y)`: the world height of the zero level on the vertical line at
+/// `(x, y)`, `None` when it has none.
+#[derive(Debug)]
+pub struct TabletopHeights {
+    /// The board's top (true height 0) at five spots away from the obstacles; a missing surface is infinite.
+    pub board: Vec<f64>,
+    /// The wall's top (true height 0.07 m, at x = 0.22 m) at three spots; a missing surface is NaN.
+    pub wall: Vec<f64>,
+}
+
+impl TabletopHeights {
+    pub fn measure(height: impl Fn(f64, f64) -> Option<f64>) -> Self {
+        let spots = [(-0.15, -0.05), (-0.05, 0.05), (0.1, -0.05), (0.05, 0.1), (-0.2, -0.15)];
+        Self {
+            board: spots
+                .iter()
+                .map(|&(x, y)| height(x, y).unwrap_or(f64::INFINITY))
+                .collect(),
+            wall: [-0.06, 0.0, 0.06]
+                .iter()
+                .map(|&y| height(0.22, y).unwrap_or(f64::NAN))
+                .collect(),
+        }
+    }
+
+    /// The median and the largest |board height|.
+    pub fn board_error(&self) -> (f64, f64) {
+        let mut abs: Vec<f64> = self.board.iter().map(|h| h.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        (abs[abs.len() / 2], abs[abs.len() - 1])
+    }
+
+    /// Both lists in millimetres, for the test's log.
+    pub fn in_mm(&self) -> String {
+        let mm = |v: &[f64]| v.iter().map(|h| (h * 1e4).round() / 10.0).collect::<Vec<_>>();
+        format!(
+            "board heights (mm) {:?}, wall top (mm) {:?}",
+            mm(&self.board),
+            mm(&self.wall)
+        )
+    }
+}
