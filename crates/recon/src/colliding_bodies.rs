@@ -19,9 +19,11 @@
 //! Every step is a [`fit_multi_start_bodies`]; the scene's values are shared
 //! by the bodies (`share_scene_contact`).
 
-use crate::fit_physics::{fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartResult, StartsOn};
+use crate::fit_physics::{
+    fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartContact, StartResult, StartsOn,
+};
 use crate::poses_from_video::carried_on;
-use crate::video_fit::{clearance, launch_guess, TOUCHING};
+use crate::video_fit::{clearance, launch_guess, start_contact, TOUCHING};
 use crate::CONTACT_STARTS;
 use geom::Pose;
 use sim::sdf::Sdf;
@@ -140,12 +142,17 @@ pub fn fit_colliding_bodies(
         let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
         world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
     }
+    // A body the first frame shows on the scene launches along it.
+    let starts: Vec<StartContact> = (0..poses.len())
+        .map(|b| start_contact(&world.bodies[b], &world.scene, &poses[b][0]))
+        .collect();
     let observed = |upto: usize| -> Vec<Observed> {
         (0..poses.len())
             .map(|b| Observed {
                 body: b,
                 poses: poses[b][..upto].to_vec(),
                 weights: Some(weights[b][..upto].to_vec()),
+                start: starts[b],
             })
             .collect()
     };
@@ -213,6 +220,7 @@ pub fn fit_colliding_bodies(
                 body: b,
                 poses: poses[b][from..to].to_vec(),
                 weights: Some(weights[b][from..to].to_vec()),
+                start: start_contact(&after.bodies[b], &after.scene, &poses[b][from]),
             })
             .collect();
         let label = format!("after the first collision, frames {from}-{}", to - 1);

@@ -9,9 +9,10 @@
 //! substep) while the L1 loss recovers the parameters exactly.
 
 use crate::least_squares::{lm_step, Bounds, Linearization};
+use crate::unknowns::Unknowns;
 use geom::{Pose, Quat};
 use serde::{Deserialize, Serialize};
-use sim::{simulate_with_gradients, World, BODY_PARAMS};
+use sim::{simulate_with_gradients, World};
 
 /// Settings of the physics fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -145,15 +146,38 @@ pub struct Observed {
     pub body: usize,
     pub poses: Vec<Pose<f64>>,
     pub weights: Option<Vec<f64>>,
+    /// How the body touches the scene in the first frame: what its launch may be.
+    pub start: StartContact,
 }
 
-/// A fitted value and the parameters of the world it sets (several when tied: one scene friction shared
-/// by every body).
-#[derive(Clone, Debug)]
-struct Unknown {
-    members: Vec<usize>,
-    /// The pattern search's first step ([`probe_scale`]).
-    probe: f64,
+/// How a body touches the scene in the first frame, which decides how its launch is fitted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum StartContact {
+    /// Off the scene (a toss, a drop): v0 and ω0 are free.
+    #[default]
+    Free,
+    /// On the scene at a point or along an edge (a ball, a rocking body): v0 in the plane normal to the
+    /// scene there, ω0 free (a ball rolls, a body rocks). One view cannot tell a slide from a slow hop (from
+    /// a camera above, up and forward look alike), and a body pressed on a surface does not leave it at
+    /// the start.
+    Touching { normal: [f64; 3] },
+    /// Resting on a face: v0 in the plane, ω0 about the normal only. A turn about an axis in the face digs
+    /// one side of it into the scene, which stops it within a substep, so the video cannot tell it (a
+    /// sliding box's fit took a spin of 11 rad/s about such an axis and lost the slide).
+    Face { normal: [f64; 3] },
+}
+
+impl Observed {
+    /// A body's poses, weights default, launch free.
+    pub fn new(body: usize, poses: Vec<Pose<f64>>, weights: Option<Vec<f64>>) -> Self {
+        Self {
+            body,
+            poses,
+            weights,
+            start: StartContact::Free,
+        }
+    }
 }
 
 /// The fit as a stage: `new`, then `step()` until `converged`.
@@ -166,9 +190,7 @@ pub struct PhysicsFit {
     weights: Vec<Vec<f64>>,
     frames: usize,
     params: Vec<f64>,
-    unknowns: Vec<Unknown>,
-    /// Every member of every unknown: the Jacobian's columns.
-    columns: Vec<usize>,
+    unknowns: Unknowns,
     bounds: Bounds,
     lambda: f64,
     loss: f64,
@@ -207,7 +229,7 @@ impl PhysicsFit {
         poses: Vec<Pose<f64>>,
         weights: Option<Vec<f64>>,
     ) -> Result<Self, FitError> {
-        Self::new_bodies(cfg, world, vec![Observed { body, poses, weights }])
+        Self::new_bodies(cfg, world, vec![Observed::new(body, poses, weights)])
     }
 
     /// Several bodies of one video at once: each observed body's initial pose is replaced by its first
@@ -219,6 +241,7 @@ impl PhysicsFit {
         let mut bodies = Vec::new();
         let mut poses = Vec::new();
         let mut weights = Vec::new();
+        let mut starts = Vec::new();
         for o in observed {
             if o.body >= world.bodies.len() || bodies.contains(&o.body) {
                 return Err(FitError::NoSuchBody(o.body));
@@ -255,6 +278,7 @@ impl PhysicsFit {
             bodies.push(o.body);
             poses.push(o.poses);
             weights.push(w);
+            starts.push(o.start);
         }
         if bodies.is_empty() {
             return Err(FitError::TooFewPoses(0));
@@ -263,24 +287,15 @@ impl PhysicsFit {
             return Err(FitError::RotationWeight(cfg.rotation_weight));
         }
         world.config.frames = frames;
-        let mut unknowns: Vec<Unknown> = Vec::new();
-        let single = |m: usize, k: usize| Unknown {
-            members: vec![m],
-            probe: probe_scale(k),
-        };
-        for &b in &bodies {
+        let mut unknowns = Unknowns::default();
+        for (&b, &start) in bodies.iter().zip(&starts) {
             let o = world.body_param_offset(b);
-            let mut ks: Vec<usize> = Vec::new();
             if cfg.fit_initial_pose {
-                ks.extend(0..6);
+                for k in 0..6 {
+                    unknowns.push_param(o + k, probe_scale(k), false);
+                }
             }
-            if cfg.fit_velocity {
-                ks.extend(6..9);
-            }
-            if cfg.fit_angular_velocity {
-                ks.extend(9..12);
-            }
-            unknowns.extend(ks.into_iter().map(|k| single(o + k, k)));
+            unknowns.push_launch(o + 6, start, cfg.fit_velocity, cfg.fit_angular_velocity);
         }
         // The scene's values: one per body, or one tied to every body's copy.
         for (k, on) in [(12, cfg.fit_restitution), (13, cfg.fit_friction)] {
@@ -296,12 +311,12 @@ impl PhysicsFit {
                     p[m] = first;
                 }
                 world.set_params(&p);
-                unknowns.push(Unknown {
-                    members,
-                    probe: probe_scale(k),
-                });
+                let terms: Vec<(usize, f64)> = members.iter().map(|&m| (m, 1.0)).collect();
+                unknowns.push(&terms, probe_scale(k), true);
             } else {
-                unknowns.extend(members.into_iter().map(|m| single(m, k)));
+                members
+                    .into_iter()
+                    .for_each(|m| unknowns.push_param(m, probe_scale(k), true));
             }
         }
         for (pi, &(i, j)) in world.pairs().iter().enumerate() {
@@ -311,7 +326,7 @@ impl PhysicsFit {
             let o = world.pair_param_offset(pi);
             for (k, on) in [(0, cfg.fit_pair_restitution), (1, cfg.fit_pair_friction)] {
                 if on {
-                    unknowns.push(single(o + k, 12 + k));
+                    unknowns.push_param(o + k, probe_scale(12 + k), true);
                 }
             }
         }
@@ -319,19 +334,17 @@ impl PhysicsFit {
         if unknowns.is_empty() {
             return Err(FitError::NothingToFit);
         }
-        let columns: Vec<usize> = unknowns.iter().flat_map(|u| u.members.iter().copied()).collect();
-        let contact_value = |m: usize| {
-            let body_part = BODY_PARAMS * world.bodies.len();
-            m >= body_part || matches!(m % BODY_PARAMS, 12 | 13)
-        };
         let mut bounds = Bounds::unbounded(unknowns.len());
-        for (i, u) in unknowns.iter().enumerate() {
-            if contact_value(u.members[0]) {
+        for i in 0..unknowns.len() {
+            if unknowns.bounded(i) {
                 bounds.lo[i] = cfg.bound_margin;
                 bounds.hi[i] = 1.0 - cfg.bound_margin;
             }
         }
-        let params = world.params();
+        // A launch kept in a plane (or a spin on an axis) starts there.
+        let mut params = world.params();
+        let x = unknowns.values(&params);
+        unknowns.set(&mut params, &x);
         let mut fit = Self {
             cfg,
             world,
@@ -341,7 +354,6 @@ impl PhysicsFit {
             frames,
             params,
             unknowns,
-            columns,
             bounds,
             lambda: 1e-3,
             loss: f64::INFINITY,
@@ -383,17 +395,13 @@ impl PhysicsFit {
 
     /// The unknowns' current values.
     fn values(&self) -> Vec<f64> {
-        self.unknowns.iter().map(|u| self.params[u.members[0]]).collect()
+        self.unknowns.values(&self.params)
     }
 
-    /// The parameters with the unknowns set to `x` (every member of a tied one).
+    /// The parameters with the unknowns set to `x`.
     fn with_values(&self, x: &[f64]) -> Vec<f64> {
         let mut p = self.params.clone();
-        for (u, v) in self.unknowns.iter().zip(x) {
-            for &m in &u.members {
-                p[m] = *v;
-            }
-        }
+        self.unknowns.set(&mut p, x);
         p
     }
 
@@ -426,22 +434,10 @@ impl PhysicsFit {
 
     /// Residual rows (reweighted for L1) and their Jacobian at the current parameters.
     fn linearize(&self) -> Linearization {
-        let g = simulate_with_gradients(&self.world, &self.params, &self.columns);
+        let g = simulate_with_gradients(&self.world, &self.params, self.unknowns.columns());
         let lq = self.cfg.rotation_weight;
         let mut residuals = Vec::new();
         let mut jac = Vec::new();
-        // A tied unknown's column is the sum of its members'.
-        let column_of = |row: &[f64]| -> Vec<f64> {
-            let mut c = 0;
-            self.unknowns
-                .iter()
-                .map(|u| {
-                    let s: f64 = row[c..c + u.members.len()].iter().sum();
-                    c += u.members.len();
-                    s
-                })
-                .collect()
-        };
         for k in 0..g.frames.len() {
             for (i, &b) in self.bodies.iter().enumerate() {
                 let s = g.frames[k][b];
@@ -454,7 +450,13 @@ impl PhysicsFit {
                     let c = (self.weights[i][k] / norm.max(1e-7)).sqrt();
                     for (e, comp) in block.iter().zip(comps) {
                         residuals.push(c * e);
-                        jac.push(column_of(g.row(k, b, comp)).iter().map(|d| c * scale * d).collect());
+                        jac.push(
+                            self.unknowns
+                                .chain(g.row(k, b, comp))
+                                .iter()
+                                .map(|d| c * scale * d)
+                                .collect(),
+                        );
                     }
                 }
             }
@@ -512,10 +514,10 @@ impl PhysicsFit {
     /// else halve the step.
     fn pattern_step(&mut self) -> bool {
         let mut best: Option<(f64, Vec<f64>)> = None;
-        for (j, u) in self.unknowns.iter().enumerate() {
+        for j in 0..self.unknowns.len() {
             for sign in [-1.0, 1.0] {
                 let mut x = self.values();
-                x[j] += sign * self.probe * u.probe;
+                x[j] += sign * self.probe * self.unknowns.probe(j);
                 self.bounds.project(&mut x);
                 let trial = self.with_values(&x);
                 let loss = self.loss_at(&trial);
@@ -682,7 +684,7 @@ pub fn fit_multi_start(
     starts: &[(f64, f64)],
     on_start: &mut dyn FnMut(usize, &StartResult),
 ) -> Result<MultiStart, FitError> {
-    let observed = vec![Observed { body, poses, weights }];
+    let observed = vec![Observed::new(body, poses, weights)];
     fit_multi_start_bodies(cfg, world, observed, starts, StartsOn::Scene, on_start)
 }
 

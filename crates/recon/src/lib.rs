@@ -11,6 +11,7 @@ pub mod physics_from_video;
 pub mod pose_from_image;
 pub mod poses_from_video;
 pub mod target;
+mod unknowns;
 pub mod video_fit;
 
 pub use colliding_bodies::{first_contacts, fit_colliding_bodies, CollidingFit, ScheduleStep};
@@ -18,7 +19,7 @@ pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{
     fit_multi_start, fit_multi_start_bodies, FitError, FitStats, MultiStart, Observed, PhysicsFit, PhysicsFitConfig,
-    PoseError, StartResult, StartsOn, CONTACT_STARTS,
+    PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use physics_from_video::{

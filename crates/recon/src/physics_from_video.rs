@@ -20,9 +20,10 @@
 //! frames doubles every `window_steps` steps, so the launch is pinned by the
 //! frames before the first contact, as [`crate::PhysicsFit`] does with poses.
 
-use crate::fit_physics::probe_scale;
+use crate::fit_physics::{probe_scale, StartContact};
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 use crate::least_squares::{lm_step, Linearization};
+use crate::unknowns::Unknowns;
 use geom::{Quat, SplitMix64};
 use neus::compose::{ComposedRay, Composer};
 use neus::ObjectModel;
@@ -119,9 +120,7 @@ pub struct PhysicsFromVideo<'a> {
     params: Vec<f64>,
     /// The parameters it started from (what [`Self::finish`] falls back to).
     start: Vec<f64>,
-    wrt: Vec<usize>,
-    /// Whether each fitted parameter is a contact value (kept in (0, 1)).
-    bounded: Vec<bool>,
+    unknowns: Unknowns,
     /// The body's size: a turn of one radian moves its surface this far, m.
     size: f64,
     window: usize,
@@ -154,22 +153,10 @@ impl<'a> PhysicsFromVideo<'a> {
             .map(|(frame, f)| PreparedFrame::new(f, scene).map_err(|error| VideoPhysicsError::Frame { frame, error }))
             .collect::<Result<Vec<_>, _>>()?;
         world.validate().map_err(VideoPhysicsError::World)?;
-        let o = world.body_param_offset(body);
-        let mut wrt = Vec::new();
-        let mut push = |on: bool, range: std::ops::Range<usize>| {
-            if on {
-                wrt.extend(range.map(|i| o + i));
-            }
-        };
-        push(cfg.fit_initial_pose, 0..6);
-        push(cfg.fit_velocity, 6..9);
-        push(cfg.fit_angular_velocity, 9..12);
-        push(cfg.fit_restitution, 12..13);
-        push(cfg.fit_friction, 13..14);
-        if wrt.is_empty() {
+        let unknowns = Self::unknowns_of(&cfg, &world, body, StartContact::Free);
+        if unknowns.is_empty() {
             return Err(VideoPhysicsError::NothingToFit);
         }
-        let bounded = wrt.iter().map(|&i| i >= o + 12).collect();
         let params = world.params();
         let size = world.bodies[body].bounding_radius.max(1e-3);
         let mut fit = Self {
@@ -182,8 +169,7 @@ impl<'a> PhysicsFromVideo<'a> {
             body,
             start: params.clone(),
             params,
-            wrt,
-            bounded,
+            unknowns,
             size,
             window: 0,
             iteration: 0,
@@ -191,6 +177,32 @@ impl<'a> PhysicsFromVideo<'a> {
         };
         fit.set_window(fit.cfg.initial_window);
         Ok(fit)
+    }
+
+    /// The fitted values: each parameter the switches name, the launch as the body's start allows.
+    fn unknowns_of(cfg: &VideoPhysicsConfig, world: &World, body: usize, start: StartContact) -> Unknowns {
+        let o = world.body_param_offset(body);
+        let mut u = Unknowns::default();
+        if cfg.fit_initial_pose {
+            (0..6).for_each(|k| u.push_param(o + k, probe_scale(k), false));
+        }
+        u.push_launch(o + 6, start, cfg.fit_velocity, cfg.fit_angular_velocity);
+        if cfg.fit_restitution {
+            u.push_param(o + 12, probe_scale(12), true);
+        }
+        if cfg.fit_friction {
+            u.push_param(o + 13, probe_scale(13), true);
+        }
+        u
+    }
+
+    /// How the body touches the scene in the first frame ([`StartContact`]): its launch is fitted as that
+    /// allows, from the start's launch with what it does not allow taken out.
+    pub fn with_start(mut self, start: StartContact) -> Self {
+        self.unknowns = Self::unknowns_of(&self.cfg, &self.world, self.body, start);
+        let x = self.unknowns.values(&self.params);
+        self.unknowns.set(&mut self.params, &x);
+        self
     }
 
     fn set_window(&mut self, window: usize) {
@@ -212,8 +224,8 @@ impl<'a> PhysicsFromVideo<'a> {
         {
             self.set_window(2 * self.window);
         }
-        let g = simulate_with_gradients(&self.world, &self.params, &self.wrt);
-        let n = self.wrt.len();
+        let g = simulate_with_gradients(&self.world, &self.params, self.unknowns.columns());
+        let n = self.unknowns.columns().len();
         // Per frame: its pose gradient and the Jacobian of its pose tangent (rotations in metres).
         let mut rows: Vec<([f64; 6], Vec<[f64; 6]>)> = Vec::new();
         let mut total = 0.0;
@@ -268,26 +280,31 @@ impl<'a> PhysicsFromVideo<'a> {
             // Residual r = −d (the wanted pose change d = −η ∇), so the step solves J δ ≈ d; and a trust
             // region: moving a parameter by its scale costs as much as missing a pose by the step (a
             // parameter the poses barely depend on would otherwise take a huge step to move them a little).
-            let o = self.world.body_param_offset(self.body);
+            let unknowns = &self.unknowns;
             let mut residuals: Vec<f64> = rows.iter().flat_map(|(gp, _)| gp.map(|v| eta * v)).collect();
             let mut jac: Vec<Vec<f64>> = rows
                 .iter()
-                .flat_map(|(_, jac)| (0..6).map(move |c| jac.iter().map(|r| r[c]).collect::<Vec<f64>>()))
+                .flat_map(|(_, jac)| {
+                    (0..6).map(move |c| unknowns.chain(&jac.iter().map(|r| r[c]).collect::<Vec<f64>>()))
+                })
                 .collect();
-            for (j, &i) in self.wrt.iter().enumerate() {
-                let mut row = vec![0.0; n];
-                row[j] = self.cfg.pose_step * decay / probe_scale(i - o);
+            let m = unknowns.len();
+            for j in 0..m {
+                let mut row = vec![0.0; m];
+                row[j] = self.cfg.pose_step * decay / unknowns.probe(j);
                 jac.push(row);
                 residuals.push(0.0);
             }
             let lin = Linearization { residuals, jac };
             if let Some(delta) = lm_step(&lin, self.cfg.damping) {
-                for ((&i, d), &bounded) in self.wrt.iter().zip(&delta).zip(&self.bounded) {
-                    self.params[i] += d;
-                    if bounded {
-                        self.params[i] = self.params[i].clamp(1e-3, 1.0 - 1e-3);
+                let mut x = unknowns.values(&self.params);
+                for (j, (xj, d)) in x.iter_mut().zip(&delta).enumerate() {
+                    *xj += d;
+                    if unknowns.bounded(j) {
+                        *xj = xj.clamp(1e-3, 1.0 - 1e-3);
                     }
                 }
+                unknowns.set(&mut self.params, &x);
             }
         }
         let counted = rows.len();

@@ -7,7 +7,9 @@
 //! [`crate::PhysicsFit`] (PGA).
 
 use crate::first_pose_search::FirstPoseSearchConfig;
-use crate::fit_physics::{fit_multi_start, FitError, MultiStart, PhysicsFitConfig, CONTACT_STARTS};
+use crate::fit_physics::{
+    fit_multi_start_bodies, FitError, MultiStart, Observed, PhysicsFitConfig, StartContact, StartsOn, CONTACT_STARTS,
+};
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
 use crate::physics_from_video::VideoPhysicsConfig;
 use crate::pose_from_image::PoseFitConfig;
@@ -33,6 +35,10 @@ pub struct VideoFitConfig {
     /// already touches the scene). Default 3: with gravity known, three frames pin the launch along the
     /// line of sight, where one silhouette tells depth least.
     pub launch_frames: usize,
+    /// A body that the first frame shows on the scene launches along it: PA and PGA fit its launch velocity
+    /// in the plane of the scene under it, and its spin about the normal only when it rests on a face
+    /// ([`StartContact`]). Default true; off for a video whose body hops off the board at once.
+    pub launch_in_plane: bool,
     /// Contact values PA starts from (and PGA with `--no-pa`). Default 0.5 and 0.5.
     pub start_contact: ContactParams,
     pub pa: VideoPhysicsConfig,
@@ -56,6 +62,7 @@ impl Default for VideoFitConfig {
             first_pose: PoseFitConfig::default(),
             auto_init: FirstPoseSearchConfig::default(),
             launch_frames: 3,
+            launch_in_plane: true,
             start_contact: ContactParams {
                 restitution: 0.5,
                 friction: 0.5,
@@ -93,6 +100,55 @@ pub fn clearance(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> f64 {
         .iter()
         .map(|p| scene.distance_local(pose.transform_point(*p)))
         .fold(f64::INFINITY, f64::min)
+}
+
+/// Contact points within this of the lowest one (m) make the support a body rests on.
+const SUPPORT_BAND: f64 = 0.001;
+/// A support whose narrower RMS half-width is at least this fraction of the body's bounding radius is a
+/// face; narrower, a point or an edge. A ball's cap within [`SUPPORT_BAND`] is 0.16 of its radius wide; the
+/// toy's flat side 0.4–0.5.
+const FACE_WIDTH: f64 = 0.25;
+
+/// How the body at `pose` touches the scene ([`StartContact`]): off it when its lowest contact point is
+/// [`TOUCHING`] or more above it; else the scene's normal there (the mean of its gradients at the
+/// support's points), and a face when the support spreads in both directions of the tangent plane.
+pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> StartContact {
+    let lowest = clearance(body, scene, pose);
+    if !(lowest < TOUCHING) {
+        return StartContact::Free;
+    }
+    let mut sum = Vec3::new(0.0, 0.0, 0.0);
+    let mut support = Vec::new();
+    for p in &body.contact_points {
+        let at = pose.transform_point(*p);
+        let (d, g) = scene.distance_grad_local(at);
+        if d < lowest + SUPPORT_BAND {
+            sum += g.normalize_or(Vec3::new(0.0, 0.0, 0.0));
+            support.push(at);
+        }
+    }
+    let n = sum.normalize_or(Vec3::new(0.0, 0.0, 0.0));
+    if n.norm() < 0.5 {
+        return StartContact::Free;
+    }
+    let normal = n.to_array();
+    // The support's spread in the tangent plane: the smaller eigenvalue of its 2 × 2 covariance.
+    let [a, b] = crate::unknowns::tangent_basis(normal).map(Vec3::cst);
+    let count = support.len() as f64;
+    let mean = support.iter().fold(Vec3::new(0.0, 0.0, 0.0), |s, p| s + *p) * (1.0 / count);
+    let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
+    for p in &support {
+        let (x, y) = ((*p - mean).dot(a), (*p - mean).dot(b));
+        saa += x * x / count;
+        sab += x * y / count;
+        sbb += y * y / count;
+    }
+    let narrow = 0.5 * (saa + sbb) - (0.25 * (saa - sbb).powi(2) + sab * sab).sqrt();
+    if narrow.max(0.0).sqrt() >= FACE_WIDTH * body.bounding_radius {
+        StartContact::Face { normal }
+    } else {
+        StartContact::Touching { normal }
+    }
 }
 
 /// A rough guess raised along +z until no contact point is inside the scene (a guess from markers may sink
@@ -229,7 +285,9 @@ pub fn ga_weights(losses: &[ImageLoss], fitted: &[bool]) -> Vec<f64> {
 }
 
 /// PGA (Eq. 11): body `body`'s physics fitted to GA's poses with `weights`, from the world's own values
-/// (PA's) and, with `multi_start`, from each of [`CONTACT_STARTS`]. `on_start` hears each start's end.
+/// (PA's) and, with `multi_start`, from each of [`CONTACT_STARTS`]; the launch as the body's `start` on the
+/// scene allows. `on_start` hears each start's end.
+#[allow(clippy::too_many_arguments)]
 pub fn fit_to_poses(
     cfg: &PhysicsFitConfig,
     multi_start: bool,
@@ -237,10 +295,15 @@ pub fn fit_to_poses(
     body: usize,
     poses: Vec<Pose<f64>>,
     weights: Vec<f64>,
+    start: StartContact,
     on_start: &mut dyn FnMut(usize, &crate::StartResult),
 ) -> Result<MultiStart, FitError> {
     let starts: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
-    fit_multi_start(cfg.clone(), world, body, poses, Some(weights), starts, on_start)
+    let observed = Observed {
+        start,
+        ..Observed::new(body, poses, Some(weights))
+    };
+    fit_multi_start_bodies(cfg.clone(), world, vec![observed], starts, StartsOn::Scene, on_start)
 }
 
 /// The rigid motion `p_frame0 = R(q) p_capture + t` of an `init.json` entry applied to where the body frame
@@ -311,6 +374,46 @@ mod tests {
         // Far above the board (a toss): nothing along 3 cm of the ray touches.
         let flying = Pose::new(floating.q, Vec3::new(0.05, 0.02, 0.2));
         assert!(settle_along_ray(&body, &board, eye, &flying).is_none());
+    }
+
+    #[test]
+    fn a_box_on_its_face_a_ball_and_a_tossed_box_start_on_a_face_a_point_and_off_the_scene() {
+        use sim::sdf::{Cuboid, Plane, Sphere};
+        use sim::{ContactSampling, MassSpec};
+        // A slope, so the normal is not an axis.
+        let normal = Vec3::new(0.2, 0.0, 1.0).normalize_or(Vec3::new(0.0, 0.0, 1.0));
+        let slope = Shape::Plane(Plane {
+            normal: normal.to_array(),
+            offset: 0.0,
+        });
+        let body =
+            |shape: Shape| RigidBody::from_shape("b", &shape, MassSpec::Mass(0.1), ContactSampling::default()).unwrap();
+        let half = [0.025, 0.02, 0.015];
+        let block = body(Shape::Cuboid(Cuboid { half }));
+        let ball = body(Shape::Sphere(Sphere { radius: 0.02 }));
+        // Lying on the slope: turned so its face is parallel to it, its centre half a height along the normal.
+        let tilt = Quat::exp(Vec3::new(0.0, 0.2f64.atan(), 0.0));
+        let on_face = Pose::new(tilt, normal * half[2]);
+        let close = |a: [f64; 3]| (0..3).all(|i| (a[i] - normal.to_array()[i]).abs() < 1e-3);
+        match start_contact(&block, &slope, &on_face) {
+            StartContact::Face { normal } => assert!(close(normal), "{normal:?}"),
+            other => panic!("the block on its face: {other:?}"),
+        }
+        match start_contact(&ball, &slope, &Pose::new(Quat::identity(), normal * 0.02)) {
+            StartContact::Touching { normal } => assert!(close(normal), "{normal:?}"),
+            other => panic!("the ball: {other:?}"),
+        }
+        // On an edge: touching, not a face.
+        let on_edge = Pose::new(tilt * Quat::exp(Vec3::new(0.6, 0.0, 0.0)), normal * 0.03);
+        let lifted = lift_out(&block, &slope, on_edge).0;
+        let settled = Pose::new(lifted.q, lifted.t - normal * clearance(&block, &slope, &lifted));
+        assert!(matches!(
+            start_contact(&block, &slope, &settled),
+            StartContact::Touching { .. }
+        ));
+        // 5 mm above the slope: off it.
+        let tossed = Pose::new(tilt, normal * (half[2] + 0.005));
+        assert_eq!(start_contact(&block, &slope, &tossed), StartContact::Free);
     }
 
     #[test]

@@ -21,7 +21,7 @@ use recon::video_fit::{
 };
 use recon::{
     FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
-    PosesFromVideo, StartFrom, VideoFitConfig,
+    PosesFromVideo, StartContact, StartFrom, VideoFitConfig,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Map, Value};
@@ -142,6 +142,10 @@ struct FirstPose {
     v: [f64; 3],
     omega: [f64; 3],
     touching: bool,
+    /// How the body touches the scene in frame 0, which decides how its launch is fitted
+    /// (`launch_in_plane`).
+    #[serde(default)]
+    start: StartContact,
     iou: f64,
     loss: f64,
 }
@@ -475,7 +479,7 @@ pub fn run(a: FitArgs) -> Result<()> {
         return Ok(());
     }
     let t = Instant::now();
-    let (final_world, final_ga, rounds) = stage_pga(&mut job, start_world, ga, !a.no_pa)?;
+    let (final_world, final_ga, rounds) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(rounds));
     finish(&mut job, &final_world, Some(&final_ga), &timings, t_start)
@@ -671,7 +675,31 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
             }
         }
     }
-    let (v, omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
+    let (mut v, mut omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
+    let start = if job.cfg.launch_in_plane {
+        recon::video_fit::start_contact(&job.world.bodies[0], &job.world.scene, &poses[0])
+    } else {
+        StartContact::Free
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+    match start {
+        StartContact::Touching { normal } | StartContact::Face { normal } => {
+            let along = dot(v, normal);
+            v = std::array::from_fn(|i| v[i] - along * normal[i]);
+            let face = matches!(start, StartContact::Face { .. });
+            if face {
+                let spin = dot(omega, normal);
+                omega = normal.map(|x| x * spin);
+            }
+            tracing::info!(
+                "the body starts on the scene{} (normal {:?}): its launch is fitted along it{}",
+                if face { " on a face" } else { "" },
+                normal.map(|x| (x * 1e3).round() / 1e3),
+                if face { ", its spin about the normal" } else { "" }
+            );
+        }
+        StartContact::Free => {}
+    }
     let first = FirstPose {
         t: poses[0].t.to_array(),
         q: poses[0].q.to_array_re(),
@@ -679,6 +707,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         v,
         omega,
         touching,
+        start,
         iou: first_eval.iou(),
         loss: first_eval.loss,
     };
@@ -825,6 +854,7 @@ fn stage_pa(job: &mut Job, first: &FirstPose, run: bool) -> Result<World> {
     let (world, losses) = {
         let mut pa = PhysicsFromVideo::new(cfg.clone(), &job.object, &job.scene_pre, &job.frames, start, 0)
             .map_err(|e| anyhow!("PA: {e}"))?;
+        pa = pa.with_start(first.start);
         let mut rows = Vec::new();
         for _ in 0..cfg.iterations {
             let s = pa.step();
@@ -1003,7 +1033,13 @@ pub(super) fn frame_poses(poses: &[pganeus_io::Pose], rows: &[Value]) -> Vec<Fra
 
 /// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls; the best
 /// world, the GA poses it was fitted to and the rounds kept.
-fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> Result<(World, Vec<FramePose>, usize)> {
+fn stage_pga(
+    job: &mut Job,
+    start: World,
+    ga: Vec<FramePose>,
+    from_pa: bool,
+    start_contact: StartContact,
+) -> Result<(World, Vec<FramePose>, usize)> {
     let weights_cfg = job.cfg.pa.weights.clone();
     let mut best: Option<(World, Vec<FramePose>, f64)> = None;
     if from_pa {
@@ -1043,13 +1079,22 @@ fn stage_pga(job: &mut Job, start: World, ga: Vec<FramePose>, from_pa: bool) -> 
             rotation_weight: job.cfg.pga.rotation_weight * job.world.bodies[0].bounding_radius,
             ..job.cfg.pga.clone()
         };
-        let fit = fit_to_poses(&pga_cfg, multi, from.clone(), 0, poses, weights, &mut |i, r| {
-            start_rows.push(
-                json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
+        let fit = fit_to_poses(
+            &pga_cfg,
+            multi,
+            from.clone(),
+            0,
+            poses,
+            weights,
+            start_contact,
+            &mut |i, r| {
+                start_rows.push(
+                    json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
                 "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
-            );
-            pb.inc(1);
-        })
+                );
+                pb.inc(1);
+            },
+        )
         .map_err(|e| anyhow!("PGA: {e}"))?;
         pb.finish_and_clear();
         for r in start_rows {
