@@ -107,19 +107,36 @@ pub struct CollidingFit {
     pub steps: Vec<ScheduleStep>,
 }
 
+/// How the schedule guesses and fits each body's launch.
+#[derive(Clone, Copy, Debug)]
+pub struct LaunchSettings {
+    /// Launch guesses from the first `1 + frames` frames before any collision (and after the first one).
+    pub frames: usize,
+    /// A body on the scene where a segment starts launches along it ([`StartContact`]).
+    pub in_plane: bool,
+}
+
 /// The schedule over `poses[b]` (every body of `world`, one pose per frame) with per-frame `weights[b]`:
-/// launch guesses from the first `1 + launch_frames` frames before any collision, then the steps of the
-/// module's docs. `multi_start`: each step from [`CONTACT_STARTS`] too (on the scene's values for the
-/// launch, on the pair's after). `on_start` hears each start's end.
+/// launch guesses as `launch` says, then the steps of the module's docs. `multi_start`: each step from
+/// [`CONTACT_STARTS`] too (on the scene's values for the launch, on the pair's after). `on_start` hears
+/// each start's end.
 pub fn fit_colliding_bodies(
     cfg: &PhysicsFitConfig,
     multi_start: bool,
     world: World,
     poses: Vec<Vec<Pose<f64>>>,
     weights: Vec<Vec<f64>>,
-    launch_frames: usize,
+    launch: LaunchSettings,
     on_start: &mut dyn FnMut(&str, usize, &StartResult),
 ) -> Result<CollidingFit, FitError> {
+    let launch_frames = launch.frames;
+    let start_of = |w: &World, b: usize, pose: &Pose<f64>| {
+        if launch.in_plane {
+            start_contact(&w.bodies[b], &w.scene, pose)
+        } else {
+            StartContact::Free
+        }
+    };
     if poses.len() != world.bodies.len() || weights.len() != poses.len() {
         return Err(FitError::SequenceCount {
             bodies: world.bodies.len(),
@@ -143,9 +160,7 @@ pub fn fit_colliding_bodies(
         world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
     }
     // A body the first frame shows on the scene launches along it.
-    let starts: Vec<StartContact> = (0..poses.len())
-        .map(|b| start_contact(&world.bodies[b], &world.scene, &poses[b][0]))
-        .collect();
+    let starts: Vec<StartContact> = (0..poses.len()).map(|b| start_of(&world, b, &poses[b][0])).collect();
     let observed = |upto: usize| -> Vec<Observed> {
         (0..poses.len())
             .map(|b| Observed {
@@ -220,7 +235,7 @@ pub fn fit_colliding_bodies(
                 body: b,
                 poses: poses[b][from..to].to_vec(),
                 weights: Some(weights[b][from..to].to_vec()),
-                start: start_contact(&after.bodies[b], &after.scene, &poses[b][from]),
+                start: start_of(&after, b, &poses[b][from]),
             })
             .collect();
         let label = format!("after the first collision, frames {from}-{}", to - 1);

@@ -202,6 +202,8 @@ impl<'a> PhysicsFromVideo<'a> {
         self.unknowns = Self::unknowns_of(&self.cfg, &self.world, self.body, start);
         let x = self.unknowns.values(&self.params);
         self.unknowns.set(&mut self.params, &x);
+        // What `finish` falls back to is a launch the fit could reach.
+        self.start = self.params.clone();
         self
     }
 

@@ -127,10 +127,11 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
             support.push(at);
         }
     }
-    let n = sum.normalize_or(Vec3::new(0.0, 0.0, 0.0));
-    if n.norm() < 0.5 {
+    // Normals that mostly cancel (a body wedged in a groove) give no plane to launch along.
+    if sum.norm() < 0.5 * support.len() as f64 {
         return StartContact::Free;
     }
+    let n = sum.normalize_or(Vec3::new(0.0, 0.0, 1.0));
     let normal = n.to_array();
     // The support's spread in the tangent plane: the smaller eigenvalue of its 2 × 2 covariance.
     let [a, b] = crate::unknowns::tangent_basis(normal).map(Vec3::cst);
@@ -414,6 +415,19 @@ mod tests {
         // 5 mm above the slope: off it.
         let tossed = Pose::new(tilt, normal * (half[2] + 0.005));
         assert_eq!(start_contact(&block, &slope, &tossed), StartContact::Free);
+        // Wedged in a slot as tall as it is: the normals cancel, no plane to launch along.
+        let slot = Shape::Union(vec![
+            Shape::Plane(Plane {
+                normal: [0.0, 0.0, 1.0],
+                offset: 0.0,
+            }),
+            Shape::Plane(Plane {
+                normal: [0.0, 0.0, -1.0],
+                offset: -2.0 * half[2],
+            }),
+        ]);
+        let wedged = Pose::new(Quat::identity(), Vec3::new(0.0, 0.0, half[2]));
+        assert_eq!(start_contact(&block, &slot, &wedged), StartContact::Free);
     }
 
     #[test]

@@ -93,7 +93,10 @@ fn finds_the_collision_and_the_values_of_both_contacts() {
         start,
         poses.clone(),
         weights,
-        3,
+        recon::LaunchSettings {
+            frames: 3,
+            in_plane: true,
+        },
         &mut |_, _, _| {},
     )
     .unwrap();

@@ -596,7 +596,10 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         m.world.clone(),
         poses,
         weights,
-        m.cfg.launch_frames,
+        recon::LaunchSettings {
+            frames: m.cfg.launch_frames,
+            in_plane: m.cfg.launch_in_plane,
+        },
         &mut |label, i, r| {
             rows.push(
                 json!({"stage": "pga", "step": label, "start": i, "restitution": r.restitution,
