@@ -23,7 +23,7 @@ use crate::fit_physics::{
     fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartContact, StartResult, StartsOn,
 };
 use crate::poses_from_video::carried_on;
-use crate::video_fit::{clearance, launch_guess, start_contact, TOUCHING};
+use crate::video_fit::{clearance, launch_guess, launch_start, TOUCHING};
 use crate::CONTACT_STARTS;
 use geom::Pose;
 use sim::sdf::Sdf;
@@ -130,13 +130,7 @@ pub fn fit_colliding_bodies(
     on_start: &mut dyn FnMut(&str, usize, &StartResult),
 ) -> Result<CollidingFit, FitError> {
     let launch_frames = launch.frames;
-    let start_of = |w: &World, b: usize, pose: &Pose<f64>| {
-        if launch.in_plane {
-            start_contact(&w.bodies[b], &w.scene, pose)
-        } else {
-            StartContact::Free
-        }
-    };
+    let start_of = |w: &World, b: usize, pose: &Pose<f64>| launch_start(&w.bodies[b], &w.scene, pose, launch.in_plane);
     if poses.len() != world.bodies.len() || weights.len() != poses.len() {
         return Err(FitError::SequenceCount {
             bodies: world.bodies.len(),

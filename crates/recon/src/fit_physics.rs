@@ -202,6 +202,19 @@ pub struct PhysicsFit {
     probe: f64,
 }
 
+impl StartContact {
+    /// The launch `(v0, ω0)` nearest to the given one that this start allows (the parts it rules out
+    /// taken away): the same subspace PA and PGA fit in.
+    pub fn allowed_launch(&self, v: [f64; 3], omega: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        let mut u = Unknowns::default();
+        u.push_launch(0, *self, true, true);
+        let mut p: Vec<f64> = v.iter().chain(&omega).copied().collect();
+        let x = u.values(&p);
+        u.set(&mut p, &x);
+        ([p[0], p[1], p[2]], [p[3], p[4], p[5]])
+    }
+}
+
 /// The pattern search's first step for a parameter: 2 mm and 0.02 rad of initial pose, 5 cm/s, 0.5 rad/s,
 /// 0.1 of restitution and friction. Where contacts make the loss rugged (a landing on an edge, a tumble),
 /// Levenberg–Marquardt's local model may not point downhill at any damping; probing each parameter at

@@ -227,6 +227,21 @@ mod tests {
     }
 
     #[test]
+    fn a_start_allows_the_launch_its_values_can_reach() {
+        let (v, w) = ([1.0, 2.0, 3.0], [4.0, 5.0, 6.0]);
+        let close = |a: [f64; 3], b: [f64; 3]| (0..3).all(|i| (a[i] - b[i]).abs() < 1e-12);
+        assert_eq!(StartContact::Free.allowed_launch(v, w), (v, w));
+        let up = [0.0, 0.0, 1.0];
+        let (tv, tw) = StartContact::Touching { normal: up }.allowed_launch(v, w);
+        assert!(close(tv, [1.0, 2.0, 0.0]) && close(tw, w), "{tv:?} {tw:?}");
+        let (fv, fw) = StartContact::Face { normal: up }.allowed_launch(v, w);
+        assert!(
+            close(fv, [1.0, 2.0, 0.0]) && close(fw, [0.0, 0.0, 6.0]),
+            "{fv:?} {fw:?}"
+        );
+    }
+
+    #[test]
     fn the_tangent_basis_is_orthonormal_for_any_normal() {
         for n in [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.3, -0.9, 0.2], [0.0, 0.0, -2.0]] {
             let [a, b] = tangent_basis(n);

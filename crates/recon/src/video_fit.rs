@@ -105,9 +105,19 @@ pub fn clearance(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> f64 {
 /// Contact points within this of the lowest one (m) make the support a body rests on.
 const SUPPORT_BAND: f64 = 0.001;
 /// A support whose narrower RMS half-width is at least this fraction of the body's bounding radius is a
-/// face; narrower, a point or an edge. A ball's cap within [`SUPPORT_BAND`] is 0.16 of its radius wide; the
-/// toy's flat side 0.4–0.5.
+/// face; narrower, a point or an edge. A ball's cap within [`SUPPORT_BAND`] is `√(2 r · 1 mm) / 2` wide:
+/// 0.16 of a 2 cm ball's radius, 0.22 of a 1 cm one's; the tabletop toy's flat side, reconstructed and
+/// merged, measured 0.32 (the slide's first frame, `RUST_LOG=recon::video_fit=debug`).
 const FACE_WIDTH: f64 = 0.25;
+
+/// [`start_contact`] when `in_plane` (the `launch_in_plane` switch), else [`StartContact::Free`].
+pub fn launch_start(body: &RigidBody, scene: &Shape, pose: &Pose<f64>, in_plane: bool) -> StartContact {
+    if in_plane {
+        start_contact(body, scene, pose)
+    } else {
+        StartContact::Free
+    }
+}
 
 /// How the body at `pose` touches the scene ([`StartContact`]): off it when its lowest contact point is
 /// [`TOUCHING`] or more above it; else the scene's normal there (the mean of its gradients at the
@@ -145,7 +155,12 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
         sbb += y * y / count;
     }
     let narrow = 0.5 * (saa + sbb) - (0.25 * (saa - sbb).powi(2) + sab * sab).sqrt();
-    if narrow.max(0.0).sqrt() >= FACE_WIDTH * body.bounding_radius {
+    let width = narrow.max(0.0).sqrt() / body.bounding_radius;
+    tracing::debug!(
+        "start contact: {} support points, narrower RMS half-width {width:.3} of the radius",
+        support.len()
+    );
+    if width >= FACE_WIDTH {
         StartContact::Face { normal }
     } else {
         StartContact::Touching { normal }

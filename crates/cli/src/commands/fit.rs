@@ -675,30 +675,22 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
             }
         }
     }
-    let (mut v, mut omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
-    let start = if job.cfg.launch_in_plane {
-        recon::video_fit::start_contact(&job.world.bodies[0], &job.world.scene, &poses[0])
-    } else {
-        StartContact::Free
-    };
-    let dot = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
-    match start {
-        StartContact::Touching { normal } | StartContact::Face { normal } => {
-            let along = dot(v, normal);
-            v = std::array::from_fn(|i| v[i] - along * normal[i]);
-            let face = matches!(start, StartContact::Face { .. });
-            if face {
-                let spin = dot(omega, normal);
-                omega = normal.map(|x| x * spin);
-            }
-            tracing::info!(
-                "the body starts on the scene{} (normal {:?}): its launch is fitted along it{}",
-                if face { " on a face" } else { "" },
-                normal.map(|x| (x * 1e3).round() / 1e3),
-                if face { ", its spin about the normal" } else { "" }
-            );
-        }
-        StartContact::Free => {}
+    let (v, omega) = launch_guess(&poses, job.fps, job.world.config.gravity, touching);
+    let start = recon::video_fit::launch_start(
+        &job.world.bodies[0],
+        &job.world.scene,
+        &poses[0],
+        job.cfg.launch_in_plane,
+    );
+    let (v, omega) = start.allowed_launch(v, omega);
+    if let StartContact::Touching { normal } | StartContact::Face { normal } = start {
+        let face = matches!(start, StartContact::Face { .. });
+        tracing::info!(
+            "the body starts on the scene{} (normal {:?}): its launch is fitted along it{}",
+            if face { " on a face" } else { "" },
+            normal.map(|x| (x * 1e3).round() / 1e3),
+            if face { ", its spin about the normal" } else { "" }
+        );
     }
     let first = FirstPose {
         t: poses[0].t.to_array(),
