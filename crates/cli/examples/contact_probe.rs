@@ -6,6 +6,7 @@
 //! cargo run --release --example contact_probe -- search 300 # random spinning drops onto the ramp (default 40)
 //! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
 //! cargo run --release --example contact_probe -- preset:tabletop  # a preset's videos, the same spreads
+//! cargo run --release --example contact_probe -- pga:tabletop  # PGA on the true poses, 50 % off, each model
 //! ```
 use geom::Pose;
 use sim::ContactModel;
@@ -126,6 +127,10 @@ fn main() {
         }
         return;
     }
+    if let Some(preset) = name.strip_prefix("pga:") {
+        pga_on_true_poses(preset);
+        return;
+    }
     if name == "search" {
         let base = contact_scenes().into_iter().find(|s| s.name == "ramp-drop").unwrap();
         let mut rng = geom::SplitMix64::new(5);
@@ -196,6 +201,75 @@ fn main() {
         if label == "multi_point" {
             for (i, s) in t.frames.iter().enumerate().take(10) {
                 println!("ours frame {i}: t {:?} v {:?} w {:?}", s[0].pose.t, s[0].v, s[0].omega);
+            }
+        }
+    }
+}
+
+/// PGA (Eq. 11, as `fit` runs it: the initial pose refined, the multi-start) on the true poses of a preset's
+/// videos (scale large), from v0 and ω0 50 % off and the contact values of a guess, for each maker of the
+/// motion (our two models, Rapier) and each fitting model: how far the fitted simulation ends from the truth.
+fn pga_on_true_poses(preset: &str) {
+    let scene = synth::preset(preset, synth::Scale::Large).unwrap();
+    let made: [(&str, Physics, ContactModel); 3] = [
+        ("mean_point", Physics::Pganeus, ContactModel::MeanPoint),
+        ("multi_point", Physics::Pganeus, ContactModel::MultiPoint),
+        ("rapier", Physics::Rapier, ContactModel::MeanPoint),
+    ];
+    for (maker, physics, model) in made {
+        let mut s = scene.clone();
+        s.physics = physics;
+        for (i, (world, traj)) in simulate_videos(&s, Path::new(".")).unwrap().into_iter().enumerate() {
+            let truth: Vec<Pose<f64>> = if physics == Physics::Pganeus {
+                let mut w = world.clone();
+                w.config.contact_model = model;
+                w.simulate(&w.params()).frames.iter().map(|f| f[0].pose).collect()
+            } else {
+                traj.frames.iter().map(|f| f[0].pose).collect()
+            };
+            let true_v = world.initial[0].v;
+            for fit_model in [ContactModel::MeanPoint, ContactModel::MultiPoint] {
+                let mut w = world.clone();
+                w.config.contact_model = fit_model;
+                w.initial[0].v = world.initial[0].v * 1.5;
+                w.initial[0].omega = world.initial[0].omega * 1.5;
+                w.scene_contact[0] = sim::ContactParams {
+                    restitution: 0.25,
+                    friction: 0.375,
+                };
+                let cfg = recon::PhysicsFitConfig {
+                    fit_initial_pose: true,
+                    rotation_weight: w.bodies[0].bounding_radius,
+                    ..Default::default()
+                };
+                let t0 = std::time::Instant::now();
+                let multi =
+                    recon::fit_multi_start(cfg, w, 0, truth.clone(), None, &recon::CONTACT_STARTS, &mut |_, _| {})
+                        .unwrap();
+                let fitted = multi.best.fitted_world();
+                let poses: Vec<Pose<f64>> = fitted
+                    .simulate(&fitted.params())
+                    .frames
+                    .iter()
+                    .map(|f| f[0].pose)
+                    .collect();
+                let (mean, _) = poses
+                    .iter()
+                    .zip(&truth)
+                    .fold((0.0, 0), |(m, n), (p, q)| (m + (p.t - q.t).norm() * 1e3, n + 1));
+                let (worst_t, worst_r) = max_err(&poses, &truth);
+                let v = fitted.initial[0].v;
+                let c = fitted.scene_contact[0];
+                println!(
+                    "{} made by {maker:>11}, fitted by {fit_model:?}: mean {:.2} mm, worst {worst_t:.2} mm / {worst_r:.1}°; v0 {:.1} % off; k_n {:.3}, mu {:.3}; start {} won; {:.0} s",
+                    s.videos[i].name,
+                    mean / poses.len() as f64,
+                    (v - true_v).norm() / true_v.norm() * 100.0,
+                    c.restitution,
+                    c.friction,
+                    multi.winner,
+                    t0.elapsed().as_secs_f64()
+                );
             }
         }
     }

@@ -174,6 +174,7 @@ iterations = 20
 screened = 4
 screen_iterations = 10
 refined = 2
+twin_iterations = 20
 [auto_init.refine]
 iterations = 40
 rays_per_step = 256

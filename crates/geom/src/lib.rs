@@ -6,6 +6,7 @@
 
 pub mod camera;
 pub mod dual;
+pub mod eigen;
 pub mod pose;
 pub mod quat;
 pub mod real;
@@ -16,6 +17,7 @@ pub mod vec3;
 
 pub use camera::{Camera, CameraError, Intrinsics, Ray};
 pub use dual::Dual;
+pub use eigen::symmetric_eigen;
 pub use pose::{left_jacobian, Pose};
 pub use quat::{rotation_distance, Quat};
 pub use real::Real;

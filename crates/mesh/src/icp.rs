@@ -6,7 +6,7 @@
 //! best residual winning.
 
 use crate::kdtree::KdTree;
-use geom::{Mat3, Pose, Quat, Vec3};
+use geom::{symmetric_eigen, Mat3, Pose, Quat, Vec3};
 use rayon::prelude::*;
 
 type V = Vec3<f64>;
@@ -270,49 +270,6 @@ fn principal_frame(points: &[V]) -> (V, Mat3<f64>) {
         c,
         Mat3::from_rows([cols[0].to_array(), cols[1].to_array(), third.to_array()]).transpose(),
     )
-}
-
-/// Eigen-decomposition of a symmetric N×N matrix (Jacobi rotations): values
-/// and vectors (as columns).
-fn symmetric_eigen<const N: usize>(m: [[f64; N]; N]) -> ([f64; N], [[f64; N]; N]) {
-    let mut a = m;
-    let mut v = [[0.0; N]; N];
-    for (k, row) in v.iter_mut().enumerate() {
-        row[k] = 1.0;
-    }
-    for _ in 0..50 * N * N {
-        let (mut p, mut q, mut off) = (0, 1, 0.0f64);
-        for i in 0..N {
-            for j in i + 1..N {
-                if a[i][j].abs() > off {
-                    (p, q, off) = (i, j, a[i][j].abs());
-                }
-            }
-        }
-        if off < 1e-300 {
-            break;
-        }
-        let theta = 0.5 * (a[q][q] - a[p][p]) / a[p][q];
-        let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-        let t = if theta == 0.0 { 1.0 } else { t };
-        let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
-        for k in 0..N {
-            let (akp, akq) = (a[k][p], a[k][q]);
-            a[k][p] = c * akp - s * akq;
-            a[k][q] = s * akp + c * akq;
-        }
-        for k in 0..N {
-            let (apk, aqk) = (a[p][k], a[q][k]);
-            a[p][k] = c * apk - s * aqk;
-            a[q][k] = s * apk + c * aqk;
-        }
-        for row in v.iter_mut() {
-            let (vp, vq) = (row[p], row[q]);
-            row[p] = c * vp - s * vq;
-            row[q] = s * vp + c * vq;
-        }
-    }
-    (std::array::from_fn(|k| a[k][k]), v)
 }
 
 /// The 24 rotations that map coordinate axes onto coordinate axes.

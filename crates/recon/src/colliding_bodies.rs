@@ -158,10 +158,8 @@ pub fn fit_colliding_bodies(
     let observed = |upto: usize| -> Vec<Observed> {
         (0..poses.len())
             .map(|b| Observed {
-                body: b,
-                poses: poses[b][..upto].to_vec(),
-                weights: Some(weights[b][..upto].to_vec()),
                 start: starts[b],
+                ..Observed::new(b, poses[b][..upto].to_vec(), Some(weights[b][..upto].to_vec()))
             })
             .collect()
     };
@@ -226,10 +224,8 @@ pub fn fit_colliding_bodies(
         }
         let obs: Vec<Observed> = (0..poses.len())
             .map(|b| Observed {
-                body: b,
-                poses: poses[b][from..to].to_vec(),
-                weights: Some(weights[b][from..to].to_vec()),
                 start: start_of(&after, b, &poses[b][from]),
+                ..Observed::new(b, poses[b][from..to].to_vec(), Some(weights[b][from..to].to_vec()))
             })
             .collect();
         let label = format!("after the first collision, frames {from}-{}", to - 1);

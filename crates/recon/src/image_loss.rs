@@ -416,6 +416,11 @@ fn distance_to_mask(mask: &[bool], width: u32, height: u32) -> Vec<f32> {
     d
 }
 
+/// The smallest pixel window `[x0, y0, x1, y1]` holding both.
+pub(crate) fn window_union(a: [u32; 4], b: [u32; 4]) -> [u32; 4] {
+    [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,7 +12,7 @@
 //! say so.
 
 use crate::contact_penalty::{ContactPenaltyConfig, ContactTerm};
-use crate::image_loss::{FrameTarget, ImageLoss, Occluder};
+use crate::image_loss::{window_union, FrameTarget, ImageLoss, Occluder};
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 use geom::{Pose, Vec3};
 use neus::compose::ComposedRay;
@@ -134,11 +134,6 @@ fn same_start(a: &Pose<f64>, b: &Pose<f64>) -> bool {
 fn pace(a: &Pose<f64>, b: &Pose<f64>) -> f64 {
     let turn = geom::rotation_distance(a.q, b.q) / 15f64.to_radians();
     turn.max((b.t - a.t).norm() / 0.015).min(1.0)
-}
-
-/// The smallest window holding both.
-fn union(a: [u32; 4], b: [u32; 4]) -> [u32; 4] {
-    [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
 }
 
 /// PA's touching points hold in a frame whose start is within this (m, rad) of PA's pose: a body's size
@@ -364,7 +359,7 @@ impl<'a> PosesFromVideo<'a> {
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
             .with_occluders(self.occluders[k].clone());
         let window = match (new.window(), old.window()) {
-            (Some(a), Some(b)) => union(a, b),
+            (Some(a), Some(b)) => window_union(a, b),
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => return Ok(()),
         };
@@ -544,7 +539,7 @@ impl<'a> PosesFromVideo<'a> {
                     f.step();
                 }
                 if let Some(w) = f.window() {
-                    window = Some(window.map_or(w, |u| union(u, w)));
+                    window = Some(window.map_or(w, |u| window_union(u, w)));
                 }
             }
             if let Some(window) = window {

@@ -300,25 +300,17 @@ pub fn ga_weights(losses: &[ImageLoss], fitted: &[bool]) -> Vec<f64> {
         .collect()
 }
 
-/// PGA (Eq. 11): body `body`'s physics fitted to GA's poses with `weights`, from the world's own values
-/// (PA's) and, with `multi_start`, from each of [`CONTACT_STARTS`]; the launch as the body's `start` on the
-/// scene allows. `on_start` hears each start's end.
-#[allow(clippy::too_many_arguments)]
+/// PGA (Eq. 11): a body's physics fitted to GA's poses (`observed`: its poses, their weights, how it starts
+/// on the scene), from the world's own values (PA's) and, with `multi_start`, from
+/// each of [`CONTACT_STARTS`]. `on_start` hears each start's end.
 pub fn fit_to_poses(
     cfg: &PhysicsFitConfig,
     multi_start: bool,
     world: World,
-    body: usize,
-    poses: Vec<Pose<f64>>,
-    weights: Vec<f64>,
-    start: StartContact,
+    observed: Observed,
     on_start: &mut dyn FnMut(usize, &crate::StartResult),
 ) -> Result<MultiStart, FitError> {
     let starts: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
-    let observed = Observed {
-        start,
-        ..Observed::new(body, poses, Some(weights))
-    };
     fit_multi_start_bodies(cfg.clone(), world, vec![observed], starts, StartsOn::Scene, on_start)
 }
 

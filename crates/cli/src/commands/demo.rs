@@ -94,6 +94,7 @@ iterations = 20
 screened = 3
 screen_iterations = 10
 refined = 2
+twin_iterations = 20
 [auto_init.refine]
 iterations = 70
 rays_per_step = 256

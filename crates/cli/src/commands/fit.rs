@@ -752,9 +752,7 @@ pub(super) fn search_first_pose_of(
     out: &Path,
     rows: &mut Vec<Value>,
 ) -> Result<Pose<f64>> {
-    let screen = cfg.screen_iterations.min(cfg.refine.iterations);
-    let steps = cfg.screened * screen + cfg.refined * (cfg.refine.iterations - screen);
-    let pb = super::progress(steps as u64, &format!("first pose search: {name}"));
+    let pb = super::progress(cfg.steps() as u64, &format!("first pose search: {name}"));
     let found = recon::search_first_pose(body, scene, object, scene_pre, frame, cfg, || pb.inc(1));
     pb.finish_and_clear();
     let (pose, candidates) = match found {
@@ -1071,22 +1069,17 @@ fn stage_pga(
             rotation_weight: job.cfg.pga.rotation_weight * job.world.bodies[0].bounding_radius,
             ..job.cfg.pga.clone()
         };
-        let fit = fit_to_poses(
-            &pga_cfg,
-            multi,
-            from.clone(),
-            0,
-            poses,
-            weights,
-            start_contact,
-            &mut |i, r| {
-                start_rows.push(
-                    json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
+        let observed = recon::Observed {
+            start: start_contact,
+            ..recon::Observed::new(0, poses, Some(weights))
+        };
+        let fit = fit_to_poses(&pga_cfg, multi, from.clone(), observed, &mut |i, r| {
+            start_rows.push(
+                json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
                 "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
-                );
-                pb.inc(1);
-            },
-        )
+            );
+            pb.inc(1);
+        })
         .map_err(|e| anyhow!("PGA: {e}"))?;
         pb.finish_and_clear();
         for r in start_rows {
