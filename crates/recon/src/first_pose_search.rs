@@ -67,7 +67,9 @@ impl FirstPoseSearchConfig {
     /// The steps a search takes at most (its progress bar's length).
     pub fn steps(&self) -> usize {
         let screen = self.screen_iterations.min(self.refine.iterations);
-        self.screened * screen + self.refined * (self.refine.iterations - screen) + 3 * self.twin_iterations
+        self.screened.max(1) * screen
+            + self.refined.max(1) * (self.refine.iterations - screen)
+            + 3 * self.twin_iterations
     }
 }
 
@@ -77,7 +79,8 @@ pub struct Candidate {
     pub pose: Pose<f64>,
     /// Silhouette IoU of the posed mesh with the mask.
     pub silhouette_iou: f64,
-    /// "resting" (touching the scene along the ray) or "size" (the mask's area).
+    /// "resting" (touching the scene along the ray), "size" (the mask's area), or "half turn" (the winner's
+    /// half-turn, fitted; its loss is the image loss at its fitted pose).
     pub depth_from: &'static str,
     /// The image loss after the last steps it was given, for the screened ones.
     pub refined_loss: Option<f64>,
@@ -352,7 +355,9 @@ pub fn search_first_pose(
 const TWIN_IOU_SLACK: f64 = 0.05;
 
 /// The half-turns about the body's principal axes of inertia (body frame): the turns under which a
-/// symmetric shape looks the same.
+/// symmetric shape looks the same. Where two principal moments are equal (a cube, a square rod) the axes
+/// in their plane are arbitrary, the half-turns about them are no symmetry, and the silhouette test drops
+/// them: the step then does nothing (quarter turns are not tried).
 fn half_turns(body: &RigidBody) -> [Quat<f64>; 3] {
     let (_, vectors) = geom::symmetric_eigen(body.inertia.m);
     let axes = geom::Mat3::from_rows(vectors);
@@ -361,6 +366,8 @@ fn half_turns(body: &RigidBody) -> [Quat<f64>; 3] {
 
 /// The winner against its half-turns about the body's principal axes whose silhouettes cover the mask as
 /// well as its own: each fitted `twin_iterations` steps, all scored on the same pixels, the lowest loss kept.
+/// The winner has had more steps than a half-turn gets, so a nearly symmetric body's right pose must win by
+/// its colours in fewer steps (the tabletop drop's did: 0.018 against 0.040).
 #[allow(clippy::too_many_arguments)]
 fn best_of_twins<'a>(
     body: &RigidBody,
@@ -553,8 +560,14 @@ mod tests {
             },
             ..defaults
         };
+        // The search's winner half a turn off, refined as the search would (so its half-turn is not the
+        // truth exactly).
         let turned = Pose::new(truth.q * Quat::exp(Vec3::new(0.0, std::f64::consts::PI, 0.0)), truth.t);
-        let start = PoseFromImage::new(cfg.refine.clone(), &object, &behind, &frame, turned).unwrap();
+        let mut start = PoseFromImage::new(cfg.refine.clone(), &object, &behind, &frame, turned).unwrap();
+        for _ in 0..40 {
+            start.step();
+        }
+        let refined_off = rotation_distance(start.pose.q, truth.q).to_degrees();
         let mut all = Vec::new();
         let mut steps = 0;
         let found = best_of_twins(&body, &object, &behind, &frame, &cfg, start, &mut all, &mut || {
@@ -563,13 +576,19 @@ mod tests {
         .unwrap();
         let off = rotation_distance(found.pose.q, truth.q).to_degrees();
         eprintln!(
-            "half-turned start: found {off:.1}° from the truth; twins {:?}",
+            "half-turned start refined to {refined_off:.1}°, found {off:.1}° from the truth; twins {:?}",
             all.iter().map(|c| c.refined_loss).collect::<Vec<_>>()
         );
+        assert!(
+            refined_off > 150.0,
+            "the refined winner stays turned over: {refined_off:.1}°"
+        );
         assert_eq!(all.len(), 3, "every half-turn of a ball covers the mask");
-        assert!(steps <= cfg.steps(), "{steps} steps");
-        assert!(off < 10.0, "the start stayed {off:.1}° off");
-        // The start's place was right; the first steps under the wrong colours push it a few millimetres.
+        assert_eq!(steps, 3 * cfg.twin_iterations);
+        // The right side won; the first-pose stage after the search refines the rest (measured: 160° → 12°
+        // in 40 steps of 256 pixels).
+        assert!(off < 20.0, "the start stayed {off:.1}° off");
+        // The ball's place along the line of sight is what its image pins least.
         assert!((found.pose.t - truth.t).norm() < 6e-3, "{:?}", found.pose.t);
     }
 }
