@@ -40,8 +40,14 @@ pub struct VideoPhysicsConfig {
     pub rays_per_frame: usize,
     /// Frames in the first window (it doubles every `window_steps` steps). Default 4.
     pub initial_window: usize,
-    /// Steps per window before it doubles. Default 40.
+    /// Steps per window at most before it doubles. Default 40.
     pub window_steps: usize,
+    /// A window also ends once its loss has stopped falling: the mean batch loss of its last
+    /// [`LOSS_RUN`] steps is above `1 − window_tolerance` times the mean of the [`LOSS_RUN`] before them
+    /// (the last window ends the run). On the tabletop videos the loss of the 32- and 48-frame windows,
+    /// three quarters of PA's renders, moved by 0–10 % over their 40 steps, and a drop's first window not
+    /// at all. 0: every window runs `window_steps`. Default 0.02.
+    pub window_tolerance: f64,
     /// How far the frame with the steepest image gradient is asked to move per step at the start, m
     /// (a turn counts as the body's size times its angle); it decays tenfold over the run. Default 0.003.
     pub pose_step: f64,
@@ -63,6 +69,7 @@ impl Default for VideoPhysicsConfig {
             rays_per_frame: 256,
             initial_window: 4,
             window_steps: 40,
+            window_tolerance: 0.02,
             pose_step: 0.003,
             damping: 1e-3,
             fit_initial_pose: false,
@@ -89,6 +96,10 @@ pub enum VideoPhysicsError {
     #[error("the world: {0}")]
     World(sim::ConfigError),
 }
+
+/// Steps whose mean batch loss is compared with the steps before them ([`VideoPhysicsConfig::window_tolerance`]):
+/// a batch of 256 pixels per frame swings by a third from step to step.
+pub const LOSS_RUN: usize = 10;
 
 /// One step's outcome.
 #[derive(Clone, Debug, Serialize)]
@@ -125,6 +136,10 @@ pub struct PhysicsFromVideo<'a> {
     size: f64,
     window: usize,
     iteration: usize,
+    /// The batch losses of the current window's steps.
+    window_losses: Vec<f64>,
+    /// The last window ended: [`Self::done`].
+    finished: bool,
     composer: Composer,
     rng: SplitMix64,
 }
@@ -173,6 +188,8 @@ impl<'a> PhysicsFromVideo<'a> {
             size,
             window: 0,
             iteration: 0,
+            window_losses: Vec::new(),
+            finished: false,
             composer: Composer::default(),
         };
         fit.set_window(fit.cfg.initial_window);
@@ -211,6 +228,29 @@ impl<'a> PhysicsFromVideo<'a> {
         let n = self.frames.len();
         self.window = if window < 2 { n } else { window.min(n) };
         self.world.config.frames = self.window;
+        self.window_losses.clear();
+    }
+
+    /// Whether the current window is done: its steps are used up, or its loss stopped falling.
+    fn window_done(&self) -> bool {
+        let l = &self.window_losses;
+        if l.len() >= self.cfg.window_steps.max(1) {
+            return true;
+        }
+        if self.cfg.window_tolerance <= 0.0 || l.len() < 2 * LOSS_RUN {
+            return false;
+        }
+        let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
+        let (before, last) = (
+            mean(&l[l.len() - 2 * LOSS_RUN..l.len() - LOSS_RUN]),
+            mean(&l[l.len() - LOSS_RUN..]),
+        );
+        last > (1.0 - self.cfg.window_tolerance) * before
+    }
+
+    /// Whether the run is over: the last window (the whole video) is done, or the steps are used up.
+    pub fn done(&self) -> bool {
+        self.finished || self.iteration >= self.cfg.iterations
     }
 
     /// Frames in the current window.
@@ -220,10 +260,7 @@ impl<'a> PhysicsFromVideo<'a> {
 
     /// One step over the window's frames.
     pub fn step(&mut self) -> VideoPhysicsStats {
-        if self.iteration > 0
-            && self.iteration.is_multiple_of(self.cfg.window_steps.max(1))
-            && self.window < self.frames.len()
-        {
+        if self.window_done() && self.window < self.frames.len() {
             self.set_window(2 * self.window);
         }
         let g = simulate_with_gradients(&self.world, &self.params, self.unknowns.columns());
@@ -310,6 +347,10 @@ impl<'a> PhysicsFromVideo<'a> {
             }
         }
         let counted = rows.len();
+        self.window_losses.push(total / counted.max(1) as f64);
+        if self.window == self.frames.len() && self.window_done() {
+            self.finished = true;
+        }
         VideoPhysicsStats {
             iteration: self.iteration,
             window: self.window,
@@ -317,9 +358,13 @@ impl<'a> PhysicsFromVideo<'a> {
         }
     }
 
-    /// Run the configured number of steps; the stats of each.
+    /// Step until [`Self::done`]; the stats of each step.
     pub fn run(&mut self) -> Vec<VideoPhysicsStats> {
-        (0..self.cfg.iterations).map(|_| self.step()).collect()
+        let mut stats = Vec::new();
+        while !self.done() {
+            stats.push(self.step());
+        }
+        stats
     }
 
     /// The world with the fitted parameters in place, over every frame.

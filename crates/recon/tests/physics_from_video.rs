@@ -62,6 +62,9 @@ fn launch_velocity_and_friction_come_back_from_the_frames() {
     assert!(v_err < 0.05, "v0 within 5 %: {:?}", v.to_array());
     assert!((p[o + 13] - 0.3).abs() < 0.1, "friction within 0.1: {}", p[o + 13]);
     assert!(worst_iou > 0.9, "every frame's silhouette: worst IoU {worst_iou}");
+    // Windows end once their loss stops falling (measured: 85 steps of the 200 allowed, the same loss and
+    // v0 as all 200: 0.1031 against 0.1038, 3.7 % against 3.8 %).
+    assert!(stats.len() < 150, "{} steps", stats.len());
 }
 
 #[test]

@@ -846,7 +846,7 @@ fn stage_pa(job: &mut Job, first: &FirstPose, run: bool) -> Result<World> {
             .map_err(|e| anyhow!("PA: {e}"))?;
         pa = pa.with_start(first.start);
         let mut rows = Vec::new();
-        for _ in 0..cfg.iterations {
+        while !pa.done() {
             let s = pa.step();
             rows.push(json!({"stage": "pa", "iteration": s.iteration, "window": s.window, "loss": s.loss}));
             pb.inc(1);
