@@ -138,8 +138,6 @@ pub struct PhysicsFromVideo<'a> {
     iteration: usize,
     /// The batch losses of the current window's steps.
     window_losses: Vec<f64>,
-    /// The last window ended: [`Self::done`].
-    finished: bool,
     composer: Composer,
     rng: SplitMix64,
 }
@@ -189,7 +187,6 @@ impl<'a> PhysicsFromVideo<'a> {
             window: 0,
             iteration: 0,
             window_losses: Vec::new(),
-            finished: false,
             composer: Composer::default(),
         };
         fit.set_window(fit.cfg.initial_window);
@@ -250,7 +247,7 @@ impl<'a> PhysicsFromVideo<'a> {
 
     /// Whether the run is over: the last window (the whole video) is done, or the steps are used up.
     pub fn done(&self) -> bool {
-        self.finished || self.iteration >= self.cfg.iterations
+        self.iteration >= self.cfg.iterations || (self.window == self.frames.len() && self.window_done())
     }
 
     /// Frames in the current window.
@@ -348,9 +345,6 @@ impl<'a> PhysicsFromVideo<'a> {
         }
         let counted = rows.len();
         self.window_losses.push(total / counted.max(1) as f64);
-        if self.window == self.frames.len() && self.window_done() {
-            self.finished = true;
-        }
         VideoPhysicsStats {
             iteration: self.iteration,
             window: self.window,
