@@ -20,13 +20,7 @@ fn run_ok(cmd: &mut Command) -> Output {
 /// A 96×72 video camera at `eye` looking at `target`, focal length `focal` image widths.
 fn camera(focal: f64, eye: Vec3<f64>, target: Vec3<f64>) -> Camera<f64> {
     let (w, h) = (96, 72);
-    let k = Intrinsics {
-        fx: focal * w as f64,
-        fy: focal * w as f64,
-        cx: 0.5 * w as f64,
-        cy: 0.5 * h as f64,
-        skew: 0.0,
-    };
+    let k = Intrinsics::centred(focal * w as f64, w, h);
     Camera::look_at(eye, target, Vec3::new(0.0, 0.0, 1.0), k, w, h)
 }
 

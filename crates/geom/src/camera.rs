@@ -14,6 +14,16 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
+    /// A square-pixel camera of focal length `focal` px with its principal point at the image centre.
+    pub fn centred(focal: f64, width: u32, height: u32) -> Self {
+        Self {
+            fx: focal,
+            fy: focal,
+            cx: 0.5 * width as f64,
+            cy: 0.5 * height as f64,
+            skew: 0.0,
+        }
+    }
     pub fn matrix(&self) -> Mat3<f64> {
         Mat3::from_rows([[self.fx, self.skew, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
     }

@@ -27,13 +27,7 @@ fn fine(l: &LoadedField) -> RenderSettings {
 }
 
 fn camera(eye: Vec3<f64>, target: Vec3<f64>, w: u32, h: u32) -> Camera<f64> {
-    let k = Intrinsics {
-        fx: 1.1 * w as f64,
-        fy: 1.1 * w as f64,
-        cx: 0.5 * w as f64,
-        cy: 0.5 * h as f64,
-        skew: 0.0,
-    };
+    let k = Intrinsics::centred(1.1 * w as f64, w, h);
     Camera::look_at(eye, target, Vec3::new(0.0, 0.0, 1.0), k, w, h)
 }
 

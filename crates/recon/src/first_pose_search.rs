@@ -506,13 +506,7 @@ mod tests {
         use sim::{ContactSampling, MassSpec};
 
         let (w, h) = (96u32, 72u32);
-        let k = Intrinsics {
-            fx: 1.2 * w as f64,
-            fy: 1.2 * w as f64,
-            cx: 0.5 * w as f64,
-            cy: 0.5 * h as f64,
-            skew: 0.0,
-        };
+        let k = Intrinsics::centred(1.2 * w as f64, w, h);
         let up = Vec3::new(0.0, 0.0, 1.0);
         let cam = Camera::look_at(Vec3::new(0.13, -0.16, 0.14), Vec3::new(0.0, 0.0, 0.03), up, k, w, h);
         let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);

@@ -11,13 +11,7 @@ use recon::{FrameError, FrameTarget, PoseFitConfig, PoseFitError, PoseFromImage}
 use std::path::PathBuf;
 
 fn camera(w: u32, h: u32) -> Camera<f64> {
-    let k = Intrinsics {
-        fx: 1.2 * w as f64,
-        fy: 1.2 * w as f64,
-        cx: 0.5 * w as f64,
-        cy: 0.5 * h as f64,
-        skew: 0.0,
-    };
+    let k = Intrinsics::centred(1.2 * w as f64, w, h);
     Camera::look_at(
         Vec3::new(0.13, -0.16, 0.14),
         Vec3::new(0.0, 0.0, 0.03),

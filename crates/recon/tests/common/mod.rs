@@ -20,13 +20,7 @@ pub const RADIUS: f64 = 0.027;
 
 pub fn camera() -> Camera<f64> {
     let (w, h) = (128, 96);
-    let k = Intrinsics {
-        fx: 1.2 * w as f64,
-        fy: 1.2 * w as f64,
-        cx: 0.5 * w as f64,
-        cy: 0.5 * h as f64,
-        skew: 0.0,
-    };
+    let k = Intrinsics::centred(1.2 * w as f64, w, h);
     Camera::look_at(
         Vec3::new(0.1, -0.3, 0.25),
         Vec3::new(0.05, 0.02, 0.0),
