@@ -258,9 +258,11 @@ rays_per_step = 256
             f.truth.bodies[0].initial.v
         );
         // Measured (2026-11-24): mean 2.2 mm, worst 4.2 mm (the last frames, rolling, where depth comes from the
-        // physics alone: the ball is 14 px wide), IoU worst 0.88, v0 8 mm/s off. Each bound leaves room for
-        // the random pixel batches, not for a fit that lost the ball (before the mask-centred starts: 24 mm).
-        assert!(worst < 0.006, "worst frame {:.2} mm off", worst * 1e3);
+        // physics alone: the ball is 14 px wide), IoU worst 0.88, v0 8 mm/s off; with the chromaticity term in
+        // GA (2026-11-26): mean 2.1 mm, worst 6.0 mm (the last frame), IoU worst 0.93, v0 10 mm/s off. Each
+        // bound leaves room for the random pixel batches, not for a fit that lost the ball (before the
+        // mask-centred starts: 24 mm).
+        assert!(worst < 0.007, "worst frame {:.2} mm off", worst * 1e3);
         assert!(ious.iter().all(|&i| i > 0.85), "IoU {ious:?}");
         let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
         assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);

@@ -359,9 +359,7 @@ const TWIN_IOU_SLACK: f64 = 0.05;
 /// in their plane are arbitrary, the half-turns about them are no symmetry, and the silhouette test drops
 /// them: the step then does nothing (quarter turns are not tried).
 fn half_turns(body: &RigidBody) -> [Quat<f64>; 3] {
-    let (_, vectors) = geom::symmetric_eigen(body.inertia.m);
-    let axes = geom::Mat3::from_rows(vectors);
-    std::array::from_fn(|k| Quat::exp(axes.col(k).normalize_or(Vec3::new(1.0, 0.0, 0.0)) * std::f64::consts::PI))
+    body.principal_axes().map(|axis| Quat::exp(axis * std::f64::consts::PI))
 }
 
 /// The winner against its half-turns about the body's principal axes whose silhouettes cover the mask as

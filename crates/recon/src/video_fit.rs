@@ -74,9 +74,7 @@ impl Default for VideoFitConfig {
                 pose: PoseFitConfig {
                     iterations: 40,
                     rays_per_step: 512,
-                    lr_translation: 0.001,
-                    lr_rotation: 0.01,
-                    ..PoseFitConfig::default()
+                    ..PosesFromVideoConfig::default().pose
                 },
                 ..PosesFromVideoConfig::default()
             },

@@ -137,4 +137,12 @@ impl RigidBody {
             mesh_offset: com,
         })
     }
+
+    /// The principal axes of inertia in the body frame (unit vectors; arbitrary within a plane of equal
+    /// moments): the axes a shape symmetric in its mass is symmetric about.
+    pub fn principal_axes(&self) -> [Vec3<f64>; 3] {
+        let (_, vectors) = geom::symmetric_eigen(self.inertia.m);
+        let axes = Mat3::from_rows(vectors);
+        std::array::from_fn(|k| axes.col(k).normalize_or(Vec3::new(1.0, 0.0, 0.0)))
+    }
 }

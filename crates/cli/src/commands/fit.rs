@@ -1157,7 +1157,8 @@ fn finish(
     let traj = world.simulate(&world.params());
     let n = job.frames.len();
     let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
-    let weights = job.cfg.pa.weights.clone();
+    // Scored with GA's terms: `simulation_misses` compares these with GA's own losses.
+    let weights = job.cfg.ga.pose.weights.clone();
     let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights)?;
     // The reported pose is the simulated one (Eq. 11) wherever it explains the frame: GA's poses follow
     // each image alone and, where the image cannot tell depth (a small object far off), wander by

@@ -296,7 +296,8 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
             &body.frames,
             &poses[b],
             &others,
-            &m.cfg.pa.weights,
+            // GA's terms: `simulation_misses` compares these with GA's own losses.
+            &m.cfg.ga.pose.weights,
         )?);
     }
     Ok(all)
