@@ -4,8 +4,8 @@
 //! same camera) and compared with the frame:
 //!
 //! - colour L1 inside the body's mask,
-//! - chromaticity L1 inside the mask, `|c(r) − c(t)|` with `c(x) = x / (Σx + ε)`: the colour with the
-//!   brightness divided out. The object's field holds its appearance as the static captures lit it; in the
+//! - chromaticity L1 inside the mask (beyond the paper), `|c(r) − c(t)|` with `c(x) = x / (Σx + ε)`:
+//!   the colour with the brightness divided out. The object's field holds its appearance as the static captures lit it; in the
 //!   video a turned body shows its faces to the light at other angles, and a white light's shading scales
 //!   a pixel's channels together (the tabletop drop's tumble: colour L1 0.20–0.25 at the *true* pose against
 //!   0.05 in flight, chromaticity 0.006–0.010 against 0.005), so chromaticity follows the body's pattern
@@ -81,7 +81,8 @@ pub struct ImageLossWeights {
     /// Colour L1 inside the mask. Default 1.
     pub colour: f64,
     /// Chromaticity L1 inside the mask (the colour with the brightness divided out, so that shading
-    /// changes as the body turns under the light cost nothing). Its values are about a tenth of the
+    /// changes as the body turns under the light cost little: only the floor of the division keeps a
+    /// pixel at half the brightness from costing nothing). Its values are about a tenth of the
     /// colour's. Default 0 (GA, which follows a body through its turns, sets 5).
     pub chromaticity: f64,
     /// The two-sided silhouette term. Default 1.

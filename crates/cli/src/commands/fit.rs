@@ -1130,7 +1130,7 @@ pub(super) fn object_entry(object: &ObjectModel, mesh: &str) -> Map<String, Valu
 /// alone, wins it by moving in depth (a 14 px ball: 0.88 simulated against 0.96 by GA, the simulated pose
 /// 2 mm closer to the truth), so only a clear miss counts.
 const SIMULATION_MISSES_BY: f64 = 0.1;
-/// A frame whose image loss (colour, silhouette and pull, per pixel) under the simulation is more than this
+/// A frame whose image loss (GA's terms, per pixel) under the simulation is more than this
 /// many times GA's is one the simulation misses too, even with its silhouette in place: a tumble the
 /// simulator turned another way (the tabletop drop's bounces: 10–15° off, at 1.5–4 times GA's loss). Where
 /// both explain the image alike, the simulation's pose is kept (depth from physics, not from a silhouette's

@@ -296,7 +296,8 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
             &body.frames,
             &poses[b],
             &others,
-            // GA's terms: `simulation_misses` compares these with GA's own losses.
+            // GA's terms: `simulation_misses` compares these with GA's own losses (and the choice between
+            // the two rounds above is made on them too).
             &m.cfg.ga.pose.weights,
         )?);
     }
