@@ -236,13 +236,19 @@ rays_per_step = 256
         let b = &fitted.bodies[0];
         let reference = &b.extra["object"]["reference"];
         assert_eq!(reference["capture"], "toy_b");
-        let (mut worst, mut sum) = (0.0f64, 0.0);
-        for (k, (p, truth)) in b.poses.iter().zip(&truth_poses).enumerate() {
-            let e = (Vec3::cst(p.t) - truth.t).norm();
+        let errors: Vec<f64> = b
+            .poses
+            .iter()
+            .zip(&truth_poses)
+            .map(|(p, truth)| (Vec3::cst(p.t) - truth.t).norm())
+            .collect();
+        for (k, e) in errors.iter().enumerate() {
             eprintln!("frame {k}: {:.2} mm", e * 1e3);
-            worst = worst.max(e);
-            sum += e;
         }
+        let worst = errors.iter().cloned().fold(0.0, f64::max);
+        let sum: f64 = errors.iter().sum();
+        let (last, before_last) = errors.split_last().unwrap();
+        let worst_before_last = before_last.iter().cloned().fold(0.0, f64::max);
         let ious: Vec<f64> = fitted.extra["frames"]
             .as_array()
             .unwrap()
@@ -258,11 +264,22 @@ rays_per_step = 256
             f.truth.bodies[0].initial.v
         );
         // Measured (2026-11-24): mean 2.2 mm, worst 4.2 mm (the last frames, rolling, where depth comes from the
-        // physics alone: the ball is 14 px wide), IoU worst 0.88, v0 8 mm/s off; with the chromaticity term in
-        // GA (2026-11-26): mean 2.1 mm, worst 6.0 mm (the last frame), IoU worst 0.93, v0 10 mm/s off. Each
-        // bound leaves room for the random pixel batches, not for a fit that lost the ball (before the
-        // mask-centred starts: 24 mm).
-        assert!(worst < 0.007, "worst frame {:.2} mm off", worst * 1e3);
+        // physics alone: the ball is 14 px wide), IoU worst 0.88, v0 8 mm/s off. With the chromaticity term in
+        // GA (2026-11-26): mean 2.1 mm, frames 0-8 within 3.6 mm, the last frame 6.0 mm, IoU worst 0.93, v0
+        // 10 mm/s off. The old 6 mm bound holds for every frame but the last, whose regression to 6.0 mm is
+        // known and bounded alone. Each bound leaves room for the random pixel batches, not for a fit that lost
+        // the ball (before the mask-centred starts: 24 mm).
+        assert!(
+            worst_before_last < 0.006,
+            "worst frame before the last {:.2} mm off",
+            worst_before_last * 1e3
+        );
+        assert!(*last < 0.007, "the last frame {:.2} mm off", last * 1e3);
+        assert!(
+            sum / (errors.len() as f64) < 0.003,
+            "mean {:.2} mm off",
+            sum / errors.len() as f64 * 1e3
+        );
         assert!(ious.iter().all(|&i| i > 0.85), "IoU {ious:?}");
         let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
         assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);
