@@ -10,7 +10,7 @@
 
 use crate::least_squares::{lm_step, Bounds, Linearization};
 use crate::unknowns::Unknowns;
-use geom::{Pose, Quat};
+use geom::{Pose, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use sim::{simulate_with_gradients, World};
 
@@ -148,6 +148,15 @@ pub struct Observed {
     pub weights: Option<Vec<f64>>,
     /// How the body touches the scene in the first frame: what its launch may be.
     pub start: StartContact,
+    /// The centre of the fixed camera the poses were seen from, if they were: each frame's translation error
+    /// along the line of sight then counts `d / z` of the error across it (the body's bounding diameter `d`
+    /// over its distance `z`). A silhouette places a body across the line of sight `z / d` times more
+    /// precisely than along it (its size in pixels against the focal length), so with this weighing the
+    /// physics (gravity, where contacts happen) says the depth and the images say the rest.
+    pub eye: Option<[f64; 3]>,
+    /// Frames whose depth the scene pinned (GA held the body on it: where it touches, the board says how far
+    /// it is): their errors count alike in every direction. Empty: none.
+    pub depth_held: Vec<bool>,
 }
 
 /// How a body touches the scene in the first frame, which decides how its launch is fitted.
@@ -176,7 +185,33 @@ impl Observed {
             poses,
             weights,
             start: StartContact::Free,
+            eye: None,
+            depth_held: Vec::new(),
         }
+    }
+}
+
+/// How a frame's translation error is weighed: `e − (1 − α) s (s · e)`, the unit line of sight `s` and the
+/// weight `α` of the error along it ([`Observed::eye`]).
+#[derive(Clone, Copy, Debug)]
+struct Sight {
+    s: Vec3<f64>,
+    alpha: f64,
+}
+
+impl Sight {
+    fn of(eye: Option<[f64; 3]>, body_diameter: f64, at: Vec3<f64>) -> Option<Self> {
+        let d = at - Vec3::cst(eye?);
+        let z = d.norm();
+        (z > body_diameter).then(|| Sight {
+            s: d * (1.0 / z),
+            alpha: body_diameter / z,
+        })
+    }
+
+    /// The weighed vector (the map is linear and symmetric: it also maps Jacobian columns).
+    fn apply(&self, e: Vec3<f64>) -> Vec3<f64> {
+        e - self.s * ((1.0 - self.alpha) * self.s.dot(e))
     }
 }
 
@@ -188,6 +223,8 @@ pub struct PhysicsFit {
     bodies: Vec<usize>,
     poses: Vec<Vec<Pose<f64>>>,
     weights: Vec<Vec<f64>>,
+    /// Each observed body's lines of sight, per frame ([`Observed::eye`]).
+    sights: Vec<Vec<Option<Sight>>>,
     frames: usize,
     params: Vec<f64>,
     unknowns: Unknowns,
@@ -255,6 +292,7 @@ impl PhysicsFit {
         let mut poses = Vec::new();
         let mut weights = Vec::new();
         let mut starts = Vec::new();
+        let mut sights = Vec::new();
         for o in observed {
             if o.body >= world.bodies.len() || bodies.contains(&o.body) {
                 return Err(FitError::NoSuchBody(o.body));
@@ -288,6 +326,17 @@ impl PhysicsFit {
                 return Err(FitError::BadPose(i));
             }
             world.initial[o.body].pose = Pose::new(o.poses[0].q.normalize_or_identity(), o.poses[0].t);
+            let diameter = 2.0 * world.bodies[o.body].bounding_radius;
+            sights.push(
+                o.poses
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| {
+                        let held = o.depth_held.get(k).copied().unwrap_or(false);
+                        Sight::of(o.eye.filter(|_| !held), diameter, p.t)
+                    })
+                    .collect(),
+            );
             bodies.push(o.body);
             poses.push(o.poses);
             weights.push(w);
@@ -364,6 +413,7 @@ impl PhysicsFit {
             bodies,
             poses,
             weights,
+            sights,
             frames,
             params,
             unknowns,
@@ -418,6 +468,14 @@ impl PhysicsFit {
         p
     }
 
+    /// The `i`-th observed body's translation error in frame `k` as the loss weighs it ([`Observed::eye`]).
+    fn translation_error(&self, i: usize, k: usize, e: Vec3<f64>) -> Vec3<f64> {
+        match self.sights[i][k] {
+            Some(sight) => sight.apply(e),
+            None => e,
+        }
+    }
+
     fn loss_at(&self, p: &[f64]) -> f64 {
         self.loss_in(&self.world, p)
     }
@@ -432,7 +490,7 @@ impl PhysicsFit {
             for (i, &b) in self.bodies.iter().enumerate() {
                 let s = f[b];
                 let obs = &self.poses[i][k];
-                let et = (s.pose.t - obs.t).norm();
+                let et = self.translation_error(i, k, s.pose.t - obs.t).norm();
                 let eq = Self::quat_error(s.pose.q, obs.q)
                     .iter()
                     .map(|v| v * v)
@@ -455,21 +513,27 @@ impl PhysicsFit {
             for (i, &b) in self.bodies.iter().enumerate() {
                 let s = g.frames[k][b];
                 let obs = &self.poses[i][k];
-                let et: Vec<f64> = (s.pose.t - obs.t).to_array().to_vec();
+                let et: Vec<f64> = self.translation_error(i, k, s.pose.t - obs.t).to_array().to_vec();
                 let eq: Vec<f64> = Self::quat_error(s.pose.q, obs.q).iter().map(|v| v * lq).collect();
-                for (block, comps, scale) in [(et, 0..3, 1.0), (eq, 3..7, lq)] {
+                // The translation rows weighed as their errors are (the map is linear).
+                let rows: Vec<Vec<f64>> = (0..7).map(|comp| self.unknowns.chain(g.row(k, b, comp))).collect();
+                let t_rows: Vec<Vec<f64>> = (0..3)
+                    .map(|c| {
+                        (0..rows[0].len())
+                            .map(|j| {
+                                let col = Vec3::new(rows[0][j], rows[1][j], rows[2][j]);
+                                self.translation_error(i, k, col).to_array()[c]
+                            })
+                            .collect()
+                    })
+                    .collect();
+                for (block, block_rows, scale) in [(et, &t_rows[..], 1.0), (eq, &rows[3..7], lq)] {
                     let norm = block.iter().map(|v| v * v).sum::<f64>().sqrt();
                     // IRLS: w |e|² / |e| has the gradient of w |e| at this point.
                     let c = (self.weights[i][k] / norm.max(1e-7)).sqrt();
-                    for (e, comp) in block.iter().zip(comps) {
+                    for (e, row) in block.iter().zip(block_rows) {
                         residuals.push(c * e);
-                        jac.push(
-                            self.unknowns
-                                .chain(g.row(k, b, comp))
-                                .iter()
-                                .map(|d| c * scale * d)
-                                .collect(),
-                        );
+                        jac.push(row.iter().map(|d| c * scale * d).collect());
                     }
                 }
             }
@@ -563,6 +627,14 @@ impl PhysicsFit {
             self.loss,
             self.values()
         );
+        if tracing::enabled!(tracing::Level::TRACE) {
+            let e: Vec<String> = self
+                .pose_errors()
+                .iter()
+                .map(|e| format!("{:.1}/{:.0}", e.translation * 1e3, e.rotation_deg))
+                .collect();
+            tracing::trace!("physics fit: per-frame errors (mm/°) {}", e.join(" "));
+        }
         if self.window >= self.frames {
             self.converged = true;
         } else {

@@ -1071,6 +1071,8 @@ fn stage_pga(
         };
         let observed = recon::Observed {
             start: start_contact,
+            eye: job.frames.first().map(|f| f.camera.center().to_array()),
+            depth_held: ga.iter().map(|r| r.in_contact).collect(),
             ..recon::Observed::new(0, poses, Some(weights))
         };
         let fit = fit_to_poses(&pga_cfg, multi, from.clone(), observed, &mut |i, r| {
