@@ -1,10 +1,12 @@
 //! The contact penalty of Eq. 10 for a pose fitted from images (GA): in a
-//! frame where the simulation (PA) had the body touching the scene, the pose
-//! must neither float above the scene (the monocular drift toward the camera
-//! of the paper's Fig. 11, invisible from the video's own view) nor sink into
-//! it. The points are those PA had within the contact threshold; at the pose
-//! being fitted, with `s_j` their signed distances to the scene and σ a
-//! length scale:
+//! frame where the body is known to touch the scene (PA's simulated body on
+//! it when the frame is taken, or a contact that lasts over the fitted frames
+//! around it), the pose must neither float above the scene (the monocular
+//! drift toward the camera of the paper's Fig. 11, invisible from the video's
+//! own view) nor sink into it; elsewhere a body near the scene is only kept
+//! from sinking (`lambda_out` 0). The points are those within the contact
+//! threshold; at the pose being fitted, with `s_j` their signed distances to
+//! the scene and σ a length scale:
 //!
 //! - sinking, `λ_in · mean_j (exp(max(0, −s_j) / σ) − 1)`,
 //! - floating, `λ_out · (exp(max(0, min_j s_j) / σ) − 1)`: the nearest point

@@ -89,6 +89,8 @@ pub enum FitError {
     TooFewPoses(usize),
     #[error("{poses} poses but {weights} weights")]
     WeightCount { poses: usize, weights: usize },
+    #[error("{poses} poses but {held} depth_held flags")]
+    HeldCount { poses: usize, held: usize },
     #[error("weight {0} is negative or not finite")]
     BadWeight(usize),
     #[error("pose {0} has NaN or infinite values")]
@@ -315,6 +317,12 @@ impl PhysicsFit {
                     weights: w.len(),
                 });
             }
+            if !o.depth_held.is_empty() && o.depth_held.len() != frames {
+                return Err(FitError::HeldCount {
+                    poses: frames,
+                    held: o.depth_held.len(),
+                });
+            }
             if let Some(i) = w.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
                 return Err(FitError::BadWeight(i));
             }
@@ -517,16 +525,13 @@ impl PhysicsFit {
                 let eq: Vec<f64> = Self::quat_error(s.pose.q, obs.q).iter().map(|v| v * lq).collect();
                 // The translation rows weighed as their errors are (the map is linear).
                 let rows: Vec<Vec<f64>> = (0..7).map(|comp| self.unknowns.chain(g.row(k, b, comp))).collect();
-                let t_rows: Vec<Vec<f64>> = (0..3)
-                    .map(|c| {
-                        (0..rows[0].len())
-                            .map(|j| {
-                                let col = Vec3::new(rows[0][j], rows[1][j], rows[2][j]);
-                                self.translation_error(i, k, col).to_array()[c]
-                            })
-                            .collect()
+                let cols: Vec<[f64; 3]> = (0..rows[0].len())
+                    .map(|j| {
+                        let col = Vec3::new(rows[0][j], rows[1][j], rows[2][j]);
+                        self.translation_error(i, k, col).to_array()
                     })
                     .collect();
+                let t_rows: Vec<Vec<f64>> = (0..3).map(|c| cols.iter().map(|col| col[c]).collect()).collect();
                 for (block, block_rows, scale) in [(et, &t_rows[..], 1.0), (eq, &rows[3..7], lq)] {
                     let norm = block.iter().map(|v| v * v).sum::<f64>().sqrt();
                     // IRLS: w |e|² / |e| has the gradient of w |e| at this point.
