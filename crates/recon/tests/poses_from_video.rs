@@ -11,6 +11,18 @@ use common::*;
 use geom::{Pose, Quat, Vec3};
 use recon::{ContactPenaltyConfig, ContactTerm, PosesFromVideo, PosesFromVideoConfig};
 
+/// GA with every start, each frame fitted in 24 steps of 256 pixels.
+fn short_fits() -> PosesFromVideoConfig {
+    PosesFromVideoConfig {
+        pose: recon::PoseFitConfig {
+            iterations: 24,
+            rays_per_step: 256,
+            ..PosesFromVideoConfig::default().pose
+        },
+        ..PosesFromVideoConfig::default()
+    }
+}
+
 #[test]
 fn poses_from_a_slow_launch_are_corrected_frame_by_frame() {
     let ball = ball_model();
@@ -99,14 +111,7 @@ fn poses_after_a_landing_pa_got_wrong_follow_the_images() {
         off.iter().cloned().fold(0.0, f64::max) > 0.02,
         "PA loses the block: {off:?}"
     );
-    let cfg = PosesFromVideoConfig {
-        pose: recon::PoseFitConfig {
-            iterations: 24,
-            rays_per_step: 256,
-            ..PosesFromVideoConfig::default().pose
-        },
-        ..PosesFromVideoConfig::default()
-    };
+    let cfg = short_fits();
     let mut ga = PosesFromVideo::new(cfg, &ball, &behind, &frames, &bouncy, 0, &pa).expect("valid input");
     let with = ga.run().expect("every frame fits").to_vec();
     let e_with: Vec<f64> = with
@@ -151,14 +156,7 @@ fn a_body_bouncing_off_the_board_is_held_to_it_only_where_it_touches() {
     let (behind, frames) = film(&ball, &truth_world);
     let truth = truth_world.simulate(&truth_world.params());
     let clearance = |p: &Pose<f64>| recon::video_fit::clearance(&truth_world.bodies[0], &truth_world.scene, p);
-    let cfg = PosesFromVideoConfig {
-        pose: recon::PoseFitConfig {
-            iterations: 24,
-            rays_per_step: 256,
-            ..PosesFromVideoConfig::default().pose
-        },
-        ..PosesFromVideoConfig::default()
-    };
+    let cfg = short_fits();
     let mut ga = PosesFromVideo::new(cfg, &ball, &behind, &frames, &truth_world, 0, &truth).expect("valid input");
     let results = ga.run().expect("every frame fits").to_vec();
     let mut bounced = 0;
