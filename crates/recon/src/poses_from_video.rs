@@ -143,6 +143,13 @@ struct Start {
     wide: bool,
 }
 
+impl Start {
+    /// Whether the body is held on the scene from this start (a known contact and points to hold).
+    fn held(&self) -> bool {
+        self.holds && !self.contacts.is_empty()
+    }
+}
+
 /// Starts closer than this (m, rad) to an earlier one are not fitted again.
 const SAME_START: (f64, f64) = (0.0015, 0.035);
 /// Whether two starts are close enough that the second need not be fitted ([`SAME_START`]).
@@ -368,11 +375,7 @@ impl<'a> PosesFromVideo<'a> {
             body: &self.world.bodies[self.body],
             scene: &self.world.scene,
             points,
-            cfg: if holds {
-                self.cfg.contact.clone()
-            } else {
-                self.sinking_only()
-            },
+            cfg: self.penalty_config(holds),
         };
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
@@ -420,10 +423,11 @@ impl<'a> PosesFromVideo<'a> {
         touches(a) && touches(b)
     }
 
-    /// The penalty's config without its floating term (a contact that is not known, [`Start::holds`]).
-    fn sinking_only(&self) -> ContactPenaltyConfig {
+    /// The penalty's config: whole where the contact is known ([`Start::holds`]), else without its floating
+    /// term (the body only kept from sinking).
+    fn penalty_config(&self, holds: bool) -> ContactPenaltyConfig {
         ContactPenaltyConfig {
-            lambda_out: 0.0,
+            lambda_out: if holds { self.cfg.contact.lambda_out } else { 0.0 },
             ..self.cfg.contact.clone()
         }
     }
@@ -466,6 +470,8 @@ impl<'a> PosesFromVideo<'a> {
         let pa_holds = !self.tracking && trusted && !self.contacts[k].is_empty();
         // Tracking without holding (the paper's `--no-pa`): no penalty at all.
         let penalised = !self.tracking || holding;
+        // A contact that lasted over the two fitted frames before (the same for every start of this frame).
+        let lasting = penalised && k >= 2 && self.held_between(k - 2, k - 1);
         let mut out = vec![Start {
             pose: physics,
             contacts: if pa_holds {
@@ -475,7 +481,7 @@ impl<'a> PosesFromVideo<'a> {
             } else {
                 Vec::new()
             },
-            holds: pa_holds || holding || (penalised && k >= 2 && self.held_between(k - 2, k - 1)),
+            holds: pa_holds || holding || lasting,
             from: StartFrom::Physics,
             wide: !trusted,
         }];
@@ -491,7 +497,7 @@ impl<'a> PosesFromVideo<'a> {
             if !out.iter().any(|s| same_start(&s.pose, &pose)) {
                 out.push(Start {
                     contacts: self.touching(&pose),
-                    holds: self.held_between(k - 2, k - 1),
+                    holds: lasting,
                     pose,
                     from,
                     wide: true,
@@ -565,7 +571,7 @@ impl<'a> PosesFromVideo<'a> {
                         pose: first.pose,
                         image: ImageLoss::default(),
                         contact_penalty: 0.0,
-                        in_contact: first.holds && !first.contacts.is_empty(),
+                        in_contact: first.held(),
                         fitted: false,
                         start: first.from,
                     });
@@ -581,11 +587,7 @@ impl<'a> PosesFromVideo<'a> {
                     body: &self.world.bodies[self.body],
                     scene: &self.world.scene,
                     points: s.contacts.clone(),
-                    cfg: if s.holds {
-                        self.cfg.contact.clone()
-                    } else {
-                        self.sinking_only()
-                    },
+                    cfg: self.penalty_config(s.holds),
                 })
             });
         }
@@ -638,7 +640,7 @@ impl<'a> PosesFromVideo<'a> {
             pose: fit.pose,
             image: fit.evaluate(),
             contact_penalty: fit.contact_penalty(),
-            in_contact: starts[best].holds && !starts[best].contacts.is_empty(),
+            in_contact: starts[best].held(),
             fitted: true,
             start: starts[best].from,
         };

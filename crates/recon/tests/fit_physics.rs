@@ -48,13 +48,23 @@ fn poses_of(w: &World) -> Vec<Pose<f64>> {
     w.simulate(&w.params()).frames.iter().map(|f| f[0].pose).collect()
 }
 
+/// The toss both fits recover: its contact values, v0 and ω0.
+const TOSS_CONTACT: ContactParams = ContactParams {
+    restitution: 0.5,
+    friction: 0.3,
+};
+const TOSS_V0: [f64; 3] = [1.6, 0.1, 0.6];
+const TOSS_OMEGA0: [f64; 3] = [0.0, 0.0, 2.0];
+
+/// The fitted launch's error relative to `v0` (`p`: a body's fitted parameters, v0 first).
+fn launch_error(p: &[f64; 8], v0: [f64; 3]) -> f64 {
+    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    norm([p[0] - v0[0], p[1] - v0[1], p[2] - v0[2]]) / norm(v0)
+}
+
 #[test]
 fn recovers_velocity_and_contact_parameters_from_its_own_poses() {
-    let truth = ContactParams {
-        restitution: 0.5,
-        friction: 0.3,
-    };
-    let (v0, w0) = ([1.6, 0.1, 0.6], [0.0, 0.0, 2.0]);
+    let (truth, v0, w0) = (TOSS_CONTACT, TOSS_V0, TOSS_OMEGA0);
     let observed = poses_of(&tabletop(v0, w0, truth));
     // The body must really bounce off the ground and the wall.
     let xs: Vec<f64> = observed.iter().map(|p| p.t.x).collect();
@@ -75,8 +85,7 @@ fn recovers_velocity_and_contact_parameters_from_its_own_poses() {
         let stats = fit.run();
         let secs = t0.elapsed().as_secs_f64();
         let p = fit.fitted_body_params();
-        let v_err = ((p[0] - v0[0]).powi(2) + (p[1] - v0[1]).powi(2) + (p[2] - v0[2]).powi(2)).sqrt()
-            / (v0[0] * v0[0] + v0[1] * v0[1] + v0[2] * v0[2]).sqrt();
+        let v_err = launch_error(&p, v0);
         let msg = format!(
             "fitted {p:?} after {} iterations in {secs:.2} s, loss {}",
             stats.len(),
@@ -134,11 +143,7 @@ fn a_slide_launched_in_the_plane_of_the_board_stays_in_it() {
 
 #[test]
 fn poses_seen_from_one_camera_count_their_depth_least() {
-    let truth = ContactParams {
-        restitution: 0.5,
-        friction: 0.3,
-    };
-    let (v0, w0) = ([1.6, 0.1, 0.6], [0.0, 0.0, 2.0]);
+    let (truth, v0, w0) = (TOSS_CONTACT, TOSS_V0, TOSS_OMEGA0);
     let true_poses = poses_of(&tabletop(v0, w0, truth));
     // Seen from a camera 0.6 m away: each pose off along its line of sight by up to 8 mm (what GA's
     // silhouettes leave of a 6 cm body's depth), and 0.3 mm across it.
@@ -170,8 +175,7 @@ fn poses_seen_from_one_camera_count_their_depth_least() {
         let mut fit = PhysicsFit::new_bodies(cfg, start, vec![obs]).unwrap();
         fit.run();
         let p = fit.fitted_body_params();
-        let v_err = ((p[0] - v0[0]).powi(2) + (p[1] - v0[1]).powi(2) + (p[2] - v0[2]).powi(2)).sqrt()
-            / (v0[0] * v0[0] + v0[1] * v0[1] + v0[2] * v0[2]).sqrt();
+        let v_err = launch_error(&p, v0);
         let w = fit.fitted_world();
         let errors: Vec<f64> = poses_of(&w)
             .iter()
