@@ -116,33 +116,74 @@ pub struct LaunchSettings {
     pub in_plane: bool,
 }
 
-/// The schedule over `poses[b]` (every body of `world`, one pose per frame) with per-frame `weights[b]`:
-/// launch guesses as `launch` says, then the steps of the module's docs. `multi_start`: each step from
+/// What the schedule fits: every body's poses (`poses[b][k]`, one sequence per body of the world) with
+/// per-frame weights, and where they were seen from (one fixed camera), so that each body's error along the
+/// line of sight counts least ([`Observed::eye`]) except in the frames whose depth the scene pinned.
+#[derive(Clone, Debug, Default)]
+pub struct ObservedBodies {
+    pub poses: Vec<Vec<Pose<f64>>>,
+    pub weights: Vec<Vec<f64>>,
+    /// The camera's centre; `None`: every direction alike.
+    pub eye: Option<[f64; 3]>,
+    /// Per body, per frame: GA held the body on the scene ([`Observed::depth_held`]). Empty: none.
+    pub depth_held: Vec<Vec<bool>>,
+}
+
+impl ObservedBodies {
+    /// Poses and weights alone: no camera, every direction alike.
+    pub fn new(poses: Vec<Vec<Pose<f64>>>, weights: Vec<Vec<f64>>) -> Self {
+        Self {
+            poses,
+            weights,
+            ..Self::default()
+        }
+    }
+
+    /// Body `b`'s observations over frames `from..to`, with the camera and the held frames of that span.
+    fn span(&self, b: usize, from: usize, to: usize) -> Observed {
+        let held = self
+            .depth_held
+            .get(b)
+            .map(|h| h[from.min(h.len())..to.min(h.len())].to_vec())
+            .unwrap_or_default();
+        Observed {
+            eye: self.eye,
+            depth_held: held,
+            ..Observed::new(
+                b,
+                self.poses[b][from..to].to_vec(),
+                Some(self.weights[b][from..to].to_vec()),
+            )
+        }
+    }
+}
+
+/// The schedule over `observed` (every body of `world`): launch guesses as `launch` says, then the steps of the module's docs. `multi_start`: each step from
 /// [`CONTACT_STARTS`] too (on the scene's values for the launch, on the pair's after). `on_start` hears
 /// each start's end.
 pub fn fit_colliding_bodies(
     cfg: &PhysicsFitConfig,
     multi_start: bool,
     world: World,
-    poses: Vec<Vec<Pose<f64>>>,
-    weights: Vec<Vec<f64>>,
+    observed: ObservedBodies,
     launch: LaunchSettings,
     on_start: &mut dyn FnMut(&str, usize, &StartResult),
 ) -> Result<CollidingFit, FitError> {
     let launch_frames = launch.frames;
     let start_of = |w: &World, b: usize, pose: &Pose<f64>| launch_start(&w.bodies[b], &w.scene, pose, launch.in_plane);
-    if poses.len() != world.bodies.len() || weights.len() != poses.len() {
+    let poses = &observed.poses;
+    if poses.len() != world.bodies.len() || observed.weights.len() != poses.len() {
         return Err(FitError::SequenceCount {
             bodies: world.bodies.len(),
             poses: poses.len(),
-            weights: weights.len(),
+            weights: observed.weights.len(),
         });
     }
     let n = poses.first().map_or(0, |p| p.len());
     if n < 2 {
         return Err(FitError::TooFewPoses(n));
     }
-    let contacts = first_contacts(&world, &poses);
+    let contacts = first_contacts(&world, poses);
     // Frames before the first collision: the launches.
     let free = contacts.first().map_or(n, |c| c.1).clamp(2, n);
     let mut world = world;
@@ -155,11 +196,11 @@ pub fn fit_colliding_bodies(
     }
     // A body the first frame shows on the scene launches along it.
     let starts: Vec<StartContact> = (0..poses.len()).map(|b| start_of(&world, b, &poses[b][0])).collect();
-    let observed = |upto: usize| -> Vec<Observed> {
+    let observed_to = |upto: usize| -> Vec<Observed> {
         (0..poses.len())
             .map(|b| Observed {
                 start: starts[b],
-                ..Observed::new(b, poses[b][..upto].to_vec(), Some(weights[b][..upto].to_vec()))
+                ..observed.span(b, 0, upto)
             })
             .collect()
     };
@@ -194,7 +235,7 @@ pub fn fit_colliding_bodies(
             "no contact between bodies".into(),
             cfg.clone(),
             world,
-            observed(n),
+            observed_to(n),
             StartsOn::Scene,
             grid,
         )?
@@ -204,7 +245,7 @@ pub fn fit_colliding_bodies(
     if free >= 3 {
         // No body has met another yet: no pair value matters.
         let label = format!("launch, frames 0-{}", free - 1);
-        world = run(label, no_pairs.clone(), world, observed(free), StartsOn::Scene, grid)?.0;
+        world = run(label, no_pairs.clone(), world, observed_to(free), StartsOn::Scene, grid)?.0;
     }
     // After the first collision, until the next: each body's state there, fitted afresh, and the scene's
     // values from how the bodies slide and settle. A launch's few frames tell the board's friction from a
@@ -225,7 +266,7 @@ pub fn fit_colliding_bodies(
         let obs: Vec<Observed> = (0..poses.len())
             .map(|b| Observed {
                 start: start_of(&after, b, &poses[b][from]),
-                ..Observed::new(b, poses[b][from..to].to_vec(), Some(weights[b][from..to].to_vec()))
+                ..observed.span(b, from, to)
             })
             .collect();
         let label = format!("after the first collision, frames {from}-{}", to - 1);
@@ -248,7 +289,7 @@ pub fn fit_colliding_bodies(
             format!("pair {p}"),
             pair_cfg,
             world,
-            observed(n),
+            observed_to(n),
             StartsOn::Pair(p),
             grid,
         )?;
@@ -263,7 +304,7 @@ pub fn fit_colliding_bodies(
         "all values".into(),
         polish,
         world.clone(),
-        observed(n),
+        observed_to(n),
         StartsOn::Scene,
         &[],
     )?;
@@ -271,4 +312,29 @@ pub fn fit_colliding_bodies(
         world = polished;
     }
     Ok(CollidingFit { world, contacts, steps })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_span_of_frames_keeps_its_own_held_flags() {
+        let observed = ObservedBodies {
+            eye: Some([0.0, -0.4, 0.3]),
+            depth_held: vec![vec![false, false, true, true, false], Vec::new()],
+            ..ObservedBodies::new(
+                vec![vec![Pose::<f64>::identity(); 5]; 2],
+                vec![vec![1.0, 2.0, 3.0, 4.0, 5.0]; 2],
+            )
+        };
+        let o = observed.span(0, 2, 5);
+        assert_eq!(o.depth_held, vec![true, true, false]);
+        assert_eq!(o.weights, Some(vec![3.0, 4.0, 5.0]));
+        assert_eq!(o.eye, Some([0.0, -0.4, 0.3]));
+        // A body without flags has none held; no camera weighs depth alike.
+        assert!(observed.span(1, 0, 3).depth_held.is_empty());
+        let plain = ObservedBodies::new(observed.poses.clone(), observed.weights.clone());
+        assert_eq!(plain.span(0, 0, 2).eye, None);
+    }
 }

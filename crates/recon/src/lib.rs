@@ -14,7 +14,9 @@ pub mod target;
 mod unknowns;
 pub mod video_fit;
 
-pub use colliding_bodies::{first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ScheduleStep};
+pub use colliding_bodies::{
+    first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies, ScheduleStep,
+};
 pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{

@@ -91,8 +91,7 @@ fn finds_the_collision_and_the_values_of_both_contacts() {
         },
         true,
         start,
-        poses.clone(),
-        weights,
+        recon::ObservedBodies::new(poses.clone(), weights),
         recon::LaunchSettings {
             frames: 3,
             in_plane: true,

@@ -596,8 +596,12 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         &cfg,
         m.cfg.pga_multi_start,
         m.world.clone(),
-        poses,
-        weights,
+        // Each body's depth counts least where GA did not hold it on the scene, as in the one-body fit.
+        recon::ObservedBodies {
+            eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
+            depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),
+            ..recon::ObservedBodies::new(poses, weights)
+        },
         recon::LaunchSettings {
             frames: m.cfg.launch_frames,
             in_plane: m.cfg.launch_in_plane,
