@@ -162,6 +162,14 @@ iterations = 25
 rays_per_step = 256
 lr_translation = 0.001
 lr_rotation = 0.01
+[ga.end_search]
+screened = 4
+screen_iterations = 10
+refined = 2
+twin_iterations = 20
+[ga.end_search.refine]
+iterations = 40
+rays_per_step = 256
 [pga]
 iterations = 20
 [auto_init]

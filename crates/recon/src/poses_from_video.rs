@@ -9,12 +9,18 @@
 //! the next; from PA's pose alone, a launch 15 % slow left the last frames
 //! 2–4 cm away, too far for small steps). Where PA lost the body, frames also
 //! start from the images' own track (the last frames carried on, or moved on
-//! by the simulator), and a pass back over the video refits the frames
-//! explained worst from the frames after them. One frame per
+//! by the simulator) and from PA's start slid along the line of sight to where
+//! the body's silhouette has the mask's area, and a pass back over the video refits the frames
+//! explained worst from the frames after them. Where the last frame is
+//! explained far worse than the best ones (a tumble lost on the way leaves the
+//! body at rest on the wrong face), it is searched afresh, as `--init auto`
+//! searches the first, and the pass back then goes over every frame from there
+//! while the frames carried back explain them better. One frame per
 //! [`PosesFromVideo::step`]; frames whose mask is empty keep their start and
 //! say so.
 
 use crate::contact_penalty::{ContactPenaltyConfig, ContactTerm};
+use crate::first_pose_search::{search_first_pose, FirstPoseSearchConfig};
 use crate::image_loss::{window_union, FrameTarget, ImageLoss, ImageLossWeights, Occluder};
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 use geom::{Pose, Vec3};
@@ -50,6 +56,16 @@ pub struct PosesFromVideoConfig {
     /// while from 40 steps of 0.01 rad decaying tenfold a fit moves at most about 9°; a body at rest keeps
     /// GA's small steps (with large ones its resting pose wandered by 5–10°). Default 3.
     pub wide_step_scale: f64,
+    /// After the forward pass, where the last frame is explained this many times worse than the frames
+    /// explained best (its image loss against the lowest tenth of the frames'), the last frame is searched
+    /// afresh as `fit --init auto` searches the first ([`Self::end_search`]), and if the pose found explains
+    /// it better, the pass back goes over every frame from there while the frames carried back win: a
+    /// tumble lost on the way leaves the body at rest on the wrong face for the rest of the video (the
+    /// tabletop drop Rapier made: 0.165 at rest against 0.023 in flight), and at rest the search finds it.
+    /// With `hypotheses`. 0: never. Default 2.
+    pub end_search_ratio: f64,
+    /// The search of the last frame. Default: `--init auto`'s.
+    pub end_search: FirstPoseSearchConfig,
 }
 
 impl Default for PosesFromVideoConfig {
@@ -70,6 +86,8 @@ impl Default for PosesFromVideoConfig {
             hypotheses: true,
             screen_fraction: 0.3,
             wide_step_scale: 3.0,
+            end_search_ratio: 2.0,
+            end_search: FirstPoseSearchConfig::default(),
         }
     }
 }
@@ -111,8 +129,12 @@ pub enum StartFrom {
     Tracked,
     /// The last fitted frame moved one frame on by the simulator, at the pace of the last two.
     Simulated,
+    /// PA's start slid along the line of sight to where the body's silhouette has the mask's area.
+    Sized,
     /// The pass back over the video: the next two fitted frames carried back at their pace.
     Backward,
+    /// The last frame searched afresh ([`PosesFromVideoConfig::end_search`]).
+    Searched,
 }
 
 impl StartFrom {
@@ -121,7 +143,9 @@ impl StartFrom {
             StartFrom::Physics => "physics",
             StartFrom::Tracked => "tracked",
             StartFrom::Simulated => "simulated",
+            StartFrom::Sized => "sized",
             StartFrom::Backward => "backward",
+            StartFrom::Searched => "searched",
         }
     }
 }
@@ -170,6 +194,13 @@ const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
 const BACKWARD_LOSS_RATIO: f64 = 1.5;
 /// Another start replaces PA's only with a score this much lower (a share of PA's score).
 const SWITCH_MARGIN: f64 = 0.1;
+/// A start whose silhouette's area is off the mask's by more than this share gets a sized twin
+/// ([`StartFrom::Sized`]): 5 % of the area is 2.5 % of the depth (1 cm for the tabletop toy at 0.41 m),
+/// beyond the few per cent a mask's border pixels and a reconstructed shape's own error give.
+const SIZE_TOLERANCE: f64 = 0.03;
+/// The pass back after a searched last frame stops after this many frames in a row that the frames carried
+/// back did not explain better: the forward pass had them right (or the chain lost the body).
+const CHAIN_MISSES: usize = 2;
 
 /// The stage.
 pub struct PosesFromVideo<'a> {
@@ -188,6 +219,15 @@ pub struct PosesFromVideo<'a> {
     pub results: Vec<FramePose>,
     /// The pass back over the video (with `hypotheses`): the frames left to revisit, last first.
     backward: Vec<usize>,
+    /// The last frame is still to be checked ([`PosesFromVideoConfig::end_search_ratio`]).
+    end_pending: bool,
+    /// The sizing pass is still to be planned (after the pass back).
+    sizing_pending: bool,
+    /// The sizing pass: the frames left whose fitted silhouette's area is off the mask's, last first.
+    sizing: Vec<usize>,
+    /// The pass back follows the searched last frame: every frame is revisited while the frames carried
+    /// back win; this counts the ones in a row that did not (at [`CHAIN_MISSES`] the chain ends).
+    chain: Option<usize>,
     /// The video's other bodies in each frame ([`Self::set_occluders`]).
     occluders: Vec<Vec<Occluder<'a>>>,
 }
@@ -250,6 +290,10 @@ impl<'a> PosesFromVideo<'a> {
             hold_touching: false,
             results: Vec::new(),
             backward: Vec::new(),
+            end_pending: false,
+            sizing_pending: false,
+            sizing: Vec::new(),
+            chain: None,
             occluders: vec![Vec::new(); frames.len()],
         })
     }
@@ -282,6 +326,10 @@ impl<'a> PosesFromVideo<'a> {
             hold_touching: false,
             results: Vec::new(),
             backward: Vec::new(),
+            end_pending: false,
+            sizing_pending: false,
+            sizing: Vec::new(),
+            chain: None,
             occluders: vec![Vec::new(); frames.len()],
         })
     }
@@ -314,7 +362,11 @@ impl<'a> PosesFromVideo<'a> {
 
     /// Whether every frame is done (and, with `hypotheses`, the pass back over the poorly explained ones).
     pub fn done(&self) -> bool {
-        self.results.len() == self.frames.len() && self.backward.is_empty()
+        self.results.len() == self.frames.len()
+            && self.backward.is_empty()
+            && !self.end_pending
+            && !self.sizing_pending
+            && self.sizing.is_empty()
     }
 
     /// Steps left: frames to fit, then frames to revisit (a bound for progress bars).
@@ -325,7 +377,7 @@ impl<'a> PosesFromVideo<'a> {
         } else {
             self.backward.len()
         };
-        left + back
+        left + back + usize::from(self.end_pending) + self.sizing.len()
     }
 
     /// The frames the pass back revisits, last first: fitted, with an image loss over
@@ -347,7 +399,8 @@ impl<'a> PosesFromVideo<'a> {
     }
 
     /// Frame `k` fitted again from the next two frames carried back; kept if it explains the image better.
-    fn revisit(&mut self, k: usize) -> Result<(), PosesFromVideoError> {
+    /// Whether it was.
+    fn revisit(&mut self, k: usize) -> Result<bool, PosesFromVideoError> {
         let n = self.results.len();
         let next = self.results[k + 1].pose;
         let start = if k + 2 < n && self.results[k + 2].fitted {
@@ -356,12 +409,28 @@ impl<'a> PosesFromVideo<'a> {
             next
         };
         let start = self.frames[k].centred_on_mask(&start);
-        let now = self.results[k].pose;
-        if same_start(&start, &now) {
-            return Ok(());
+        if same_start(&start, &self.results[k].pose) {
+            return Ok(false);
         }
         let after = if k + 2 < n { self.results[k + 2].pose } else { next };
         let scale = self.step_scale(pace(&next, &after));
+        let holds = k > 0 && self.held_between(k - 1, k + 1);
+        self.replace_if_better(k, start, scale, holds, StartFrom::Backward, 0.0)
+    }
+
+    /// Frame `k` fitted from `start` (steps scaled by `scale`; the contact held where `holds`) and scored
+    /// against its current pose on the same pixels: it replaces it if its loss is lower by `margin` (a share
+    /// of the current one's). Whether it did.
+    fn replace_if_better(
+        &mut self,
+        k: usize,
+        start: Pose<f64>,
+        scale: f64,
+        holds: bool,
+        from: StartFrom,
+        margin: f64,
+    ) -> Result<bool, PosesFromVideoError> {
+        let n = self.results.len();
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add((n + k) as u64),
             lr_translation: self.cfg.pose.lr_translation * scale,
@@ -370,7 +439,6 @@ impl<'a> PosesFromVideo<'a> {
         };
         let frame = &self.frames[k];
         let contacts = self.touching(&start);
-        let holds = k > 0 && self.held_between(k - 1, k + 1);
         let term = |points: Vec<usize>| ContactTerm {
             body: &self.world.bodies[self.body],
             scene: &self.world.scene,
@@ -386,26 +454,83 @@ impl<'a> PosesFromVideo<'a> {
             new.with_contact(term(contacts.clone()))
         };
         new.run();
-        let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, now)
+        let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, self.results[k].pose)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
             .with_occluders(self.occluders[k].clone());
         let window = match (new.window(), old.window()) {
             (Some(a), Some(b)) => window_union(a, b),
             (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => return Ok(()),
+            (None, None) => return Ok(false),
         };
         let seed = cfg.seed ^ 0x9e37_79b9_7f4a_7c15;
         let count = cfg.rays_per_step.max(256) * 2;
-        if new.score(window, count, seed).loss < old.score(window, count, seed).loss {
-            self.results[k] = FramePose {
-                pose: new.pose,
-                image: new.evaluate(),
-                contact_penalty: new.contact_penalty(),
-                in_contact: holds && !contacts.is_empty(),
-                fitted: true,
-                start: StartFrom::Backward,
-            };
+        let (ours, theirs) = (new.score(window, count, seed).loss, old.score(window, count, seed).loss);
+        tracing::debug!("frame {k}: from {from:?} {ours:.4} against {theirs:.4}");
+        if ours >= theirs * (1.0 - margin) {
+            return Ok(false);
         }
+        self.results[k] = FramePose {
+            pose: new.pose,
+            image: new.evaluate(),
+            contact_penalty: new.contact_penalty(),
+            in_contact: holds && !contacts.is_empty(),
+            fitted: true,
+            start: from,
+        };
+        Ok(true)
+    }
+
+    /// Whether the last frame is explained [`PosesFromVideoConfig::end_search_ratio`] times worse than the
+    /// fitted frames' lowest tenth.
+    fn last_frame_lost(&self) -> bool {
+        let Some(last) = self.results.last().filter(|r| r.fitted) else {
+            return false;
+        };
+        let mut losses: Vec<f64> = self.results.iter().filter(|r| r.fitted).map(|r| r.image.loss).collect();
+        losses.sort_by(f64::total_cmp);
+        // The lowest tenth: where a tumble was lost early, most frames after it are as poorly explained as
+        // the last (the drop Rapier made: 40 of 48).
+        let reference = losses[(losses.len() - 1) / 10];
+        self.cfg.end_search_ratio > 0.0 && last.image.loss > self.cfg.end_search_ratio * reference
+    }
+
+    /// The check of the last frame after the forward pass: searched afresh where it is explained poorly, the
+    /// pose found kept if it explains it clearly better, and then the pass back chained from it; else the
+    /// pass back over the frames explained worst.
+    fn check_last_frame(&mut self) -> Result<(), PosesFromVideoError> {
+        self.end_pending = false;
+        let k = self.results.len() - 1;
+        if k >= 2 && self.last_frame_lost() {
+            let frame = &self.frames[k];
+            let body = &self.world.bodies[self.body];
+            let found = search_first_pose(
+                body,
+                &self.world.scene,
+                self.object,
+                self.scene,
+                frame,
+                &self.cfg.end_search,
+                || {},
+            );
+            match found {
+                Ok((pose, _)) => {
+                    let holds = self.held_between(k - 2, k - 1);
+                    tracing::debug!(
+                        "frame {k}: explained poorly ({:.4}); searched afresh",
+                        self.results[k].image.loss
+                    );
+                    if self.replace_if_better(k, pose, 1.0, holds, StartFrom::Searched, SWITCH_MARGIN)? {
+                        // Popped from the end: every fitted frame before the last, the last but one first.
+                        self.backward = (0..k).filter(|&i| self.results[i].fitted).collect();
+                        self.chain = Some(0);
+                        return Ok(());
+                    }
+                }
+                Err(PoseFitError::EmptyMask) => {}
+                Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
+            }
+        }
+        self.backward = self.frames_to_revisit();
         Ok(())
     }
 
@@ -506,7 +631,21 @@ impl<'a> PosesFromVideo<'a> {
         };
         add(carried_on(&a.pose, &b.pose), StartFrom::Tracked, &mut out);
         add(self.one_frame_on(&a.pose, &b.pose), StartFrom::Simulated, &mut out);
+        // A start at the wrong depth with the right turn fits to a silhouette of the wrong size, which the
+        // image terms barely pull on along the line of sight (the drop Rapier made: its landing frame 19 mm
+        // too far, IoU 0.94).
+        if let Some(sized) = frame.sized_to_mask(&self.world.bodies[self.body].mesh, &out[0].pose, SIZE_TOLERANCE) {
+            add(sized, StartFrom::Sized, &mut out);
+        }
         out
+    }
+
+    /// Fitted frame `k`'s pose slid along the line of sight to the mask's size, where its silhouette's area
+    /// is off by more than [`SIZE_TOLERANCE`] (the sizing pass: a pose that fitted its silhouette at the
+    /// wrong depth, which the image terms hardly pull on).
+    fn sized_start(&self, k: usize) -> Option<Pose<f64>> {
+        let r = self.results.get(k).filter(|r| r.fitted)?;
+        self.frames[k].sized_to_mask(&self.world.bodies[self.body].mesh, &r.pose, SIZE_TOLERANCE)
     }
 
     /// The step scale of a wide start in frame `k`: 1 for a body that stood still over the last fitted
@@ -543,12 +682,39 @@ impl<'a> PosesFromVideo<'a> {
     pub fn step(&mut self) -> Result<Option<&FramePose>, PosesFromVideoError> {
         let k = self.results.len();
         if k == self.frames.len() {
+            if self.end_pending {
+                self.check_last_frame()?;
+                return Ok(self.results.last());
+            }
             return match self.backward.pop() {
                 Some(j) => {
-                    self.revisit(j)?;
+                    let replaced = self.revisit(j)?;
+                    if let Some(misses) = self.chain {
+                        let misses = if replaced { 0 } else { misses + 1 };
+                        self.chain = Some(misses);
+                        if misses >= CHAIN_MISSES {
+                            // The chain ends: the frames before it as the pass back takes any video.
+                            self.chain = None;
+                            self.backward = self.frames_to_revisit().into_iter().filter(|&i| i < j).collect();
+                        }
+                    }
                     Ok(Some(&self.results[j]))
                 }
-                None => Ok(None),
+                None => {
+                    if std::mem::take(&mut self.sizing_pending) {
+                        self.sizing = (0..k).filter(|&j| self.sized_start(j).is_some()).collect();
+                    }
+                    match self.sizing.pop() {
+                        Some(j) => {
+                            if let Some(start) = self.sized_start(j) {
+                                let holds = self.results[j].in_contact;
+                                self.replace_if_better(j, start, 1.0, holds, StartFrom::Sized, 0.0)?;
+                            }
+                            Ok(Some(&self.results[j]))
+                        }
+                        None => Ok(None),
+                    }
+                }
             };
         }
         let starts = self.starts_of(k);
@@ -646,8 +812,10 @@ impl<'a> PosesFromVideo<'a> {
         };
         self.results.push(result);
         if self.results.len() == self.frames.len() && self.cfg.hypotheses && !self.tracking {
-            // Popped from the end: the last frames first, so each revisit starts from revisited ones.
-            self.backward = self.frames_to_revisit();
+            // Then the last frame's check, and the pass back (popped from the end: the last frames first, so
+            // each revisit starts from revisited ones).
+            self.end_pending = true;
+            self.sizing_pending = true;
         }
         Ok(self.results.last())
     }

@@ -3,8 +3,9 @@
 //! the contact penalty in the frames where that simulation touched the board;
 //! from a PA that lost the block at its landing (it bounces away where the
 //! block slides); a block bouncing off the board, held to it only where it
-//! touches it when the frame is taken; and the penalty's gradient against
-//! finite differences.
+//! touches it when the frame is taken; a block lost while hidden, found again
+//! by searching the last frame; and the penalty's gradient against finite
+//! differences.
 
 mod common;
 use common::*;
@@ -186,6 +187,87 @@ fn a_body_bouncing_off_the_board_is_held_to_it_only_where_it_touches() {
         bounced > 0,
         "a frame flagged for a bounce finds the block off the board"
     );
+}
+
+#[test]
+fn a_body_lost_while_hidden_is_found_again_from_the_last_frame() {
+    let ball = ball_model();
+    // The block rests on the board for 8 frames, hidden in frames 3–5 (their masks empty). PA turned it a
+    // quarter turn onto another face from frame 3 on, as a tumble another engine made can leave it: the
+    // hidden frames keep PA's poses, and frames 6–7 have no start but PA's, which holds the wrong face on
+    // the board.
+    let mut truth_world = world([0.0; 3], TRUTH);
+    truth_world.config.frames = 8;
+    let rest = Quat::exp(Vec3::new(0.0, 0.0, 0.4));
+    truth_world.initial[0] = sim::BodyState::new([-0.02, 0.01, RADIUS], rest.to_array_re(), [0.0; 3], [0.0; 3]);
+    let (behind, mut frames) = film(&ball, &truth_world);
+    for f in &mut frames[3..6] {
+        f.mask.iter_mut().for_each(|m| *m = false);
+    }
+    let truth = truth_world.simulate(&truth_world.params());
+    let mut pa = truth.clone();
+    let quarter = Quat::exp(Vec3::new(std::f64::consts::FRAC_PI_2, 0.0, 0.0));
+    for f in &mut pa.frames[3..] {
+        f[0].pose.q = (f[0].pose.q * quarter).normalize_or_identity();
+    }
+    let off = |r: &recon::FramePose, k: usize| {
+        (
+            (r.pose.t - truth.frames[k][0].pose.t).norm(),
+            geom::rotation_distance(r.pose.q, truth.frames[k][0].pose.q).to_degrees(),
+        )
+    };
+    // The search in short: every candidate 8 steps of 256 pixels, the best two 60 in all, no half-turns.
+    let search = recon::FirstPoseSearchConfig {
+        screen_iterations: 8,
+        refined: 2,
+        refine: recon::PoseFitConfig {
+            iterations: 60,
+            rays_per_step: 256,
+            ..recon::FirstPoseSearchConfig::default().refine
+        },
+        twin_iterations: 0,
+        ..recon::FirstPoseSearchConfig::default()
+    };
+    let run = |ratio: f64| {
+        let cfg = PosesFromVideoConfig {
+            end_search_ratio: ratio,
+            end_search: search.clone(),
+            ..short_fits()
+        };
+        let mut ga = PosesFromVideo::new(cfg, &ball, &behind, &frames, &truth_world, 0, &pa).expect("valid input");
+        ga.run().expect("every frame fits").to_vec()
+    };
+    let t0 = std::time::Instant::now();
+    let without = run(0.0);
+    let t1 = std::time::Instant::now();
+    let with = run(PosesFromVideoConfig::default().end_search_ratio);
+    let secs = (t1.elapsed().as_secs_f64(), (t1 - t0).as_secs_f64());
+    for (k, (a, b)) in with.iter().zip(&without).enumerate() {
+        let ((ea, ra), (eb, rb)) = (off(a, k), off(b, k));
+        eprintln!(
+            "frame {k}: {:.1} mm, {ra:.1}° from {:?}, loss {:.4} (without the search: {:.1} mm, {rb:.1}°, loss {:.4})",
+            ea * 1e3,
+            a.start,
+            a.image.loss,
+            eb * 1e3,
+            b.image.loss
+        );
+    }
+    eprintln!("{:.1} s with the search, {:.1} s without", secs.0, secs.1);
+    // Without the search the last frames stay on the wrong face.
+    assert!(off(&without[7], 7).1 > 45.0, "PA's face is kept without the search");
+    // With it the last frame is found again and the one before it carried back from there.
+    assert_eq!(with[7].start, recon::StartFrom::Searched);
+    // The 20 px block's depth is what its image tells least (frames 0–2: 2–4 mm).
+    for k in [0, 1, 2, 6, 7] {
+        let (e, r) = off(&with[k], k);
+        assert!(with[k].fitted, "frame {k} has a mask");
+        assert!(
+            e < 0.006 && r < 10.0,
+            "frame {k}: {:.1} mm, {r:.1}° from the truth",
+            e * 1e3
+        );
+    }
 }
 
 #[test]
