@@ -183,6 +183,29 @@ pub fn fit_colliding_bodies(
     if n < 2 {
         return Err(FitError::TooFewPoses(n));
     }
+    // One frame count for every body's poses, weights and held flags (checked here, where the spans are cut).
+    for b in 0..poses.len() {
+        if poses[b].len() != n {
+            return Err(FitError::FrameCount {
+                body: b,
+                poses: poses[b].len(),
+                first: 0,
+                frames: n,
+            });
+        }
+        if observed.weights[b].len() != n {
+            return Err(FitError::WeightCount {
+                poses: n,
+                weights: observed.weights[b].len(),
+            });
+        }
+        if let Some(h) = observed.depth_held.get(b).filter(|h| !h.is_empty() && h.len() != n) {
+            return Err(FitError::HeldCount {
+                poses: n,
+                held: h.len(),
+            });
+        }
+    }
     let contacts = first_contacts(&world, poses);
     // Frames before the first collision: the launches.
     let free = contacts.first().map_or(n, |c| c.1).clamp(2, n);

@@ -593,7 +593,7 @@ mod tests {
             rgb: vec![[0.0; 3]; (w * h) as usize],
             mask: silhouette(&camera, &mesh, &truth),
         };
-        // 12 % farther along the line of sight: 22 % less area.
+        // 12 % farther along the line of sight: 20 % less area.
         let eye = camera.center();
         let far = Pose::new(truth.q, eye + (truth.t - eye) * 1.12);
         let sized = frame.sized_to_mask(&mesh, &far, 0.05).expect("the areas differ");

@@ -194,9 +194,10 @@ const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
 const BACKWARD_LOSS_RATIO: f64 = 1.5;
 /// Another start replaces PA's only with a score this much lower (a share of PA's score).
 const SWITCH_MARGIN: f64 = 0.1;
-/// A start whose silhouette's area is off the mask's by more than this share gets a sized twin
-/// ([`StartFrom::Sized`]): 5 % of the area is 2.5 % of the depth (1 cm for the tabletop toy at 0.41 m),
-/// beyond the few per cent a mask's border pixels and a reconstructed shape's own error give.
+/// A start (or, in the sizing pass, a fitted pose) whose silhouette's area is off the mask's by more than
+/// this share gets a sized twin ([`StartFrom::Sized`]): 3 % of the area is 1.5 % of the depth (6 mm for the
+/// tabletop toy at 0.41 m). A twin that is only the noise of a mask's border pixels or of a reconstructed
+/// shape costs a fit and loses the comparison.
 const SIZE_TOLERANCE: f64 = 0.03;
 /// The pass back after a searched last frame stops after this many frames in a row that the frames carried
 /// back did not explain better: the forward pass had them right (or the chain lost the body).
@@ -377,7 +378,18 @@ impl<'a> PosesFromVideo<'a> {
         } else {
             self.backward.len()
         };
-        left + back + usize::from(self.end_pending) + self.sizing.len()
+        // The end check and the sizing pass (at most every frame) once the forward pass is done.
+        let after = if self.cfg.hypotheses && !self.tracking && left > 0 {
+            1 + self.frames.len()
+        } else {
+            usize::from(self.end_pending)
+                + if self.sizing_pending {
+                    self.frames.len()
+                } else {
+                    self.sizing.len()
+                }
+        };
+        left + back + after
     }
 
     /// The frames the pass back revisits, last first: fitted, with an image loss over
@@ -520,8 +532,11 @@ impl<'a> PosesFromVideo<'a> {
                         self.results[k].image.loss
                     );
                     if self.replace_if_better(k, pose, 1.0, holds, StartFrom::Searched, SWITCH_MARGIN)? {
-                        // Popped from the end: every fitted frame before the last, the last but one first.
-                        self.backward = (0..k).filter(|&i| self.results[i].fitted).collect();
+                        // Popped from the end: every fitted frame before the last whose next frame is fitted
+                        // too (the start is carried back from it), the last but one first.
+                        self.backward = (0..k)
+                            .filter(|&i| self.results[i].fitted && self.results[i + 1].fitted)
+                            .collect();
                         self.chain = Some(0);
                         return Ok(());
                     }
@@ -701,6 +716,7 @@ impl<'a> PosesFromVideo<'a> {
                     Ok(Some(&self.results[j]))
                 }
                 None => {
+                    self.chain = None;
                     if std::mem::take(&mut self.sizing_pending) {
                         self.sizing = (0..k).filter(|&j| self.sized_start(j).is_some()).collect();
                     }
@@ -733,14 +749,15 @@ impl<'a> PosesFromVideo<'a> {
             let fit = match PoseFromImage::new(cfg_s, self.object, self.scene, &self.frames[k], s.pose) {
                 Err(PoseFitError::EmptyMask) => {
                     let first = &starts[0];
-                    self.results.push(FramePose {
+                    let unfitted = FramePose {
                         pose: first.pose,
                         image: ImageLoss::default(),
                         contact_penalty: 0.0,
                         in_contact: first.held(),
                         fitted: false,
                         start: first.from,
-                    });
+                    };
+                    self.push(unfitted);
                     return Ok(self.results.last());
                 }
                 Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
@@ -810,14 +827,18 @@ impl<'a> PosesFromVideo<'a> {
             fitted: true,
             start: starts[best].from,
         };
+        self.push(result);
+        Ok(self.results.last())
+    }
+
+    /// The forward pass's outcome for the next frame; after the last one (with `hypotheses`), the last
+    /// frame's check, the pass back and the sizing pass are due.
+    fn push(&mut self, result: FramePose) {
         self.results.push(result);
         if self.results.len() == self.frames.len() && self.cfg.hypotheses && !self.tracking {
-            // Then the last frame's check, and the pass back (popped from the end: the last frames first, so
-            // each revisit starts from revisited ones).
             self.end_pending = true;
             self.sizing_pending = true;
         }
-        Ok(self.results.last())
     }
 
     /// Fit every frame left; all outcomes.

@@ -257,7 +257,12 @@ fn a_body_lost_while_hidden_is_found_again_from_the_last_frame() {
     // Without the search the last frames stay on the wrong face.
     assert!(off(&without[7], 7).1 > 45.0, "PA's face is kept without the search");
     // With it the last frame is found again and the one before it carried back from there.
-    assert_eq!(with[7].start, recon::StartFrom::Searched);
+    // (The sizing pass after it may refit it again from its own pose slid along the line of sight.)
+    assert!(
+        matches!(with[7].start, recon::StartFrom::Searched | recon::StartFrom::Sized),
+        "frame 7 from {:?}",
+        with[7].start
+    );
     // The 20 px block's depth is what its image tells least (frames 0–2: 2–4 mm).
     for k in [0, 1, 2, 6, 7] {
         let (e, r) = off(&with[k], k);
