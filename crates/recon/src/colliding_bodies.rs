@@ -141,10 +141,12 @@ impl ObservedBodies {
 
     /// Body `b`'s observations over frames `from..to`, with the camera and the held frames of that span.
     fn span(&self, b: usize, from: usize, to: usize) -> Observed {
+        // Each body's flags are empty or one per frame ([`fit_colliding_bodies`] checks).
         let held = self
             .depth_held
             .get(b)
-            .map(|h| h[from.min(h.len())..to.min(h.len())].to_vec())
+            .filter(|h| !h.is_empty())
+            .map(|h| h[from..to].to_vec())
             .unwrap_or_default();
         Observed {
             eye: self.eye,

@@ -201,7 +201,7 @@ fn turn_onto(from: Vec3<f64>, to: Vec3<f64>) -> Quat<f64> {
 
 /// The candidate first poses of `body` in `frame`, best silhouette first (empty when the mask is empty).
 pub fn candidates(body: &RigidBody, scene: &Shape, frame: &FrameTarget, cfg: &FirstPoseSearchConfig) -> Vec<Candidate> {
-    let Some(([mu, mv], area)) = frame.mask_centroid() else {
+    let Some(([mu, mv], _)) = frame.mask_centroid() else {
         return Vec::new();
     };
     let cam = &frame.camera;
@@ -247,9 +247,8 @@ pub fn candidates(body: &RigidBody, scene: &Shape, frame: &FrameTarget, cfg: &Fi
             }
             // In flight: the depth where the silhouette has the mask's area (area falls with depth squared).
             let s_ref = resting.unwrap_or(1.0);
-            let covered = silhouette(cam, &body.mesh, &at(s_ref)).iter().filter(|&&c| c).count();
-            if covered > 0 {
-                let s = s_ref * (covered as f64 / area as f64).sqrt();
+            if let Some(scale) = frame.depth_scale_to_mask(&body.mesh, &at(s_ref)) {
+                let s = s_ref * scale;
                 if resting.is_none_or(|r| s < r - 0.25 * body.bounding_radius) {
                     depths.push((s, "size"));
                 }

@@ -79,17 +79,20 @@ impl FrameTarget {
     /// of the mask's), or either is empty. A body partly hidden by the scene has a smaller mask than its
     /// silhouette: this start is then too far, and is one guess among others.
     pub fn sized_to_mask(&self, mesh: &TriMesh, pose: &Pose<f64>, tolerance: f64) -> Option<Pose<f64>> {
-        let area = self.mask.iter().filter(|&&m| m).count();
-        let covered = silhouette(&self.camera, mesh, pose).iter().filter(|&&c| c).count();
-        if area == 0 || covered == 0 {
-            return None;
-        }
-        let ratio = covered as f64 / area as f64;
-        if (ratio - 1.0).abs() <= tolerance {
+        let scale = self.depth_scale_to_mask(mesh, pose)?;
+        if (scale * scale - 1.0).abs() <= tolerance {
             return None;
         }
         let eye = self.camera.center();
-        Some(Pose::new(pose.q, eye + (pose.t - eye) * ratio.sqrt()))
+        Some(Pose::new(pose.q, eye + (pose.t - eye) * scale))
+    }
+
+    /// The factor on `pose`'s distance from the camera that gives `mesh`'s silhouette the mask's area: the
+    /// square root of their areas' ratio (area falls with depth squared). `None` when either is empty.
+    pub fn depth_scale_to_mask(&self, mesh: &TriMesh, pose: &Pose<f64>) -> Option<f64> {
+        let area = self.mask.iter().filter(|&&m| m).count();
+        let covered = silhouette(&self.camera, mesh, pose).iter().filter(|&&c| c).count();
+        (area > 0 && covered > 0).then(|| (covered as f64 / area as f64).sqrt())
     }
 }
 

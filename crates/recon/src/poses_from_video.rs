@@ -224,8 +224,9 @@ pub struct PosesFromVideo<'a> {
     end_pending: bool,
     /// The sizing pass is still to be planned (after the pass back).
     sizing_pending: bool,
-    /// The sizing pass: the frames left whose fitted silhouette's area is off the mask's, last first.
-    sizing: Vec<usize>,
+    /// The sizing pass: the frames left whose fitted silhouette's area is off the mask's, last first, each
+    /// with its pose slid to the mask's size.
+    sizing: Vec<(usize, Pose<f64>)>,
     /// The pass back follows the searched last frame: every frame is revisited while the frames carried
     /// back win; this counts the ones in a row that did not (at [`CHAIN_MISSES`] the chain ends).
     chain: Option<usize>,
@@ -718,14 +719,12 @@ impl<'a> PosesFromVideo<'a> {
                 None => {
                     self.chain = None;
                     if std::mem::take(&mut self.sizing_pending) {
-                        self.sizing = (0..k).filter(|&j| self.sized_start(j).is_some()).collect();
+                        self.sizing = (0..k).filter_map(|j| self.sized_start(j).map(|p| (j, p))).collect();
                     }
                     match self.sizing.pop() {
-                        Some(j) => {
-                            if let Some(start) = self.sized_start(j) {
-                                let holds = self.results[j].in_contact;
-                                self.replace_if_better(j, start, 1.0, holds, StartFrom::Sized, 0.0)?;
-                            }
+                        Some((j, start)) => {
+                            let holds = self.results[j].in_contact;
+                            self.replace_if_better(j, start, 1.0, holds, StartFrom::Sized, 0.0)?;
                             Ok(Some(&self.results[j]))
                         }
                         None => Ok(None),
