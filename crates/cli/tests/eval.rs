@@ -1,5 +1,6 @@
-//! `pganeus eval`: the truth scores as zero error, a 4 mm shift as 4 mm, a fit in another body frame is
-//! related through `object.reference`, and bad inputs are refused.
+//! `pganeus eval`: the truth scores as zero error, a 4 mm shift as 4 mm (split along the camera's line of
+//! sight and across it), a fit in another body frame is related through `object.reference`, and bad inputs
+//! are refused.
 
 use geom::{Pose, Quat, Vec3};
 use serde_json::{json, Value};
@@ -91,6 +92,43 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     for (f, t) in fitted.iter().zip(&true_path) {
         assert!(((*f - *t).norm() - 0.004).abs() < 2e-6, "{f:?} {t:?}");
     }
+    // Its parts along the camera's line of sight and across it make up the 4 mm.
+    for row in r["frames"].as_array().unwrap() {
+        let part = |k: &str| row[k].as_f64().unwrap();
+        let whole = part("along_sight_mm").hypot(part("across_sight_mm"));
+        assert!((whole - 4.0).abs() < 2e-3, "{row}");
+    }
+
+    // Every pose 3 mm farther from the camera along its line of sight and 1 mm across it: split so.
+    let capture = pganeus_io::open_capture(&data.join("drop")).unwrap();
+    let eye = geom::Camera::from_world_mat(&capture.cameras[0].world_mat, capture.width, capture.height)
+        .unwrap()
+        .center();
+    let mut deeper = fit.clone();
+    for p in deeper["bodies"][0]["poses"].as_array_mut().unwrap() {
+        let at = pose(p);
+        let s = (at.t - eye) * (1.0 / (at.t - eye).norm());
+        let side = s.cross(Vec3::new(0.0, 0.0, 1.0));
+        let side = side * (1.0 / side.norm());
+        *p = put(&Pose::new(at.q, at.t + s * 0.003 + side * 0.001));
+    }
+    let r = eval(&deeper, &d.join("deeper"), &truth_path);
+    let s = &r["summary"]["toy"];
+    for m in ["mean", "worst"] {
+        assert!((s["along_sight_mm"][m].as_f64().unwrap() - 3.0).abs() < 2e-3, "{s}");
+        assert!((s["across_sight_mm"][m].as_f64().unwrap() - 1.0).abs() < 2e-3, "{s}");
+    }
+    for row in r["frames"].as_array().unwrap() {
+        assert!(
+            row["along_sight_mm"].as_f64().unwrap() > 0.0,
+            "farther is positive: {row}"
+        );
+    }
+    let csv = std::fs::read_to_string(d.join("deeper/eval.csv")).unwrap();
+    assert!(
+        csv.lines().next().unwrap().ends_with(",along_sight_mm,across_sight_mm"),
+        "{csv}"
+    );
 
     // The same motion in another body frame (origin 7 mm off, axes turned): related through
     // object.reference, it scores as zero again.

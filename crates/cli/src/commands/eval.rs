@@ -104,6 +104,7 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         let from_truth = r.to_truth.inverse();
         let n = entry.poses.len().min(truth.poses.len());
         let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
+        let (mut along, mut across) = (vec![], vec![]);
         let (mut fitted, mut true_) = (vec![], vec![]);
         for k in 0..n {
             let est = entry.poses[k].to_geom().compose(&from_truth);
@@ -119,6 +120,13 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             if let Some(i) = iou {
                 row["silhouette_iou"] = num(i, 1.0, 4);
                 ious.push(i);
+            }
+            if let Some(c) = camera {
+                let (a, x) = sight_split(c.center(), &est, &tru);
+                row["along_sight_mm"] = num(a, 1e3, 3);
+                row["across_sight_mm"] = num(x, 1e3, 3);
+                along.push(a.abs() * 1e3);
+                across.push(x * 1e3);
             }
             // The fit's own image scores, where it wrote them (per body with several bodies).
             let own = entry.extra.get("frames").or_else(|| fit.extra.get("frames"));
@@ -142,6 +150,10 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         };
         let mut s = json!({"frames": n, "position_mm": stat(&pos), "rotation_deg": stat(&rot),
             "add_mm": stat(&add), "add_s_mm": stat(&adds)});
+        if !along.is_empty() {
+            s["along_sight_mm"] = stat(&along);
+            s["across_sight_mm"] = stat(&across);
+        }
         if !ious.is_empty() {
             let worst = ious.iter().cloned().fold(1.0, f64::min);
             s["silhouette_iou"] =
@@ -157,6 +169,22 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         fitted_path,
         true_path,
     }
+}
+
+/// The fitted origin's error split along the camera's line of sight through the true origin (signed:
+/// positive where the fit is farther than the truth) and across it, m. One camera places a body across its
+/// line of sight to a fraction of a pixel but along it only through the body's apparent size, so the two
+/// parts say different things about a fit.
+fn sight_split(eye: Vec3<f64>, est: &Pose<f64>, tru: &Pose<f64>) -> (f64, f64) {
+    let d = est.t - tru.t;
+    let to = tru.t - eye;
+    let n = to.norm();
+    if n < 1e-12 {
+        return (0.0, d.norm());
+    }
+    let s = to * (1.0 / n);
+    let a = d.dot(s);
+    (a, (d - s * a).norm())
 }
 
 /// Launch and contact errors of the final trajectory (contact values only where the truth's model is the
@@ -341,7 +369,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let out = a.out.clone().unwrap_or_else(|| dir.join("eval.json"));
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
-        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose\n");
+        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose,along_sight_mm,across_sight_mm\n");
     for r in report["frames"].as_array().into_iter().flatten() {
         let f = |k: &str| match &r[k] {
             Value::Null => String::new(),
@@ -350,7 +378,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         };
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             f("body"),
             f("frame"),
             f("position_mm"),
@@ -360,7 +388,9 @@ pub fn run(a: EvalArgs) -> Result<()> {
             f("silhouette_iou"),
             f("fit_iou"),
             f("fit_psnr"),
-            f("fit_pose")
+            f("fit_pose"),
+            f("along_sight_mm"),
+            f("across_sight_mm")
         )?;
     }
     pganeus_io::write_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
@@ -380,6 +410,12 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 .map(|i| format!("; silhouette IoU mean {} worst {}", i["mean"], i["worst"]))
                 .unwrap_or_default()
         );
+        if let (Some(a), Some(x)) = (s.get("along_sight_mm"), s.get("across_sight_mm")) {
+            println!(
+                "{body}: position along the camera's line of sight mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",
+                a["mean"], a["worst"], a["worst_frame"], x["mean"], x["worst"], x["worst_frame"]
+            );
+        }
         let p = &report["parameters"][body];
         println!(
             "{body}: v0 off by {} m/s ({} %), omega0 by {} rad/s{}",
