@@ -178,11 +178,12 @@ fn a_report_embeds_everything_and_headless_chromium_shows_it_all() {
     ] {
         assert!(html.contains(needle), "{needle}");
     }
-    // The truth's own motion scores as zero error.
+    // The truth's own motion scores as zero error, along the line of sight and across it too.
     assert!(
-        html.contains("<td>reported</td><td>toy</td><td>0.00 / 0.00</td>"),
+        html.contains("<td>reported</td><td>toy</td><td>0.00 / 0.00</td><td>0.00 / 0.00</td>"),
         "{html}"
     );
+    assert!(html.contains("along / across the line of sight"), "{html}");
     // Every chart as PNG and SVG.
     for chart in [
         "drop_toy_top_view",

@@ -417,6 +417,11 @@ fn error_table(page: &mut Page, e: &Value) {
                 stage.to_string(),
                 body.clone(),
                 pair("position_mm"),
+                format!(
+                    "{} / {}",
+                    fmt(f64_at(&s["along_sight_mm"], "mean"), 2),
+                    fmt(f64_at(&s["across_sight_mm"], "mean"), 2)
+                ),
                 pair("rotation_deg"),
                 fmt(f64_at(&s["add_s_mm"], "mean"), 2),
                 pair("silhouette_iou"),
@@ -436,13 +441,18 @@ fn error_table(page: &mut Page, e: &Value) {
             "stage",
             "body",
             "position mm (mean / worst)",
+            "along / across the line of sight mm (mean)",
             "rotation ° (mean / worst)",
             "ADD-S mm (mean)",
             "silhouette IoU (mean / worst)",
         ],
         &rows,
     );
-    page.note("Reported: each frame's simulated pose, or GA's where the simulation misses the video.");
+    page.note(
+        "Reported: each frame's simulated pose, or GA's where the simulation misses the video. Along / across: \
+         the position error's part along the camera's line of sight (depth, which one camera sees only through \
+         the body's apparent size) and across it.",
+    );
 }
 
 /// Per body and source, the path of the body: eval's (the true body's origin as each places it, beside the
