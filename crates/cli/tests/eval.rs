@@ -129,6 +129,10 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
         csv.lines().next().unwrap().ends_with(",along_sight_mm,across_sight_mm"),
         "{csv}"
     );
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(row.len(), 12, "{csv}");
+    let cell = |i: usize| row[i].parse::<f64>().unwrap();
+    assert!((cell(10) - 3.0).abs() < 2e-3 && (cell(11) - 1.0).abs() < 2e-3, "{csv}");
 
     // The same motion in another body frame (origin 7 mm off, axes turned): related through
     // object.reference, it scores as zero again.

@@ -183,7 +183,7 @@ fn a_report_embeds_everything_and_headless_chromium_shows_it_all() {
         html.contains("<td>reported</td><td>toy</td><td>0.00 / 0.00</td><td>0.00 / 0.00</td>"),
         "{html}"
     );
-    assert!(html.contains("along / across the line of sight"), "{html}");
+    assert!(html.contains("along (absolute) / across the line of sight"), "{html}");
     // Every chart as PNG and SVG.
     for chart in [
         "drop_toy_top_view",

@@ -412,7 +412,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         );
         if let (Some(a), Some(x)) = (s.get("along_sight_mm"), s.get("across_sight_mm")) {
             println!(
-                "{body}: position along the camera's line of sight mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",
+                "{body}: position along the camera's line of sight (absolute) mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",
                 a["mean"], a["worst"], a["worst_frame"], x["mean"], x["worst"], x["worst_frame"]
             );
         }

@@ -441,7 +441,7 @@ fn error_table(page: &mut Page, e: &Value) {
             "stage",
             "body",
             "position mm (mean / worst)",
-            "along / across the line of sight mm (mean)",
+            "along (absolute) / across the line of sight mm (mean)",
             "rotation ° (mean / worst)",
             "ADD-S mm (mean)",
             "silhouette IoU (mean / worst)",
