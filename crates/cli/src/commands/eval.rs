@@ -106,6 +106,7 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
         let (mut along, mut across) = (vec![], vec![]);
         let (mut fitted, mut true_) = (vec![], vec![]);
+        let eye = camera.map(|c| c.center());
         for k in 0..n {
             let est = entry.poses[k].to_geom().compose(&from_truth);
             let tru = truth.poses[k].to_geom();
@@ -121,8 +122,8 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
                 row["silhouette_iou"] = num(i, 1.0, 4);
                 ious.push(i);
             }
-            if let Some(c) = camera {
-                let (a, x) = sight_split(c.center(), &est, &tru);
+            if let Some(eye) = eye {
+                let (a, x) = sight_split(eye, &est, &tru);
                 row["along_sight_mm"] = num(a, 1e3, 3);
                 row["across_sight_mm"] = num(x, 1e3, 3);
                 along.push(a.abs() * 1e3);
