@@ -148,6 +148,43 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
         assert!(s[k]["worst"].as_f64().unwrap() < 1e-3, "{k}: {s}");
     }
 
+    // Against a truth whose body starts at rest (as a block a toy hits does), the launch error has no
+    // percentage: a share of no speed is no figure.
+    let mut resting = truth.clone();
+    for v in resting["videos"].as_array_mut().unwrap() {
+        if v["capture"] == "drop" {
+            v["bodies"][0]["initial"]["v"] = json!([0.0, 0.0, 0.0]);
+        }
+    }
+    let resting_path = data.join("truth_at_rest.json");
+    std::fs::write(&resting_path, resting.to_string()).unwrap();
+    std::fs::create_dir_all(d.join("at_rest")).unwrap();
+    std::fs::write(d.join("at_rest/trajectory.json"), fit.to_string()).unwrap();
+    let o = bin()
+        .arg("eval")
+        .arg(d.join("at_rest"))
+        .arg("--truth")
+        .arg(&resting_path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(d.join("at_rest/eval.json")).unwrap()).unwrap();
+    let p = &r["parameters"]["toy"];
+    assert!(p["v0_error_percent"].is_null(), "{p}");
+    let speed = |v: &Value| {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap().powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    assert!(
+        (p["v0_error_m_s"].as_f64().unwrap() - speed(&video["bodies"][0]["initial"]["v"])).abs() < 1e-3,
+        "{p}"
+    );
+    assert!(text(&o).contains("the truth is at rest"), "{}", text(&o));
+
     // Refused, each naming the problem: a video the truth does not have, a body it does not have.
     let refused = |wrong: &Value, needle: &str| {
         std::fs::write(d.join("same/trajectory.json"), wrong.to_string()).unwrap();

@@ -188,6 +188,9 @@ fn sight_split(eye: Vec3<f64>, est: &Pose<f64>, tru: &Pose<f64>) -> (f64, f64) {
     (a, (d - s * a).norm())
 }
 
+/// A true launch speed below this (m/s) is a body at rest: its v0 error has no percentage.
+const AT_REST_M_S: f64 = 1e-6;
+
 /// Launch and contact errors of the final trajectory (contact values only where the truth's model is the
 /// project's own).
 fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> Value {
@@ -202,10 +205,16 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
         let v = Vec3::cst(entry.initial.v) + omega.cross(offset);
         let tv = Vec3::cst(truth.initial.v);
         let dv = (v - tv).norm();
+        // A share of a true speed only where there is one: a body at rest (the block a toy hits) has none.
+        let percent = if tv.norm() > AT_REST_M_S {
+            num(dv / tv.norm(), 100.0, 2)
+        } else {
+            Value::Null
+        };
         let mut e = json!({
             "v0": v.to_array(), "v0_true": truth.initial.v,
             "v0_error_m_s": num(dv, 1.0, 4),
-            "v0_error_percent": num(dv / tv.norm().max(1e-9), 100.0, 2),
+            "v0_error_percent": percent,
             "omega0_error_rad_s": num((omega - Vec3::cst(truth.initial.omega)).norm(), 1.0, 3),
         });
         if video.contact.model == "pganeus" {
@@ -418,10 +427,13 @@ pub fn run(a: EvalArgs) -> Result<()> {
             );
         }
         let p = &report["parameters"][body];
+        let share = match p["v0_error_percent"].as_f64() {
+            Some(pc) => format!("{pc} %"),
+            None => "the truth is at rest".into(),
+        };
         println!(
-            "{body}: v0 off by {} m/s ({} %), omega0 by {} rad/s{}",
+            "{body}: v0 off by {} m/s ({share}), omega0 by {} rad/s{}",
             p["v0_error_m_s"],
-            p["v0_error_percent"],
             p["omega0_error_rad_s"],
             if p.get("restitution_error").is_some() {
                 format!(
