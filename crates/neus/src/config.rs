@@ -50,6 +50,13 @@ pub struct TrainConfig {
     pub stereo: StereoConfig,
     /// Weight of the mask BCE term (when the capture has masks). Default 0.1.
     pub mask_weight: f32,
+    /// Rays pass through a random point of their pixel (true) or through its centre (false). Default false
+    /// for objects: a mask labels a whole pixel by what its centre sees, so a ray through the edge of a
+    /// pixel marked "object" that misses the object is taught to be opaque, and the rendered silhouette
+    /// grows; true for scenes, whose pixels' colours are averages over the pixel. Checkpoints written
+    /// before this setting existed trained with jitter, and load with it.
+    #[serde(default = "jitter_before_the_setting")]
+    pub pixel_jitter: bool,
     /// Hash levels active at the start (progressive activation). Default 4.
     pub level_start: usize,
     /// One more level every this many steps (0 = all levels from the start). Default 100.
@@ -60,6 +67,10 @@ pub struct TrainConfig {
     pub checkpoint_every: usize,
     pub seed: u64,
     pub field: FieldConfig,
+}
+
+fn jitter_before_the_setting() -> bool {
+    true
 }
 
 impl Default for TrainConfig {
@@ -83,6 +94,7 @@ impl Default for TrainConfig {
             stereo_steps: 0,
             stereo: StereoConfig::default(),
             mask_weight: 0.1,
+            pixel_jitter: false,
             level_start: 4,
             level_every: 100,
             holdout_every: 8,
@@ -108,6 +120,7 @@ impl TrainConfig {
                 view_independent_steps: 1000,
                 stereo_weight: 0.5,
                 stereo_steps: 1000,
+                pixel_jitter: true,
                 field: FieldConfig {
                     init: FieldInit::Board,
                     background: Some(BackgroundConfig::default()),

@@ -14,6 +14,7 @@ pub mod config;
 pub mod dataset;
 mod fd_samples;
 pub mod field_pass;
+pub mod holdout;
 pub mod neus_field;
 pub mod object_model;
 pub mod occupancy;

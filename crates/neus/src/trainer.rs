@@ -348,7 +348,10 @@ impl NeusTrainer {
             let mut tries = 0;
             let (v, x, y, px, weight) = loop {
                 let v = self.train_views[(self.rng.next_u64() % self.train_views.len() as u64) as usize];
-                let (x, y) = (self.rng.next_f64() * w, self.rng.next_f64() * h);
+                let (mut x, mut y) = (self.rng.next_f64() * w, self.rng.next_f64() * h);
+                if !cfg.pixel_jitter {
+                    (x, y) = (x.floor() + 0.5, y.floor() + 0.5);
+                }
                 let px = (y as usize).min(h as usize - 1) * w as usize + (x as usize).min(w as usize - 1);
                 let m = self.data.views[v].mask.as_ref().map_or(1.0, |m| m[px]);
                 let weight = if scene && masked { 1.0 - m } else { m };

@@ -11,10 +11,14 @@ fn scratch(name: &str) -> PathBuf {
 
 /// A 3 cm ball alone on the board, 12 views of 64×48 with masks.
 fn ball_capture(dir: &Path) -> (PathBuf, f64, Vec3<f64>) {
+    ball_capture_sized(dir, 64, 48)
+}
+
+fn ball_capture_sized(dir: &Path, width: u32, height: u32) -> (PathBuf, f64, Vec3<f64>) {
     let mut scene = synth::preset("tabletop", synth::Scale::Small).unwrap();
     scene.bodies[0].shape = synth::desc::ShapeDesc::Sphere { radius: 0.03 };
-    scene.cameras.width = 64;
-    scene.cameras.height = 48;
+    scene.cameras.width = width;
+    scene.cameras.height = height;
     scene.cameras.views = 12;
     scene.videos.truncate(1);
     scene.videos[0].frames = 1;
@@ -84,6 +88,35 @@ fn tiny_training_fits_a_ball() {
         "mean |SDF| on the true surface: {:.2} mm",
         mean_err * 1e3
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A mask labels each pixel by what its centre sees. Rays through random points of their pixels are taught
+/// that the outer corner of a pixel marked "ball" is opaque though it misses the ball, so the drawn
+/// silhouette grows, and a fit from such a field puts the body too far from the camera. Rays through pixel
+/// centres (the object default) are not. It takes a sharp field to show: the default config, 800 steps.
+#[test]
+fn rays_through_pixel_centres_keep_the_silhouette_to_the_masks() {
+    let dir = scratch("ball_silhouette");
+    let (capture, _, _) = ball_capture_sized(&dir, 160, 120);
+    let cfg = TrainConfig {
+        holdout_every: 6,
+        ..TrainConfig::default()
+    };
+    assert!(!cfg.pixel_jitter, "objects train through pixel centres by default");
+    let mut t = NeusTrainer::new(cfg, Dataset::load(&capture).unwrap()).unwrap();
+    for _ in 0..800 {
+        t.step();
+    }
+    let every: Vec<usize> = (0..t.data.views.len()).collect();
+    let s = neus::holdout::score(&t, &every)
+        .silhouette
+        .expect("an object capture with masks");
+    let (excess, iou) = (s.area_excess_percent().unwrap(), s.iou());
+    eprintln!("silhouette area against the masks {excess:+.2} %, IoU {iou:.4}");
+    // Measured +1.00 %, IoU 0.9904; with `pixel_jitter = true` (as before) +3.83 %, IoU 0.9643.
+    assert!(excess.abs() < 2.0, "silhouette area {excess:+.2} % of the masks'");
+    assert!(iou > 0.985, "silhouette IoU {iou:.4}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

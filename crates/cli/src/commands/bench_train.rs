@@ -3,11 +3,12 @@
 //! of the zero level to the true mesh; peak memory at the end.
 
 use super::mesh_cmds::capture_truth;
-use super::render::{holdout_psnr, zero_level_mesh};
+use super::render::zero_level_mesh;
 use super::train::{capture_kind, load_config};
 use anyhow::{Context, Result};
 use clap::Args;
 use geom::TriMesh;
+use neus::holdout::holdout;
 use neus::{Dataset, NeusTrainer};
 use std::path::PathBuf;
 
@@ -86,7 +87,8 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
         samples += s.samples;
         let done = t.step == iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
         if t.step % a.every == 0 || done {
-            let psnr = holdout_psnr(&t);
+            let held_out = holdout(&t);
+            let psnr = held_out.psnr;
             let levels = t.config.active_levels(t.step);
             let m = zero_level_mesh(&t.field, levels, t.data.centre, t.data.radius, a.mesh_res);
             let (full, visible) = match region {
@@ -109,6 +111,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
                     "rays_per_s": (rays as f64 / window_secs).round(),
                     "samples_per_s": (samples as f64 / window_secs).round(),
                     "heldout_psnr": round(psnr as f64, 100.0),
+                    "heldout_silhouette_area_percent": held_out.silhouette.and_then(|c| c.area_excess_percent()).map(|v| round(v, 100.0)),
                     "chamfer_mm": round(full * 1e3, 100.0), "chamfer_visible_mm": round(visible * 1e3, 100.0),
                     "chamfer_pct_diameter": round(full / diameter * 100.0, 100.0),
                     "chamfer_visible_pct_diameter": round(visible / diameter * 100.0, 100.0),

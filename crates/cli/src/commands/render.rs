@@ -4,9 +4,10 @@ use clap::Args;
 use geom::Camera;
 use geom::{Pose, Vec3};
 use neus::checkpoint::load_field;
-use neus::render_view::{psnr, render_view, RenderSettings, STOP_TRANSMITTANCE};
+use neus::holdout::SilhouetteTally;
+use neus::render_view::{psnr, render_view, RenderSettings};
 use neus::switching::{route, Route};
-use neus::{Dataset, NeusTrainer};
+use neus::Dataset;
 use pganeus_io::Image;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -61,31 +62,6 @@ pub struct RenderArgs {
     /// The `transform.json` written by `pganeus merge OTHER RUN`: `p_run = R_1to2 · p_other + T_1to2`.
     #[arg(long, requires = "other")]
     pub transform: Option<PathBuf>,
-}
-
-/// Mean PSNR of a trainer's held-out views (inside the masks when there are masks).
-pub fn holdout_psnr(t: &NeusTrainer) -> f32 {
-    let g = &t.config.field.grid;
-    let set = RenderSettings {
-        steps_per_ray: t.config.steps_per_ray * 2,
-        max_samples_per_ray: t.config.max_samples_per_ray * 2,
-        active_levels: t.config.active_levels(t.step),
-        fd_eps: t
-            .fd_eps(t.config.active_levels(t.step))
-            .min(2.0 / g.max_resolution as f32 * 4.0),
-        view_independent: t.step < t.config.view_independent_steps,
-        stop_transmittance: STOP_TRANSMITTANCE,
-    };
-    let views = &t.holdout_views;
-    let sum: f32 = views
-        .iter()
-        .map(|&i| {
-            let v = &t.data.views[i];
-            let img = render_view(&t.field, &t.occupancy, &set, &v.camera);
-            psnr(&img.rgb, &v.rgb, v.mask.as_deref())
-        })
-        .sum();
-    sum / views.len().max(1) as f32
 }
 
 /// A field's zero level (`neus::surface::zero_level_mesh`) with a progress bar over the points sampled.
@@ -227,6 +203,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         _ => None,
     };
     let mut psnrs = Vec::new();
+    // An object's opacity against the capture's masks (a scene's masks mark what is not scene).
+    let object = l.config.kind == neus::CaptureSubject::Object && other.is_none();
+    let mut silhouettes = SilhouetteTally::default();
     let pb = super::progress(jobs.len() as u64, "views");
     for job in &jobs {
         pb.inc(1);
@@ -272,7 +251,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
             Some(Reference { rgb: gt, mask }) => {
                 let p = psnr(&img.rgb, gt, mask);
                 psnrs.push(p);
-                format!("{}: PSNR {p:.2} dB", job.name)
+                match mask {
+                    Some(m) if object => {
+                        let mut one = SilhouetteTally::default();
+                        one.add(&img.opacity, m);
+                        silhouettes.add(&img.opacity, m);
+                        format!(
+                            "{}: PSNR {p:.2} dB, silhouette area {:+.2} %, IoU {:.4}",
+                            job.name,
+                            one.area_excess_percent().unwrap_or(f64::NAN),
+                            one.iou()
+                        )
+                    }
+                    _ => format!("{}: PSNR {p:.2} dB", job.name),
+                }
             }
             None if to_primary.is_some() => {
                 format!("{}: rendered by the other field (camera below the board)", job.name)
@@ -292,6 +284,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
             } else {
                 ""
             }
+        );
+    }
+    if let Some(excess) = silhouettes.area_excess_percent() {
+        println!(
+            "silhouette: area {excess:+.2} % of the masks', IoU {:.4} (opacity > 0.5)",
+            silhouettes.iou()
         );
     }
     staged.commit()?;

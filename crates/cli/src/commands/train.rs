@@ -152,8 +152,19 @@ pub fn run(a: TrainArgs) -> Result<()> {
         rays as f64 / secs.max(1e-9)
     );
     if !trainer.holdout_views.is_empty() {
-        let p = super::render::holdout_psnr(&trainer);
-        println!("held-out PSNR {:.2} dB over {} views", p, trainer.holdout_views.len());
+        let h = neus::holdout::holdout(&trainer);
+        println!(
+            "held-out PSNR {:.2} dB over {} views",
+            h.psnr,
+            trainer.holdout_views.len()
+        );
+        if let Some(s) = h.silhouette {
+            println!(
+                "held-out silhouette: area {:+.2} % of the masks', IoU {:.4}",
+                s.area_excess_percent().unwrap_or(f64::NAN),
+                s.iou()
+            );
+        }
     }
     if !a.no_preview {
         let loaded = checkpoint::load_field(&ckpt)?;
