@@ -26,12 +26,18 @@ fn put(p: &Pose<f64>) -> Value {
 
 /// Evaluate `fit` (a trajectory file) and return eval.json.
 fn eval(fit: &Value, dir: &Path, truth: &Path) -> Value {
+    eval_printing(fit, dir, truth).0
+}
+
+/// `eval` of `fit` written into `dir`: its eval.json and what it printed.
+fn eval_printing(fit: &Value, dir: &Path, truth: &Path) -> (Value, String) {
     std::fs::create_dir_all(dir).unwrap();
     std::fs::write(dir.join("trajectory.json"), fit.to_string()).unwrap();
     let o = bin().arg("eval").arg(dir).arg("--truth").arg(truth).output().unwrap();
     assert!(o.status.success(), "{}", text(&o));
     assert!(dir.join("eval.csv").exists());
-    serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap()
+    let report = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    (report, text(&o))
 }
 
 #[test]
@@ -158,17 +164,7 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     }
     let resting_path = data.join("truth_at_rest.json");
     std::fs::write(&resting_path, resting.to_string()).unwrap();
-    std::fs::create_dir_all(d.join("at_rest")).unwrap();
-    std::fs::write(d.join("at_rest/trajectory.json"), fit.to_string()).unwrap();
-    let o = bin()
-        .arg("eval")
-        .arg(d.join("at_rest"))
-        .arg("--truth")
-        .arg(&resting_path)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    let r: Value = serde_json::from_str(&std::fs::read_to_string(d.join("at_rest/eval.json")).unwrap()).unwrap();
+    let (r, printed) = eval_printing(&fit, &d.join("at_rest"), &resting_path);
     let p = &r["parameters"]["toy"];
     assert!(p["v0_error_percent"].is_null(), "{p}");
     let speed = |v: &Value| {
@@ -183,7 +179,7 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
         (p["v0_error_m_s"].as_f64().unwrap() - speed(&video["bodies"][0]["initial"]["v"])).abs() < 1e-3,
         "{p}"
     );
-    assert!(text(&o).contains("the truth is at rest"), "{}", text(&o));
+    assert!(printed.contains("the truth is at rest"), "{printed}");
 
     // Refused, each naming the problem: a video the truth does not have, a body it does not have.
     let refused = |wrong: &Value, needle: &str| {

@@ -8,13 +8,13 @@ use crate::{CaptureSubject, NeusTrainer};
 pub struct Holdout {
     /// Mean PSNR (inside the masks when there are masks).
     pub psnr: f32,
-    /// For an object capture with masks: the rendered silhouette against the masks.
-    pub silhouette: Option<SilhouetteTally>,
+    /// The rendered silhouette against the masks; empty (no area) for a scene or a capture without masks.
+    pub silhouette: SilhouetteTally,
 }
 
 /// The settings a trainer renders its held-out views with at its current step: twice its training's
 /// steps and sample cap, the levels active now.
-pub fn settings(t: &NeusTrainer) -> RenderSettings {
+fn settings(t: &NeusTrainer) -> RenderSettings {
     let levels = t.config.active_levels(t.step);
     RenderSettings {
         steps_per_ray: t.config.steps_per_ray * 2,
@@ -44,7 +44,7 @@ pub fn score(t: &NeusTrainer, views: &[usize]) -> Holdout {
     }
     Holdout {
         psnr: psnr_sum / views.len().max(1) as f32,
-        silhouette: tally.area_excess_percent().is_some().then_some(tally),
+        silhouette: tally,
     }
 }
 
@@ -73,6 +73,14 @@ impl SilhouetteTally {
             self.both += (a && b) as usize;
             self.either += (a || b) as usize;
         }
+    }
+
+    /// Another tally's pixels added to this one.
+    pub fn merge(&mut self, other: &Self) {
+        self.opacity += other.opacity;
+        self.marked += other.marked;
+        self.both += other.both;
+        self.either += other.either;
     }
 
     /// Summed opacity over the masks' summed value, minus one, in percent (None without marked pixels).

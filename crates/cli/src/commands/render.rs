@@ -251,19 +251,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
             Some(Reference { rgb: gt, mask }) => {
                 let p = psnr(&img.rgb, gt, mask);
                 psnrs.push(p);
-                match mask {
-                    Some(m) if object => {
-                        let mut one = SilhouetteTally::default();
-                        one.add(&img.opacity, m);
-                        silhouettes.add(&img.opacity, m);
-                        format!(
-                            "{}: PSNR {p:.2} dB, silhouette area {:+.2} %, IoU {:.4}",
-                            job.name,
-                            one.area_excess_percent().unwrap_or(f64::NAN),
-                            one.iou()
-                        )
-                    }
-                    _ => format!("{}: PSNR {p:.2} dB", job.name),
+                let mut one = SilhouetteTally::default();
+                if let (true, Some(m)) = (object, mask) {
+                    one.add(&img.opacity, m);
+                    silhouettes.merge(&one);
+                }
+                match one.area_excess_percent() {
+                    Some(area) => format!(
+                        "{}: PSNR {p:.2} dB, silhouette area {area:+.2} %, IoU {:.4}",
+                        job.name,
+                        one.iou()
+                    ),
+                    None => format!("{}: PSNR {p:.2} dB", job.name),
                 }
             }
             None if to_primary.is_some() => {

@@ -158,11 +158,10 @@ pub fn run(a: TrainArgs) -> Result<()> {
             h.psnr,
             trainer.holdout_views.len()
         );
-        if let Some(s) = h.silhouette {
+        if let Some(area) = h.silhouette.area_excess_percent() {
             println!(
-                "held-out silhouette: area {:+.2} % of the masks', IoU {:.4}",
-                s.area_excess_percent().unwrap_or(f64::NAN),
-                s.iou()
+                "held-out silhouette: area {area:+.2} % of the masks', IoU {:.4}",
+                h.silhouette.iou()
             );
         }
     }
