@@ -1,7 +1,8 @@
 //! Watch a tabletop scene form (a development probe; CI builds it, does not run it): trains a `synth --preset
 //! tabletop` (or `backdrop`) background capture with the scene preset and prints, every 50 steps, the height
-//! of the zero level on the wall (true top 70 mm) and on the board (true 0), after scoring the stereo points
-//! against the true surface.
+//! of the zero level on the wall (true top 70 mm) and on the board (true 0) and the wall's foot (the board
+//! before the face and the face near the board, true 0 and 200 mm), after scoring the stereo points against
+//! the true surface.
 //!
 //! `cargo run --release -p neus --example scene_probe -- CAPTURE [CONFIG.toml|-] [STEPS] [LIFT_M]`
 //! (`LIFT_M` starts the plane that far above the board; env `SEED`, `STEREO_W` override the config,
@@ -104,8 +105,9 @@ fn main() {
                 .iter()
                 .map(|&(x, y)| (height(x, y) * 1e4).round() / 10.0)
                 .collect();
+            let foot = foot_profile(&t, s.active_levels);
             println!(
-                "step {} psnr {:.1} inv_s {:.0} occ {:.3} samples {} wall(mm) {:?} board(mm) {:?} {:.0}s",
+                "step {} psnr {:.1} inv_s {:.0} occ {:.3} samples {} wall(mm) {:?} board(mm) {:?} foot {} {:.0}s",
                 s.step,
                 s.psnr,
                 s.inv_s,
@@ -113,8 +115,62 @@ fn main() {
                 s.samples,
                 wall,
                 board,
+                foot,
                 t0.elapsed().as_secs_f64()
             );
         }
     }
+}
+
+/// The wall's foot (the face the tabletop slide hits, true x = 0.2 m): the board's height 30, 10 and 5 mm before
+/// the face and the face's x at heights 2, 5, 8 and 12 mm, each the median over 41 lines across y ∈ ±6 cm, in mm.
+fn foot_profile(t: &NeusTrainer, levels: usize) -> String {
+    let (c, r) = (t.data.centre, t.data.radius);
+    // The first outside-to-inside crossing along `from + s·dir`, s in [0, len] (metres), by 0.1 mm samples.
+    let crossing = |from: [f64; 3], dir: [f64; 3], len: f64| -> f64 {
+        let n = (len / 1e-4) as usize;
+        let pts: Vec<f32> = (0..=n)
+            .flat_map(|i| {
+                let s = i as f64 * 1e-4;
+                (0..3).map(move |k| ((from[k] + s * dir[k] - c[k]) / r) as f32)
+            })
+            .collect();
+        let v = t.field.sdf_values(&pts, levels);
+        (1..v.len())
+            .find(|&i| v[i - 1] > 0.0 && v[i] <= 0.0)
+            .map_or(f64::NAN, |i| {
+                (i as f64 - 1.0 + (v[i - 1] / (v[i - 1] - v[i])) as f64) * 1e-4
+            })
+    };
+    let median = |mut v: Vec<f64>| {
+        v.retain(|x| x.is_finite());
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let ys: Vec<f64> = (0..41).map(|i| -0.06 + 0.003 * i as f64).collect();
+    let board: Vec<f64> = [0.17, 0.19, 0.195]
+        .iter()
+        .map(|&x| {
+            median(
+                ys.iter()
+                    .map(|&y| 0.02 - crossing([x, y, 0.02], [0.0, 0.0, -1.0], 0.03))
+                    .collect(),
+            )
+        })
+        .collect();
+    let face: Vec<f64> = [0.002, 0.005, 0.008, 0.012]
+        .iter()
+        .map(|&z| {
+            median(
+                ys.iter()
+                    .map(|&y| 0.16 + crossing([0.16, y, z], [1.0, 0.0, 0.0], 0.06))
+                    .collect(),
+            )
+        })
+        .collect();
+    format!(
+        "board {:.1?} face {:.1?}",
+        board.iter().map(|v| v * 1e3).collect::<Vec<_>>(),
+        face.iter().map(|v| v * 1e3).collect::<Vec<_>>()
+    )
 }

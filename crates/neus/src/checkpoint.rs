@@ -113,6 +113,13 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
             tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
         }
     }
+    // Inside the averaging window: the running mean, so a resumed run averages as an uninterrupted one.
+    if trainer.average.count > 0 {
+        for (i, mean) in trainer.average.means.iter().enumerate() {
+            tensors.insert(format!("average.{i}"), f32_tensor(mean));
+        }
+        metadata.insert("average_count".into(), trainer.average.count.to_string());
+    }
     metadata.insert("rng".into(), trainer.rng.0.to_string());
     let bg_steps = trainer.bg_optim.iter().flat_map(|o| o.adam.iter().map(|a| a.step));
     metadata.insert(
@@ -245,6 +252,15 @@ pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError
         adam.m = floats(&st, path, &format!("adam.{name}.m"), n)?;
         adam.v = floats(&st, path, &format!("adam.{name}.v"), n)?;
         adam.step = step;
+    }
+    if let Some(count) = st.metadata.get("average_count") {
+        let lens: Vec<usize> = t.field.params().iter().map(|p| p.len()).collect();
+        t.average.count = parse(path, "average_count", count)?;
+        t.average.means = lens
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| floats(&st, path, &format!("average.{i}"), n))
+            .collect::<Result<_, _>>()?;
     }
     Ok(t)
 }

@@ -18,6 +18,7 @@ pub mod holdout;
 pub mod neus_field;
 pub mod object_model;
 pub mod occupancy;
+pub mod param_average;
 pub mod ray_rounds;
 pub mod render_view;
 pub mod stereo;

@@ -14,6 +14,7 @@ use crate::dataset::Dataset;
 use crate::field_pass::{FieldPass, ParamGrads, PassSettings, SampleGrads};
 use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
+use crate::param_average::ParamAverage;
 use crate::stereo::stereo_points;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
 use field::ConfigError;
@@ -110,6 +111,9 @@ pub struct NeusTrainer {
     pub(crate) adam: [Adam; 4],
     pub(crate) bg_optim: Option<BackgroundOptim>,
     pub(crate) rng: SplitMix64,
+    /// The running mean of the parameters over the run's last steps (`average_last`), put into the field
+    /// after the last step.
+    pub average: ParamAverage,
     touched: Touched,
     grads: [Vec<f32>; 4],
     scratch: Scratch,
@@ -248,6 +252,7 @@ impl NeusTrainer {
             step: 0,
             adam,
             bg_optim,
+            average: ParamAverage::default(),
             touched,
             grads,
             scratch: Scratch::default(),
@@ -603,6 +608,21 @@ impl NeusTrainer {
         }
 
         self.step += 1;
+        if self.step > cfg.average_start() && self.step <= cfg.iterations {
+            self.average.add(&self.field);
+            if self.step == cfg.iterations {
+                tracing::debug!(
+                    "the field is the mean of the last {} steps' parameters",
+                    self.average.count
+                );
+                self.average.apply(&mut self.field);
+                self.average = ParamAverage::default();
+                // The mean's surface is not any iterate's: every cell again.
+                for part in 0..4 {
+                    self.refresh_occupancy_part(part);
+                }
+            }
+        }
         if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
             self.refresh_occupancy();
         }
@@ -634,8 +654,12 @@ impl NeusTrainer {
     /// Re-evaluate the SDF at the centres of a quarter of the cells (a
     /// different quarter each time); mark those within reach of the surface.
     pub fn refresh_occupancy(&mut self) {
+        self.refresh_occupancy_part((self.step / self.config.occupancy_every.max(1)) % 4);
+    }
+
+    /// Re-evaluate the quarter `part` (0–3) of the occupancy cells.
+    fn refresh_occupancy_part(&mut self, part: usize) {
         let cells = self.occupancy.cells.len();
-        let part = (self.step / self.config.occupancy_every.max(1)) % 4;
         let idx: Vec<usize> = (part..cells).step_by(4).collect();
         let pts: Vec<f32> = idx.iter().flat_map(|&i| self.occupancy.centre(i)).collect();
         let sdf = self.field.sdf_values(&pts, self.config.active_levels(self.step));

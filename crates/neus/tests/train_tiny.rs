@@ -141,7 +141,49 @@ fn scene_checkpoints_round_trip_with_the_background_field() {
         samples: 8,
         ..Default::default()
     });
+    // The checkpoint (step 20 of 30) falls inside the averaging window (steps 16–30): the running mean
+    // round-trips too, or the resumed run's final field would differ.
+    cfg.average_last = 0.5;
     round_trip("ckpt_scene", cfg);
+}
+
+/// With `average_last`, the trained field is the mean of the last steps' parameters, and every step before
+/// the last is the same as without averaging.
+#[test]
+fn the_last_steps_are_averaged_into_the_field() {
+    let dir = scratch("average");
+    let (capture, _, _) = ball_capture(&dir);
+    let mut cfg = tiny_config();
+    cfg.iterations = 12;
+    cfg.average_last = 0.25; // the results of steps 10, 11 and 12
+    let plain_cfg = TrainConfig {
+        average_last: 0.0,
+        ..cfg.clone()
+    };
+    let mut plain = NeusTrainer::new(plain_cfg, Dataset::load(&capture).unwrap()).unwrap();
+    let mut averaged = NeusTrainer::new(cfg, Dataset::load(&capture).unwrap()).unwrap();
+    let mut iterates: Vec<Vec<Vec<f32>>> = Vec::new();
+    for step in 1..=12 {
+        plain.step();
+        averaged.step();
+        if step >= 10 {
+            iterates.push(plain.field.params().iter().map(|p| p.to_vec()).collect());
+        }
+        if step < 12 {
+            assert_eq!(averaged.field.params(), plain.field.params(), "step {step}");
+        }
+    }
+    assert_ne!(averaged.field.sdf_params, plain.field.sdf_params);
+    for (k, p) in averaged.field.params().iter().enumerate() {
+        for (i, &v) in p.iter().enumerate() {
+            let mean = (iterates[0][k][i] + iterates[1][k][i] + iterates[2][k][i]) / 3.0;
+            assert!(
+                (v - mean).abs() <= 1e-6 * (1.0 + mean.abs()),
+                "parameter {i} of vector {k}: {v} against the mean {mean}"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn round_trip(name: &str, mut cfg: TrainConfig) {
