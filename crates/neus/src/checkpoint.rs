@@ -14,8 +14,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 const FORMAT: &str = "pganeus-neus-1";
-/// Tensor names of the background field's parameters (scenes).
-const BG_NAMES: [&str; 3] = ["background.grid", "background.density", "background.color"];
 
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointError {
@@ -54,21 +52,8 @@ fn field_entries(
     (centre, radius, capture): (Vec3<f64>, f64, &Path),
 ) -> (BTreeMap<String, Tensor>, BTreeMap<String, String>) {
     let mut tensors = BTreeMap::new();
-    for (name, p) in [
-        ("grid", &f.grid_params),
-        ("sdf", &f.sdf_params),
-        ("color", &f.color_params),
-        ("extra", &f.extra),
-    ] {
+    for (name, p) in f.params() {
         tensors.insert(name.to_string(), f32_tensor(p));
-    }
-    if let Some(b) = &f.background {
-        for (name, p) in BG_NAMES
-            .iter()
-            .zip([&b.grid_params, &b.density_params, &b.color_params])
-        {
-            tensors.insert(name.to_string(), f32_tensor(p));
-        }
     }
     tensors.insert(
         "occupancy".into(),
@@ -103,20 +88,17 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
         trainer.step,
         (d.centre, d.radius, &d.dir),
     );
-    for (name, a) in ["grid", "sdf", "color", "extra"].iter().zip(&trainer.adam) {
+    // Adam's state and the parameter average follow the field's parameters, named as they are.
+    let names: Vec<&str> = trainer.field.params().into_iter().map(|(name, _)| name).collect();
+    let adams = trainer.adam.iter().chain(trainer.bg_optim.iter().flat_map(|o| &o.adam));
+    for (name, a) in names.iter().zip(adams) {
         tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
         tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
     }
-    if let Some(opt) = &trainer.bg_optim {
-        for (name, a) in BG_NAMES.iter().zip(&opt.adam) {
-            tensors.insert(format!("adam.{name}.m"), f32_tensor(&a.m));
-            tensors.insert(format!("adam.{name}.v"), f32_tensor(&a.v));
-        }
-    }
     // Inside the averaging window: the running mean, so a resumed run averages as an uninterrupted one.
     if trainer.average.count > 0 {
-        for (i, mean) in trainer.average.means.iter().enumerate() {
-            tensors.insert(format!("average.{i}"), f32_tensor(mean));
+        for (name, mean) in names.iter().zip(&trainer.average.means) {
+            tensors.insert(format!("average.{name}"), f32_tensor(mean));
         }
         metadata.insert("average_count".into(), trainer.average.count.to_string());
     }
@@ -196,14 +178,8 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
         .map_err(|e| invalid(path, format!("config in the header: {e}")))?;
     // The start does not matter: every parameter is read below.
     let mut field = NeusField::new(&config.field, config.seed, 0.0);
-    field.grid_params = floats(st, path, "grid", field.grid_params.len())?;
-    field.sdf_params = floats(st, path, "sdf", field.sdf_params.len())?;
-    field.color_params = floats(st, path, "color", field.color_params.len())?;
-    field.extra = floats(st, path, "extra", field.extra.len())?;
-    if let Some(b) = &mut field.background {
-        b.grid_params = floats(st, path, BG_NAMES[0], b.grid_params.len())?;
-        b.density_params = floats(st, path, BG_NAMES[1], b.density_params.len())?;
-        b.color_params = floats(st, path, BG_NAMES[2], b.color_params.len())?;
+    for (name, p) in field.params_mut() {
+        *p = floats(st, path, name, p.len())?;
     }
     let res = config.occupancy_res;
     let occupancy = match st.tensors.get("occupancy").map(|t| &t.data) {
@@ -238,28 +214,19 @@ pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError
     if steps.len() != expected {
         return Err(invalid(path, format!("adam_steps must list {expected} counters")));
     }
-    let bg = t
-        .bg_optim
-        .iter_mut()
-        .flat_map(|o| BG_NAMES.iter().copied().zip(o.adam.iter_mut()));
-    for ((name, adam), &step) in ["grid", "sdf", "color", "extra"]
-        .into_iter()
-        .zip(t.adam.iter_mut())
-        .chain(bg)
-        .zip(&steps)
-    {
+    let params: Vec<(&str, usize)> = t.field.params().into_iter().map(|(name, p)| (name, p.len())).collect();
+    let adams = t.adam.iter_mut().chain(t.bg_optim.iter_mut().flat_map(|o| &mut o.adam));
+    for (((name, _), adam), &step) in params.iter().zip(adams).zip(&steps) {
         let n = adam.m.len();
         adam.m = floats(&st, path, &format!("adam.{name}.m"), n)?;
         adam.v = floats(&st, path, &format!("adam.{name}.v"), n)?;
         adam.step = step;
     }
     if let Some(count) = st.metadata.get("average_count") {
-        let lens: Vec<usize> = t.field.params().iter().map(|p| p.len()).collect();
         t.average.count = parse(path, "average_count", count)?;
-        t.average.means = lens
+        t.average.means = params
             .iter()
-            .enumerate()
-            .map(|(i, &n)| floats(&st, path, &format!("average.{i}"), n))
+            .map(|&(name, n)| floats(&st, path, &format!("average.{name}"), n))
             .collect::<Result<_, _>>()?;
     }
     Ok(t)

@@ -93,6 +93,44 @@ pub struct SdfBackwardScratch {
 pub const XYZ: usize = 3;
 
 impl NeusField {
+    /// Every parameter vector with its name (the checkpoint's tensor name), in a fixed order: the hash grid,
+    /// the SDF and colour MLPs, the extras, then the background field's grid, density and colour MLPs when
+    /// there is one. Adam's state, the checkpoint and the parameter average follow this order.
+    pub fn params(&self) -> Vec<(&'static str, &[f32])> {
+        let mut out: Vec<(&'static str, &[f32])> = vec![
+            ("grid", &self.grid_params),
+            ("sdf", &self.sdf_params),
+            ("color", &self.color_params),
+            ("extra", &self.extra),
+        ];
+        if let Some(b) = &self.background {
+            out.extend([
+                ("background.grid", &b.grid_params[..]),
+                ("background.density", &b.density_params),
+                ("background.color", &b.color_params),
+            ]);
+        }
+        out
+    }
+
+    /// [`NeusField::params`], mutable.
+    pub fn params_mut(&mut self) -> Vec<(&'static str, &mut Vec<f32>)> {
+        let mut out = vec![
+            ("grid", &mut self.grid_params),
+            ("sdf", &mut self.sdf_params),
+            ("color", &mut self.color_params),
+            ("extra", &mut self.extra),
+        ];
+        if let Some(b) = &mut self.background {
+            out.extend([
+                ("background.grid", &mut b.grid_params),
+                ("background.density", &mut b.density_params),
+                ("background.color", &mut b.color_params),
+            ]);
+        }
+        out
+    }
+
     /// A new field. `board_height` is the board plane z = 0 of the world in unit coordinates (`−centre_z /
     /// radius`), where a `Board` init puts the surface.
     pub fn new(config: &FieldConfig, seed: u64, board_height: f32) -> Self {

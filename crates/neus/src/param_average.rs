@@ -18,43 +18,18 @@ pub struct ParamAverage {
     pub means: Vec<Vec<f32>>,
 }
 
-impl NeusField {
-    /// Every parameter vector, in a fixed order.
-    pub fn params(&self) -> Vec<&[f32]> {
-        let mut out: Vec<&[f32]> = vec![&self.grid_params, &self.sdf_params, &self.color_params, &self.extra];
-        if let Some(b) = &self.background {
-            out.extend([&b.grid_params[..], &b.density_params, &b.color_params]);
-        }
-        out
-    }
-
-    /// Every parameter vector, mutable, in [`NeusField::params`] order.
-    pub fn params_mut(&mut self) -> Vec<&mut Vec<f32>> {
-        let mut out = vec![
-            &mut self.grid_params,
-            &mut self.sdf_params,
-            &mut self.color_params,
-            &mut self.extra,
-        ];
-        if let Some(b) = &mut self.background {
-            out.extend([&mut b.grid_params, &mut b.density_params, &mut b.color_params]);
-        }
-        out
-    }
-}
-
 impl ParamAverage {
     /// Add the field's current parameters to the mean.
     pub fn add(&mut self, field: &NeusField) {
         let params = field.params();
         if self.count == 0 {
-            self.means = params.iter().map(|p| p.to_vec()).collect();
+            self.means = params.iter().map(|(_, p)| p.to_vec()).collect();
             self.count = 1;
             return;
         }
         self.count += 1;
         let w = 1.0 / self.count as f32;
-        for (mean, p) in self.means.iter_mut().zip(params) {
+        for (mean, (_, p)) in self.means.iter_mut().zip(params) {
             mean.par_chunks_mut(1 << 16)
                 .zip(p.par_chunks(1 << 16))
                 .for_each(|(m, x)| {
@@ -70,7 +45,7 @@ impl ParamAverage {
         if self.count == 0 {
             return;
         }
-        for (p, mean) in field.params_mut().into_iter().zip(&self.means) {
+        for ((_, p), mean) in field.params_mut().into_iter().zip(&self.means) {
             p.copy_from_slice(mean);
         }
     }

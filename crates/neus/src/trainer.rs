@@ -608,22 +608,23 @@ impl NeusTrainer {
         }
 
         self.step += 1;
-        if self.step > cfg.average_start() && self.step <= cfg.iterations {
+        let averaged = self.step > cfg.average_start() && self.step <= cfg.iterations;
+        if averaged {
             self.average.add(&self.field);
-            if self.step == cfg.iterations {
-                tracing::debug!(
-                    "the field is the mean of the last {} steps' parameters",
-                    self.average.count
-                );
-                self.average.apply(&mut self.field);
-                self.average = ParamAverage::default();
-                // The mean's surface is not any iterate's: every cell again.
+        }
+        if averaged && self.step == cfg.iterations {
+            tracing::debug!(
+                "the field is the mean of the last {} steps' parameters",
+                self.average.count
+            );
+            std::mem::take(&mut self.average).apply(&mut self.field);
+            // The mean's surface is not any iterate's: every cell again (once the grid is in use at all).
+            if self.step >= cfg.occupancy_warmup {
                 for part in 0..4 {
                     self.refresh_occupancy_part(part);
                 }
             }
-        }
-        if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
+        } else if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
             self.refresh_occupancy();
         }
         if self.step.is_multiple_of(100) {
