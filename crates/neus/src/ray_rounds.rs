@@ -201,6 +201,7 @@ impl RayRounds {
                     cos: &round.d_cos,
                     rgb: &round.d_rgb,
                     eikonal: 0.0,
+                    overhang: 0.0,
                 },
                 None,
                 Some(InputGrads {

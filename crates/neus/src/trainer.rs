@@ -35,6 +35,9 @@ pub struct LossTerms {
     /// Mean |SDF| at a batch of stereo points (0 when the term is off).
     #[serde(default)]
     pub stereo: f32,
+    /// Mean max(0, −∂s/∂z) over the samples.
+    #[serde(default)]
+    pub overhang: f32,
 }
 
 impl LossTerms {
@@ -44,6 +47,7 @@ impl LossTerms {
             + cfg.eikonal_weight * self.eikonal
             + cfg.mask_weight * self.mask
             + cfg.stereo_weight_at(step) * self.stereo
+            + cfg.overhang_weight * self.overhang
     }
 }
 
@@ -421,7 +425,7 @@ impl NeusTrainer {
         };
         self.pass
             .forward(&self.field, &sc.rays_o, &sc.rays_d, &sc.offsets, &sc.t, pass_settings);
-        let eik = self.pass.eikonal_sum;
+        let (eik, overhang) = (self.pass.eikonal_sum, self.pass.overhang_sum);
 
         // What lies behind each ray's samples.
         let jit = &sc.bg_jitter;
@@ -547,6 +551,7 @@ impl NeusTrainer {
         loss.rgb /= count;
         loss.mask /= r as f32;
         loss.eikonal = (eik / m.max(1) as f64) as f32;
+        loss.overhang = (overhang / m.max(1) as f64) as f32;
         let psnr = -10.0 * (sq / count).max(1e-10).log10();
 
         // Back through the colour and SDF networks and the grid to the parameters.
@@ -558,6 +563,7 @@ impl NeusTrainer {
                 cos: &sc.d_cos,
                 rgb: &sc.d_rgb,
                 eikonal: cfg.eikonal_weight / m.max(1) as f32,
+                overhang: cfg.overhang_weight / m.max(1) as f32,
             },
             Some(ParamGrads {
                 grid,
