@@ -129,7 +129,7 @@ impl TrainConfig {
                 kind,
                 // A scene step costs 3–4 object steps (every ray meets the board): half the steps. With `fast`,
                 // 1500 steps take about 5 minutes on two cores for the synth tabletop at 320×240 (held out
-                // 28.74, 28.46 and 28.60 dB over three seeds, Chamfer 0.80–0.83 mm).
+                // 28.60, 28.69 and 28.60 dB over three seeds, Chamfer 0.75–0.90 mm).
                 iterations: base.iterations / 2,
                 view_independent_steps: 1000,
                 stereo_weight: 0.5,
