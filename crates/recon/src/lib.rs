@@ -3,6 +3,7 @@
 
 pub mod colliding_bodies;
 pub mod contact_penalty;
+pub mod exposure_gain;
 pub mod first_pose_search;
 pub mod fit_physics;
 pub mod image_loss;

@@ -200,6 +200,18 @@ impl<'a> PoseFromImage<'a> {
             .0
     }
 
+    /// The frame's brightness relative to the object's captures, measured at the current pose over every
+    /// pixel around the mask and the body (the gain [`ImageLossWeights::exposure_gain`] fits).
+    pub fn measure_exposure(&mut self) -> f64 {
+        let weights = ImageLossWeights {
+            exposure_gain: true,
+            ..self.cfg.weights.clone()
+        };
+        self.frame
+            .evaluate(&mut self.composer, self.object, self.scene, &self.pose, &weights)
+            .exposure
+    }
+
     /// The image terms over every pixel around the mask and the body at the current pose.
     pub fn evaluate(&mut self) -> ImageLoss {
         self.frame.evaluate(

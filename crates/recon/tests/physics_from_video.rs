@@ -77,6 +77,7 @@ fn frames_of_the_wrong_size_are_refused_by_index() {
         camera: cam,
         rgb: vec![[0.0; 3]; pixels],
         mask: vec![false; n],
+        exposure: 1.0,
     };
     let frames = vec![frame(n), frame(n), frame(n - 1)];
     let c = ContactParams::default();

@@ -148,6 +148,14 @@ struct FirstPose {
     start: StartContact,
     iou: f64,
     loss: f64,
+    /// The video's brightness relative to the object's captures, fitted at the first pose and kept for
+    /// every later stage (`FrameTarget::exposure`); 1 in files written before it was fitted.
+    #[serde(default = "as_captured")]
+    exposure: f64,
+}
+
+fn as_captured() -> f64 {
+    1.0
 }
 
 /// Everything the stages read.
@@ -227,6 +235,7 @@ pub(super) fn read_video(
             camera: cameras[0],
             rgb: reference_frame(&c.images[k])?,
             mask,
+            exposure: 1.0,
         });
     }
     let mask_dir = masks[0].parent().unwrap_or(dir).display().to_string();
@@ -448,6 +457,9 @@ pub fn run(a: FitArgs) -> Result<()> {
     let t = Instant::now();
     let first = stage_first(&mut job, guess, wanted.contains(&Stage::First))?;
     time("first_pose", t);
+    for f in &mut job.frames {
+        f.exposure = first.exposure;
+    }
     let last = wanted.iter().copied().max().unwrap_or(Stage::Pga);
     if last == Stage::First {
         return Ok(());
@@ -579,6 +591,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
     if !run {
         bail!("stage first has not run: {} is missing", path.display());
     }
+    let searched = guess.is_none();
     let guess = match guess {
         Some(g) => g,
         None => auto_guess(job)?,
@@ -587,6 +600,22 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
     let (start, lift) = lift_out(body, &job.world.scene, guess);
     if lift > 0.0 {
         tracing::info!("the guess sank {:.1} mm into the scene: lifted out", lift * 1e3);
+    }
+    if searched {
+        // The search's winner covers its mask: the video's brightness measured there holds for the first
+        // poses too (a guess from markers, centimetres off, is refined as captured and measured after).
+        let exposure = PoseFromImage::new(
+            job.cfg.first_pose.clone(),
+            &job.object,
+            &job.scene_pre,
+            &job.frames[0],
+            start,
+        )
+        .map_err(|e| anyhow!("frame 0: {e}"))?
+        .measure_exposure();
+        for f in &mut job.frames {
+            f.exposure = exposure;
+        }
     }
     let cfg: &PoseFitConfig = &job.cfg.first_pose;
     let n = (1 + job.cfg.launch_frames).min(job.frames.len());
@@ -638,6 +667,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         }
         if k == 0 {
             first_eval = fit.evaluate();
+            first_eval.exposure = fit.measure_exposure();
         }
         // A launch frame where the body already touches the scene is past the flight the guess fits; the
         // second frame always counts (a slide whose first pose floats a millimetre has no other).
@@ -702,15 +732,20 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         start,
         iou: first_eval.iou(),
         loss: first_eval.loss,
+        exposure: first_eval.exposure,
     };
     tracing::info!(
-        "first pose: IoU {:.3}, launch guess v {:?} m/s{}",
+        "first pose: IoU {:.3}, launch guess v {:?} m/s{}; the video {:.2} times as bright as the object's captures",
         first.iou,
         v.map(|x| (x * 1e3).round() / 1e3),
-        if touching { " (on the scene)" } else { "" }
+        if touching { " (on the scene)" } else { "" },
+        first.exposure
     );
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&first)?.as_bytes())?;
-    job.log(json!({"stage": "first_pose", "done": true, "iou": first.iou, "v": v, "omega": omega}))?;
+    job.log(
+        json!({"stage": "first_pose", "done": true, "iou": first.iou, "v": v, "omega": omega,
+        "exposure": first.exposure}),
+    )?;
     Ok(first)
 }
 

@@ -101,6 +101,7 @@ pub fn film(ball: &ObjectModel, world: &World) -> (Vec<ComposedRay>, Vec<FrameTa
                 camera: cam,
                 rgb: img.rgb,
                 mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
+                exposure: 1.0,
             }
         })
         .collect();
