@@ -49,8 +49,13 @@ impl ExposureGain {
         let n = rendered.len().min(target.len());
         let r: f64 = rendered[..n].iter().flatten().sum();
         let t: f64 = target[..n].iter().flatten().sum();
-        // A black rendering has no gain to fit.
-        if r <= 1e-6 * n.max(1) as f64 {
+        Self::of_sums(r, t, n)
+    }
+
+    /// The gain from the summed channels of `n` rendered pixels and of the frame's.
+    pub fn of_sums(r: f64, t: f64, n: usize) -> Self {
+        // A black rendering (or none) has no gain to fit.
+        if !(r > 1e-6 * n.max(1) as f64) {
             return Self::identity();
         }
         let fitted = t / r;

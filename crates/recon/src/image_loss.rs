@@ -179,6 +179,9 @@ pub struct ImageLoss {
     pub pixels: usize,
     /// The brightness gain the colour term applied (fitted, or the frame's `exposure`).
     pub exposure: f64,
+    /// The rendered and the frame's colours summed over the pixels inside the mask (every channel): their
+    /// ratio is the video's brightness over all the pixels measured ([`Self::measured_exposure`]).
+    pub colour_sums: [f64; 2],
 }
 
 impl ImageLoss {
@@ -196,6 +199,13 @@ impl ImageLoss {
         (-10.0 * self.mse.max(1e-10).log10()).min(100.0)
     }
 
+    /// The frame's brightness relative to the rendering over every pixel measured inside the mask (the
+    /// gain [`ImageLossWeights::exposure_gain`] fits; 1 where nothing was rendered there).
+    pub fn measured_exposure(&self) -> f64 {
+        let [rendered, frame] = self.colour_sums;
+        ExposureGain::of_sums(rendered, frame, self.pixels).gain
+    }
+
     /// Pixel-weighted sum of two measurements.
     pub fn add(&mut self, o: &ImageLoss) {
         let (a, b) = (self.pixels as f64, o.pixels as f64);
@@ -208,6 +218,7 @@ impl ImageLoss {
         self.pull = mix(self.pull, o.pull);
         self.mse = mix(self.mse, o.mse);
         self.exposure = mix(self.exposure, o.exposure);
+        self.colour_sums = [0, 1].map(|k| self.colour_sums[k] + o.colour_sums[k]);
         self.intersection += o.intersection;
         self.union += o.union;
         self.pixels += o.pixels;
@@ -371,6 +382,7 @@ impl<'a> PreparedFrame<'a> {
             ExposureGain::fixed(self.frame.exposure)
         };
         out.exposure = gain.gain;
+        out.colour_sums = [&rendered_in, &target_in].map(|c| c.iter().flatten().sum());
         let (colour_sum, colour_grad) = gain.l1_with_gradient(&rendered_in, &target_in);
         out.colour_l1 = colour_sum;
         let mut colour_grad_of = vec![[0.0f64; 3]; pixels.len()];
@@ -540,6 +552,28 @@ mod tests {
         }
         assert_eq!(bounding_box(&mask, w), Some([10, 7, 10, 7]));
         assert_eq!(bounding_box(&[false; 4], 2), None);
+    }
+
+    #[test]
+    fn the_exposure_is_measured_over_every_chunk_together() {
+        // Two chunks of an evaluation: one inside the mask (the frame 0.8 times as bright), one with no
+        // pixel inside it. The ratio of the summed colours is the measurement; the empty chunk adds nothing.
+        let inside = ImageLoss {
+            pixels: 4096,
+            exposure: 0.8,
+            colour_sums: [1000.0, 800.0],
+            ..ImageLoss::default()
+        };
+        let outside = ImageLoss {
+            pixels: 4096,
+            exposure: 1.0,
+            ..ImageLoss::default()
+        };
+        let mut total = ImageLoss::default();
+        total.add(&inside);
+        total.add(&outside);
+        assert!((total.measured_exposure() - 0.8).abs() < 1e-12, "{total:?}");
+        assert_eq!(ImageLoss::default().measured_exposure(), 1.0);
     }
 
     #[test]

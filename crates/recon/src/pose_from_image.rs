@@ -201,15 +201,9 @@ impl<'a> PoseFromImage<'a> {
     }
 
     /// The frame's brightness relative to the object's captures, measured at the current pose over every
-    /// pixel around the mask and the body (the gain [`ImageLossWeights::exposure_gain`] fits).
+    /// pixel of the mask (the gain [`ImageLossWeights::exposure_gain`] fits; 1 where none is rendered).
     pub fn measure_exposure(&mut self) -> f64 {
-        let weights = ImageLossWeights {
-            exposure_gain: true,
-            ..self.cfg.weights.clone()
-        };
-        self.frame
-            .evaluate(&mut self.composer, self.object, self.scene, &self.pose, &weights)
-            .exposure
+        self.evaluate().measured_exposure()
     }
 
     /// The image terms over every pixel around the mask and the body at the current pose.

@@ -667,7 +667,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         }
         if k == 0 {
             first_eval = fit.evaluate();
-            first_eval.exposure = fit.measure_exposure();
+            first_eval.exposure = first_eval.measured_exposure();
         }
         // A launch frame where the body already touches the scene is past the flight the guess fits; the
         // second frame always counts (a slide whose first pose floats a millimetre has no other).

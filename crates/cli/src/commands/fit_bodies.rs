@@ -417,7 +417,7 @@ fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: boo
             pb.inc(1);
         }
         let mut e = fit.evaluate();
-        e.exposure = fit.measure_exposure();
+        e.exposure = e.measured_exposure();
         tracing::info!(
             "{}: first pose IoU {:.3}; the video {:.2} times as bright as its captures",
             body.name,
