@@ -177,8 +177,6 @@ pub struct ImageLoss {
     pub intersection: usize,
     pub union: usize,
     pub pixels: usize,
-    /// The brightness gain the colour term applied (fitted, or the frame's `exposure`).
-    pub exposure: f64,
     /// The rendered and the frame's colours summed over the pixels inside the mask (every channel): their
     /// ratio is the video's brightness over all the pixels measured ([`Self::measured_exposure`]).
     pub colour_sums: [f64; 2],
@@ -217,7 +215,6 @@ impl ImageLoss {
         self.silhouette = mix(self.silhouette, o.silhouette);
         self.pull = mix(self.pull, o.pull);
         self.mse = mix(self.mse, o.mse);
-        self.exposure = mix(self.exposure, o.exposure);
         self.colour_sums = [0, 1].map(|k| self.colour_sums[k] + o.colour_sums[k]);
         self.intersection += o.intersection;
         self.union += o.union;
@@ -381,7 +378,6 @@ impl<'a> PreparedFrame<'a> {
         } else {
             ExposureGain::fixed(self.frame.exposure)
         };
-        out.exposure = gain.gain;
         out.colour_sums = [&rendered_in, &target_in].map(|c| c.iter().flatten().sum());
         let (colour_sum, colour_grad) = gain.l1_with_gradient(&rendered_in, &target_in);
         out.colour_l1 = colour_sum;
@@ -560,13 +556,11 @@ mod tests {
         // pixel inside it. The ratio of the summed colours is the measurement; the empty chunk adds nothing.
         let inside = ImageLoss {
             pixels: 4096,
-            exposure: 0.8,
             colour_sums: [1000.0, 800.0],
             ..ImageLoss::default()
         };
         let outside = ImageLoss {
             pixels: 4096,
-            exposure: 1.0,
             ..ImageLoss::default()
         };
         let mut total = ImageLoss::default();

@@ -148,8 +148,8 @@ struct FirstPose {
     start: StartContact,
     iou: f64,
     loss: f64,
-    /// The video's brightness relative to the object's captures, fitted at the first pose and kept for
-    /// every later stage (`FrameTarget::exposure`); 1 in files written before it was fitted.
+    /// The video's brightness relative to the object's captures, measured at the first pose and kept for
+    /// every later stage (`FrameTarget::exposure`); 1 in files written before it was measured.
     #[serde(default = "as_captured")]
     exposure: f64,
 }
@@ -602,17 +602,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         tracing::info!("the guess sank {:.1} mm into the scene: lifted out", lift * 1e3);
     }
     if searched {
-        // The search's winner covers its mask: the video's brightness measured there holds for the first
-        // poses too (a guess from markers, centimetres off, is refined as captured and measured after).
-        let exposure = PoseFromImage::new(
-            job.cfg.first_pose.clone(),
-            &job.object,
-            &job.scene_pre,
-            &job.frames[0],
-            start,
-        )
-        .map_err(|e| anyhow!("frame 0: {e}"))?
-        .measure_exposure();
+        let exposure = exposure_at(&job.cfg.first_pose, &job.object, &job.scene_pre, &job.frames[0], start)?;
         for f in &mut job.frames {
             f.exposure = exposure;
         }
@@ -667,7 +657,6 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         }
         if k == 0 {
             first_eval = fit.evaluate();
-            first_eval.exposure = first_eval.measured_exposure();
         }
         // A launch frame where the body already touches the scene is past the flight the guess fits; the
         // second frame always counts (a slide whose first pose floats a millimetre has no other).
@@ -732,7 +721,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         start,
         iou: first_eval.iou(),
         loss: first_eval.loss,
-        exposure: first_eval.exposure,
+        exposure: first_eval.measured_exposure(),
     };
     tracing::info!(
         "first pose: IoU {:.3}, launch guess v {:?} m/s{}; the video {:.2} times as bright as the object's captures",
@@ -747,6 +736,21 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         "exposure": first.exposure}),
     )?;
     Ok(first)
+}
+
+/// The video's brightness relative to `object`'s captures at a searched first pose (`--init auto`): the
+/// search's winner covers its mask, so the gain measured there holds for the first-pose fit too; a guess
+/// from markers, centimetres off, is refined as captured and measured after.
+pub(super) fn exposure_at(
+    cfg: &PoseFitConfig,
+    object: &ObjectModel,
+    scene_pre: &[ComposedRay],
+    frame: &FrameTarget,
+    pose: Pose<f64>,
+) -> Result<f64> {
+    Ok(PoseFromImage::new(cfg.clone(), object, scene_pre, frame, pose)
+        .map_err(|e| anyhow!("frame 0: {e}"))?
+        .measure_exposure())
 }
 
 /// `--init auto`: the first pose searched from frame 0's mask and the body's resting sides; written to

@@ -26,8 +26,9 @@
 
 use super::checkpoint_of;
 use super::fit::{
-    check_guess_in_view, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of, read_guesses,
-    read_video, scene_grid, search_first_pose_of, simulation_misses, strip, FitArgs, FitRecord, RecordInputs, Stage,
+    check_guess_in_view, exposure_at, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of,
+    read_guesses, read_video, scene_grid, search_first_pose_of, simulation_misses, strip, FitArgs, FitRecord,
+    RecordInputs, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
@@ -232,7 +233,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     };
     let t = Instant::now();
     let (first, exposures): (Vec<Pose<f64>>, Vec<f64>) =
-        stage_first(&m, &mut log, &guesses, wanted.contains(&Stage::First))?
+        stage_first(&mut m, &mut log, &guesses, wanted.contains(&Stage::First))?
             .into_iter()
             .unzip();
     time("first_pose", t);
@@ -355,7 +356,12 @@ fn others<'a>(m: &'a Multi, b: usize, pose_of: impl Fn(usize) -> Pose<f64>) -> V
 /// Stage 1: each body's pose in frame 0 from its guess (lifted out of the scene), the bodies in turn, each
 /// with the others drawn at their fitted pose (or, not yet fitted, their guess); with the video's
 /// brightness relative to each body's captures, fitted there (`FrameTarget::exposure`).
-fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: bool) -> Result<Vec<(Pose<f64>, f64)>> {
+fn stage_first(
+    m: &mut Multi,
+    log: &mut Log,
+    guesses: &[Option<Pose<f64>>],
+    run: bool,
+) -> Result<Vec<(Pose<f64>, f64)>> {
     let path = m.out.join("first_pose.json");
     if path.exists() {
         tracing::info!("first poses: from {}", path.display());
@@ -377,7 +383,6 @@ fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: boo
     if !run {
         bail!("stage first has not run: {} is missing", path.display());
     }
-    let cfg = &m.cfg.first_pose;
     let mut starts = Vec::new();
     for (b, (body, guess)) in m.bodies.iter().zip(guesses).enumerate() {
         let guess = match guess {
@@ -394,12 +399,29 @@ fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: boo
         }
         starts.push((body.frames[0].centred_on_mask(&start), lift));
     }
+    // A searched body's brightness, measured at the search's winner, holds for its first-pose fit too.
+    for (b, guess) in guesses.iter().enumerate() {
+        if guess.is_none() {
+            let body = &m.bodies[b];
+            let exposure = exposure_at(
+                &m.cfg.first_pose,
+                &body.object,
+                &m.scene_pre,
+                &body.frames[0],
+                starts[b].0,
+            )?;
+            for f in &mut m.bodies[b].frames {
+                f.exposure = exposure;
+            }
+        }
+    }
+    let m = &*m;
+    let cfg = &m.cfg.first_pose;
     let pb = super::progress((cfg.iterations * m.bodies.len()) as u64, "first poses");
-    let mut fitted: Vec<Pose<f64>> = Vec::new();
-    let mut exposures = Vec::new();
+    let mut fitted: Vec<(Pose<f64>, f64)> = Vec::new();
     let mut entries = Map::new();
     for (b, body) in m.bodies.iter().enumerate() {
-        let occluders = others(m, b, |o| fitted.get(o).copied().unwrap_or(starts[o].0));
+        let occluders = others(m, b, |o| fitted.get(o).map_or(starts[o].0, |f| f.0));
         let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &body.frames[0], starts[b].0) {
             Ok(f) => f.with_occluders(occluders),
             Err(recon::PoseFitError::EmptyMask) => bail!(
@@ -416,27 +438,25 @@ fn stage_first(m: &Multi, log: &mut Log, guesses: &[Option<Pose<f64>>], run: boo
             }
             pb.inc(1);
         }
-        let mut e = fit.evaluate();
-        e.exposure = e.measured_exposure();
+        let e = fit.evaluate();
+        let exposure = e.measured_exposure();
         tracing::info!(
-            "{}: first pose IoU {:.3}; the video {:.2} times as bright as its captures",
+            "{}: first pose IoU {:.3}; the video {exposure:.2} times as bright as its captures",
             body.name,
             e.iou(),
-            e.exposure
         );
         entries.insert(
             body.name.clone(),
             json!({"t": fit.pose.t.to_array(), "q": fit.pose.q.to_array_re(), "lift": starts[b].1,
-                   "iou": e.iou(), "loss": e.loss, "exposure": e.exposure}),
+                   "iou": e.iou(), "loss": e.loss, "exposure": exposure}),
         );
-        fitted.push(fit.pose);
-        exposures.push(e.exposure);
+        fitted.push((fit.pose, exposure));
     }
     pb.finish_and_clear();
     let doc = json!({ "bodies": entries });
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     log.write(json!({"stage": "first_pose", "done": true}))?;
-    Ok(fitted.into_iter().zip(exposures).collect())
+    Ok(fitted)
 }
 
 /// `--init auto` for body `b`: the first pose searched from its own mask in frame 0 and its resting sides.
