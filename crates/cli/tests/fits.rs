@@ -284,6 +284,26 @@ rays_per_step = 256
         assert!(ious.iter().all(|&i| i > 0.9), "IoU {ious:?}");
         let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
         assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);
+        // Each contact value with the range the motion cannot tell from it: the fitted value inside, and the
+        // friction (the ball hardly slides in ten frames: it stays near its start, 0.5, against the true 0.3)
+        // left open to the truth.
+        let range = |key: &str| -> [f64; 2] {
+            let r = fitted.contact.extra[key]
+                .as_array()
+                .unwrap_or_else(|| panic!("no {key}"));
+            [r[0].as_f64().unwrap(), r[1].as_f64().unwrap()]
+        };
+        let (kn, mu) = (range("restitution_range"), range("friction_range"));
+        eprintln!(
+            "restitution {} in {kn:?}, friction {} in {mu:?}",
+            fitted.contact.restitution, fitted.contact.friction
+        );
+        assert!(kn[0] <= fitted.contact.restitution && fitted.contact.restitution <= kn[1]);
+        assert!(mu[0] <= fitted.contact.friction && fitted.contact.friction <= mu[1]);
+        assert!(
+            mu[0] <= f.truth.contact.friction && f.truth.contact.friction <= mu[1],
+            "friction {mu:?}"
+        );
 
         // Run again: the finished fit is left as it is.
         let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
@@ -423,6 +443,9 @@ lr_translation = 0.001
 lr_rotation = 0.01
 [pga]
 iterations = 25
+[ranges]
+steps = 11
+iterations = 4
 "#;
 
     const NAMES: [&str; 3] = ["rolling", "struck", "tossed"];
@@ -609,6 +632,18 @@ friction = 0.15
             assert!(mean < bound, "{n}: {mean:.2} mm off on average (bound {bound} mm)");
             assert!(worst < 20.0, "{n}: worst frame {worst:.2} mm off");
             assert!(ious.iter().all(|&i| i > 0.75), "{n}: IoU {ious:?}");
+        }
+        // Every pair's values with the ranges the motion cannot tell from them, each around its value.
+        let pairs = fitted.contact.extra["pairs"].as_array().expect("contact.pairs");
+        for p in pairs {
+            for value in ["restitution", "friction"] {
+                let v = p[value].as_f64().unwrap();
+                let r = p[format!("{value}_range")]
+                    .as_array()
+                    .unwrap_or_else(|| panic!("{p}: no range"));
+                let (lo, hi) = (r[0].as_f64().unwrap(), r[1].as_f64().unwrap());
+                assert!(lo <= v && v <= hi, "{p}");
+            }
         }
         let _ = std::fs::remove_dir_all(&d);
     }

@@ -23,6 +23,7 @@ use crate::fit_physics::{
     fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartContact, StartResult, StartsOn,
 };
 use crate::poses_from_video::carried_on;
+use crate::value_ranges::{contact_value_ranges, RangeScan, ValueRange};
 use crate::video_fit::{clearance, launch_guess, launch_start, TOUCHING};
 use crate::CONTACT_STARTS;
 use geom::Pose;
@@ -160,6 +161,45 @@ impl ObservedBodies {
     }
 }
 
+/// How each body launches: along the scene the first frame shows it on (with `in_plane`).
+fn launch_starts(world: &World, observed: &ObservedBodies, in_plane: bool) -> Vec<StartContact> {
+    (0..observed.poses.len())
+        .map(|b| launch_start(&world.bodies[b], &world.scene, &observed.poses[b][0], in_plane))
+        .collect()
+}
+
+/// Every body's observations over frames `0..upto`, launching as `starts` say.
+fn observed_from_start(observed: &ObservedBodies, starts: &[StartContact], upto: usize) -> Vec<Observed> {
+    (0..observed.poses.len())
+        .map(|b| Observed {
+            start: starts[b],
+            ..observed.span(b, 0, upto)
+        })
+        .collect()
+}
+
+/// The ranges of a fitted world's contact values that `observed` cannot tell apart
+/// ([`crate::value_ranges`]): every launch and the other values refitted, the initial poses held.
+pub fn colliding_value_ranges(
+    cfg: &PhysicsFitConfig,
+    world: &World,
+    observed: &ObservedBodies,
+    launch: LaunchSettings,
+    scan: RangeScan,
+) -> Result<Vec<ValueRange>, FitError> {
+    let n = observed.poses.first().map_or(0, |p| p.len());
+    let cfg = PhysicsFitConfig {
+        fit_initial_pose: false,
+        ..cfg.clone()
+    };
+    contact_value_ranges(
+        &cfg,
+        world.clone(),
+        observed_from_start(observed, &launch_starts(world, observed, launch.in_plane), n),
+        scan,
+    )
+}
+
 /// The schedule over `observed` (every body of `world`): launch guesses as `launch` says, then the steps of the module's docs. `multi_start`: each step from
 /// [`CONTACT_STARTS`] too (on the scene's values for the launch, on the pair's after). `on_start` hears
 /// each start's end.
@@ -220,15 +260,8 @@ pub fn fit_colliding_bodies(
         world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
     }
     // A body the first frame shows on the scene launches along it.
-    let starts: Vec<StartContact> = (0..poses.len()).map(|b| start_of(&world, b, &poses[b][0])).collect();
-    let observed_to = |upto: usize| -> Vec<Observed> {
-        (0..poses.len())
-            .map(|b| Observed {
-                start: starts[b],
-                ..observed.span(b, 0, upto)
-            })
-            .collect()
-    };
+    let starts = launch_starts(&world, &observed, launch.in_plane);
+    let observed_to = |upto: usize| observed_from_start(&observed, &starts, upto);
     let grid: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
     let mut steps = Vec::new();
     let mut run = |label: String,

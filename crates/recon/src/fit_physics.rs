@@ -218,6 +218,7 @@ impl Sight {
 }
 
 /// The fit as a stage: `new`, then `step()` until `converged`.
+#[derive(Clone)]
 pub struct PhysicsFit {
     cfg: PhysicsFitConfig,
     world: World,
@@ -239,6 +240,22 @@ pub struct PhysicsFit {
     window: usize,
     /// The pattern search's step, as a multiple of each parameter's probe scale (reset per window).
     probe: f64,
+    /// Which unknowns are contact values, and which ones ([`crate::value_ranges`]).
+    contact_values: Vec<(usize, ContactValue)>,
+}
+
+/// A contact value a fit can move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactValue {
+    /// The restitution against the scene: shared by every observed body (`None`) or of one body.
+    SceneRestitution(Option<usize>),
+    /// The friction against the scene, the same way.
+    SceneFriction(Option<usize>),
+    /// The restitution of pair `p` ([`World::pairs`]).
+    PairRestitution(usize),
+    /// The friction of pair `p`.
+    PairFriction(usize),
 }
 
 impl StartContact {
@@ -358,6 +375,7 @@ impl PhysicsFit {
         }
         world.config.frames = frames;
         let mut unknowns = Unknowns::default();
+        let mut contact_values = Vec::new();
         for (&b, &start) in bodies.iter().zip(&starts) {
             let o = world.body_param_offset(b);
             if cfg.fit_initial_pose {
@@ -373,6 +391,13 @@ impl PhysicsFit {
                 continue;
             }
             let members: Vec<usize> = bodies.iter().map(|&b| world.body_param_offset(b) + k).collect();
+            let value = |body: Option<usize>| {
+                if k == 12 {
+                    ContactValue::SceneRestitution(body)
+                } else {
+                    ContactValue::SceneFriction(body)
+                }
+            };
             if cfg.share_scene_contact {
                 // Tied values start equal: the first body's.
                 let first = world.params()[members[0]];
@@ -382,11 +407,13 @@ impl PhysicsFit {
                 }
                 world.set_params(&p);
                 let terms: Vec<(usize, f64)> = members.iter().map(|&m| (m, 1.0)).collect();
+                contact_values.push((unknowns.len(), value(None)));
                 unknowns.push(&terms, probe_scale(k), true);
             } else {
-                members
-                    .into_iter()
-                    .for_each(|m| unknowns.push_param(m, probe_scale(k), true));
+                for (&b, m) in bodies.iter().zip(members) {
+                    contact_values.push((unknowns.len(), value(Some(b))));
+                    unknowns.push_param(m, probe_scale(k), true);
+                }
             }
         }
         for (pi, &(i, j)) in world.pairs().iter().enumerate() {
@@ -396,6 +423,12 @@ impl PhysicsFit {
             let o = world.pair_param_offset(pi);
             for (k, on) in [(0, cfg.fit_pair_restitution), (1, cfg.fit_pair_friction)] {
                 if on {
+                    let value = if k == 0 {
+                        ContactValue::PairRestitution(pi)
+                    } else {
+                        ContactValue::PairFriction(pi)
+                    };
+                    contact_values.push((unknowns.len(), value));
                     unknowns.push_param(o + k, probe_scale(12 + k), true);
                 }
             }
@@ -432,6 +465,7 @@ impl PhysicsFit {
             converged: false,
             window: 0,
             probe: 1.0,
+            contact_values,
         };
         fit.set_window(fit.cfg.initial_window);
         Ok(fit)
@@ -684,6 +718,67 @@ impl PhysicsFit {
         w.config.frames = self.frames;
         w.set_params(&self.params);
         w
+    }
+
+    /// The contact values among the unknowns: `(unknown index, which value)`.
+    pub(crate) fn contact_values(&self) -> &[(usize, ContactValue)] {
+        &self.contact_values
+    }
+
+    /// The unknowns' fitted values.
+    pub(crate) fn fitted_values(&self) -> Vec<f64> {
+        self.values()
+    }
+
+    /// This fit's values but the `u`-th, refitted for at most `iterations` steps over the whole sequence from
+    /// the values `x`, with the `u`-th held at `v`: the loss it ends at and every value (the `u`-th `v`).
+    pub(crate) fn refit_holding(&self, u: usize, v: f64, x: &[f64], iterations: usize) -> (f64, Vec<f64>) {
+        let mut x = x.to_vec();
+        x[u] = v;
+        let params = self.with_values(&x);
+        let mut world = self.world.clone();
+        world.config.frames = self.frames;
+        let unknowns = self.unknowns.without(u);
+        if unknowns.is_empty() || iterations == 0 {
+            return (self.loss_in(&world, &params), x);
+        }
+        let mut bounds = self.bounds.clone();
+        bounds.lo.remove(u);
+        bounds.hi.remove(u);
+        let mut held = PhysicsFit {
+            cfg: PhysicsFitConfig {
+                iterations,
+                ..self.cfg.clone()
+            },
+            world,
+            params,
+            unknowns,
+            bounds,
+            lambda: 1e-3,
+            loss: f64::INFINITY,
+            iteration: 0,
+            converged: false,
+            window: self.frames,
+            probe: 1.0,
+            contact_values: Vec::new(),
+            ..self.clone()
+        };
+        held.loss = held.loss_at(&held.params.clone());
+        held.run();
+        (held.loss, self.unknowns.values(&held.params))
+    }
+
+    /// The bounds the contact values keep to.
+    pub(crate) fn contact_bounds(&self) -> (f64, f64) {
+        (self.cfg.bound_margin, 1.0 - self.cfg.bound_margin)
+    }
+
+    /// The fit with its parameters replaced by `world`'s (a world from this fit's world, whose values a later
+    /// step moved).
+    pub(crate) fn with_params_of(mut self, world: &World) -> Self {
+        self.params = world.params();
+        self.loss = self.loss_at(&self.params.clone());
+        self
     }
 
     /// The fitted parameters of the first observed body: `[v(3), omega(3), restitution, friction]`.

@@ -13,16 +13,18 @@ pub mod pose_from_image;
 pub mod poses_from_video;
 pub mod target;
 mod unknowns;
+pub mod value_ranges;
 pub mod video_fit;
 
 pub use colliding_bodies::{
-    first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies, ScheduleStep,
+    colliding_value_ranges, first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies,
+    ScheduleStep,
 };
 pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{
-    fit_multi_start, fit_multi_start_bodies, FitError, FitStats, MultiStart, Observed, PhysicsFit, PhysicsFitConfig,
-    PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
+    fit_multi_start, fit_multi_start_bodies, ContactValue, FitError, FitStats, MultiStart, Observed, PhysicsFit,
+    PhysicsFitConfig, PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use physics_from_video::{
@@ -31,4 +33,5 @@ pub use physics_from_video::{
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
+pub use value_ranges::{contact_value_ranges, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;

@@ -93,6 +93,19 @@ impl Unknowns {
         &self.columns
     }
 
+    /// These values but the `i`-th: its parameters are left as they are (a contact value's parameters are its
+    /// own).
+    pub fn without(&self, i: usize) -> Unknowns {
+        let mut out = Unknowns::default();
+        for (j, u) in self.list.iter().enumerate() {
+            if j != i {
+                let terms: Vec<(usize, f64)> = u.terms.iter().map(|&(c, k)| (self.columns[c], k)).collect();
+                out.push(&terms, u.probe, u.bounded);
+            }
+        }
+        out
+    }
+
     pub fn probe(&self, i: usize) -> f64 {
         self.list[i].probe
     }

@@ -14,6 +14,7 @@ use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Oc
 use crate::physics_from_video::VideoPhysicsConfig;
 use crate::pose_from_image::PoseFitConfig;
 use crate::poses_from_video::PosesFromVideoConfig;
+use crate::value_ranges::RangeScan;
 use geom::{Pose, Quat, Vec3};
 use neus::compose::{ComposedRay, Composer};
 use neus::ObjectModel;
@@ -49,6 +50,9 @@ pub struct VideoFitConfig {
     pub pga: PhysicsFitConfig,
     /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins). Default true.
     pub pga_multi_start: bool,
+    /// The ranges of the fitted contact values that the motion cannot tell apart ([`crate::value_ranges`]),
+    /// the initial poses held at their fitted values (`steps = 0`: none).
+    pub ranges: RangeScan,
     /// GA ↔ PGA rounds at most; a round is kept only if it lowers the image loss of the simulated
     /// trajectory. Default 1: on the tabletop slide a second round (another GA, 3 minutes of a 48-frame
     /// fit) never lowered it.
@@ -83,6 +87,7 @@ impl Default for VideoFitConfig {
                 ..PhysicsFitConfig::default()
             },
             pga_multi_start: true,
+            ranges: RangeScan::default(),
             rounds: 1,
         }
     }

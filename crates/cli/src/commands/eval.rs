@@ -224,6 +224,7 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
             e["friction"] = json!(fit.contact.friction);
             e["friction_true"] = json!(video.contact.friction);
             e["friction_error"] = num((fit.contact.friction - video.contact.friction).abs(), 1.0, 4);
+            add_ranges(&mut e, &fit.contact.extra);
         }
         out.insert(entry.name.clone(), e);
     }
@@ -242,12 +243,72 @@ fn pair_errors(fit: &Trajectory, video: &Trajectory) -> Option<Value> {
         .filter_map(|(names, truth)| {
             let (_, c) = ours.iter().find(|(n, _)| *n == names)?;
             let (fe, fmu, e, mu) = (c.restitution, c.friction, truth.restitution, truth.friction);
-            Some(json!({"bodies": names, "restitution": fe, "restitution_true": e,
+            let mut row = json!({"bodies": names, "restitution": fe, "restitution_true": e,
                 "restitution_error": num((fe - e).abs(), 1.0, 4), "friction": fmu, "friction_true": mu,
-                "friction_error": num((fmu - mu).abs(), 1.0, 4)}))
+                "friction_error": num((fmu - mu).abs(), 1.0, 4)});
+            if let Some(entry) = pair_entry(fit, &names) {
+                add_ranges(&mut row, entry);
+            }
+            Some(row)
         })
         .collect();
     (!out.is_empty()).then(|| json!(out))
+}
+
+/// The `contact.pairs` entry of a trajectory file for the bodies `names` (sorted).
+fn pair_entry<'a>(t: &'a Trajectory, names: &[String; 2]) -> Option<&'a serde_json::Map<String, Value>> {
+    t.contact.extra.get("pairs")?.as_array()?.iter().find_map(|p| {
+        let p = p.as_object()?;
+        let b = p.get("bodies")?.as_array()?;
+        let mut n = [b.first()?.as_str()?.to_string(), b.get(1)?.as_str()?.to_string()];
+        n.sort();
+        (n == *names).then_some(p)
+    })
+}
+
+/// The fit's `restitution_range` and `friction_range` (`fit`'s value ranges) into an error row that holds the
+/// true values, with whether each truth lies inside.
+fn add_ranges(row: &mut Value, fitted: &serde_json::Map<String, Value>) {
+    for value in ["restitution", "friction"] {
+        let key = format!("{value}_range");
+        let range = fitted.get(&key).and_then(|r| {
+            let r = r.as_array()?;
+            Some([r.first()?.as_f64()?, r.get(1)?.as_f64()?])
+        });
+        if let (Some([lo, hi]), Some(truth)) = (range, row[format!("{value}_true")].as_f64()) {
+            row[key] = json!([lo, hi]);
+            row[format!("{value}_true_in_range")] = json!((lo..=hi).contains(&truth));
+        }
+    }
+}
+
+/// `restitution 0.7 (true 0.7) [...], friction ...` of an error row.
+fn values_text(row: &Value) -> String {
+    format!(
+        "restitution {} (true {}){}, friction {} (true {}){}",
+        row["restitution"],
+        row["restitution_true"],
+        range_text(row, "restitution"),
+        row["friction"],
+        row["friction_true"],
+        range_text(row, "friction")
+    )
+}
+
+/// `"; the motion cannot tell 0.31–0.99 apart, the truth inside"` for an error row with ranges, else nothing.
+fn range_text(row: &Value, value: &str) -> String {
+    match (
+        row[format!("{value}_range")].as_array(),
+        row[format!("{value}_true_in_range")].as_bool(),
+    ) {
+        (Some(r), Some(inside)) => format!(
+            " [the motion cannot tell {:.3}–{:.3} apart: the truth {}]",
+            r[0].as_f64().unwrap_or(f64::NAN),
+            r[1].as_f64().unwrap_or(f64::NAN),
+            if inside { "inside" } else { "outside" }
+        ),
+        _ => String::new(),
+    }
 }
 
 pub fn run(a: EvalArgs) -> Result<()> {
@@ -436,21 +497,50 @@ pub fn run(a: EvalArgs) -> Result<()> {
             p["v0_error_m_s"],
             p["omega0_error_rad_s"],
             if p.get("restitution_error").is_some() {
-                format!(
-                    "; restitution {} (true {}), friction {} (true {})",
-                    p["restitution"], p["restitution_true"], p["friction"], p["friction_true"]
-                )
+                format!("; {}", values_text(p))
             } else {
                 String::new()
             }
         );
     }
     for p in report["pairs"].as_array().into_iter().flatten() {
-        println!(
-            "{} and {}: restitution {} (true {}), friction {} (true {})",
-            p["bodies"][0], p["bodies"][1], p["restitution"], p["restitution_true"], p["friction"], p["friction_true"]
-        );
+        println!("{} and {}: {}", p["bodies"][0], p["bodies"][1], values_text(p));
     }
     println!("wrote {} and {}", out.display(), csv_path.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pair_range_is_read_by_the_bodies_names_and_the_truth_placed_in_it() {
+        let mut fit: Trajectory = serde_json::from_value(json!({
+            "capture": "collide", "fps": 30.0, "bodies": [],
+            "contact": {"restitution": 0.3, "friction": 0.26, "model": "pganeus",
+                "restitution_range": [0.02, 0.81], "friction_range": [0.256, 0.3],
+                "pairs": [{"bodies": ["toy", "block"], "restitution": 0.71, "friction": 0.999,
+                    "restitution_range": [0.41, 0.88], "friction_range": [0.001, 0.999]}]}
+        }))
+        .unwrap();
+        let names = ["block".to_string(), "toy".to_string()];
+        let entry = pair_entry(&fit, &names).expect("the pair, its names sorted");
+        let mut row = json!({"restitution_true": 0.7, "friction_true": 0.15});
+        add_ranges(&mut row, entry);
+        assert_eq!(row["restitution_range"], json!([0.41, 0.88]));
+        assert_eq!(row["restitution_true_in_range"], json!(true));
+        assert!(range_text(&row, "friction").contains("the truth inside"));
+        // The scene's values: the true friction 0.25 lies below the range.
+        let mut row = json!({"restitution_true": 0.4, "friction_true": 0.25});
+        add_ranges(&mut row, &fit.contact.extra);
+        assert_eq!(row["friction_true_in_range"], json!(false));
+        assert!(range_text(&row, "friction").contains("outside"));
+        // No ranges in the file (an older fit): nothing added, nothing printed.
+        fit.contact.extra.remove("restitution_range");
+        let mut row = json!({"restitution_true": 0.4});
+        add_ranges(&mut row, &fit.contact.extra);
+        assert!(row.get("restitution_range").is_none() && range_text(&row, "restitution").is_empty());
+        assert!(pair_entry(&fit, &["ball".to_string(), "toy".to_string()]).is_none());
+    }
 }

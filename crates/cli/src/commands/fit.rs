@@ -21,7 +21,7 @@ use recon::video_fit::{
 };
 use recon::{
     FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
-    PosesFromVideo, StartContact, StartFrom, VideoFitConfig,
+    PosesFromVideo, StartContact, StartFrom, ValueRange, VideoFitConfig,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Map, Value};
@@ -479,7 +479,7 @@ pub fn run(a: FitArgs) -> Result<()> {
             unreachable!("--no-pa conflicts with --no-ga")
         };
         if wanted.contains(&Stage::Pga) || wanted.contains(&Stage::Ga) {
-            finish(&mut job, &pa, None, &timings, t_start)?;
+            finish(&mut job, &pa, None, &[], &timings, t_start)?;
         }
         return Ok(());
     }
@@ -491,10 +491,10 @@ pub fn run(a: FitArgs) -> Result<()> {
         return Ok(());
     }
     let t = Instant::now();
-    let (final_world, final_ga, rounds) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
+    let (final_world, final_ga, rounds, ranges) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(rounds));
-    finish(&mut job, &final_world, Some(&final_ga), &timings, t_start)
+    finish(&mut job, &final_world, Some(&final_ga), &ranges, &timings, t_start)
 }
 
 /// The output folder: a new one (or, with `--force`, one emptied of stage results), or the same fit resumed;
@@ -1068,7 +1068,7 @@ fn stage_pga(
     ga: Vec<FramePose>,
     from_pa: bool,
     start_contact: StartContact,
-) -> Result<(World, Vec<FramePose>, usize)> {
+) -> Result<(World, Vec<FramePose>, usize, Vec<ValueRange>)> {
     let weights_cfg = job.cfg.pa.weights.clone();
     let mut best: Option<(World, Vec<FramePose>, f64)> = None;
     if from_pa {
@@ -1095,25 +1095,12 @@ fn stage_pga(
             let file = format!("ga_round{round}.json");
             ga = stage_ga(job, &from, false, true, &file)?;
         }
-        let losses: Vec<ImageLoss> = ga.iter().map(|r| r.image.clone()).collect();
-        let fitted: Vec<bool> = ga.iter().map(|r| r.fitted).collect();
-        let weights = ga_weights(&losses, &fitted);
-        let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
         let multi = job.cfg.pga_multi_start && round == 0;
         let starts = if multi { 1 + recon::CONTACT_STARTS.len() } else { 1 };
         let pb = super::progress(starts as u64, "PGA");
         let mut start_rows = Vec::new();
-        // Rotations in metres, as PA and GA weigh them: a quaternion error counts at the body's radius.
-        let pga_cfg = PhysicsFitConfig {
-            rotation_weight: job.cfg.pga.rotation_weight * job.world.bodies[0].bounding_radius,
-            ..job.cfg.pga.clone()
-        };
-        let observed = recon::Observed {
-            start: start_contact,
-            eye: job.frames.first().map(|f| f.camera.center().to_array()),
-            depth_held: ga.iter().map(|r| r.in_contact).collect(),
-            ..recon::Observed::new(0, poses, Some(weights))
-        };
+        let pga_cfg = pga_config(job);
+        let observed = pga_observed(job, &ga, start_contact);
         let fit = fit_to_poses(&pga_cfg, multi, from.clone(), observed, &mut |i, r| {
             start_rows.push(
                 json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
@@ -1150,7 +1137,71 @@ fn stage_pga(
         from = world;
     }
     let (world, ga, _) = best.expect("at least one round");
-    Ok((world, ga, kept))
+    let ranges = value_ranges(job, &world, &ga, start_contact)?;
+    Ok((world, ga, kept, ranges))
+}
+
+/// PGA's settings: rotations in metres, as PA and GA weigh them (a quaternion error counts at the body's
+/// radius).
+fn pga_config(job: &Job) -> PhysicsFitConfig {
+    PhysicsFitConfig {
+        rotation_weight: job.cfg.pga.rotation_weight * job.world.bodies[0].bounding_radius,
+        ..job.cfg.pga.clone()
+    }
+}
+
+/// GA's poses as PGA observes them: weighed by GA's residuals, each frame's depth counting least where GA
+/// did not hold the body on the scene.
+fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> recon::Observed {
+    let losses: Vec<ImageLoss> = ga.iter().map(|r| r.image.clone()).collect();
+    let fitted: Vec<bool> = ga.iter().map(|r| r.fitted).collect();
+    let weights = ga_weights(&losses, &fitted);
+    let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
+    recon::Observed {
+        start: start_contact,
+        eye: job.frames.first().map(|f| f.camera.center().to_array()),
+        depth_held: ga.iter().map(|r| r.in_contact).collect(),
+        ..recon::Observed::new(0, poses, Some(weights))
+    }
+}
+
+/// The ranges of the reported world's contact values that GA's poses cannot tell apart (logged).
+fn value_ranges(
+    job: &mut Job,
+    world: &World,
+    ga: &[FramePose],
+    start_contact: StartContact,
+) -> Result<Vec<ValueRange>> {
+    let t = Instant::now();
+    let cfg = PhysicsFitConfig {
+        fit_initial_pose: false,
+        ..pga_config(job)
+    };
+    let observed = pga_observed(job, ga, start_contact);
+    let ranges = recon::contact_value_ranges(&cfg, world.clone(), vec![observed], job.cfg.ranges)
+        .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
+    report_ranges(&ranges, t, &mut |row| job.log(row))?;
+    Ok(ranges)
+}
+
+/// The value ranges in the log and in `log.jsonl` (through `write`), with the time they took since `t`.
+pub(super) fn report_ranges(
+    ranges: &[ValueRange],
+    t: Instant,
+    write: &mut dyn FnMut(Value) -> Result<()>,
+) -> Result<()> {
+    for r in ranges {
+        tracing::info!(
+            "{:?}: {:.3}, the motion cannot tell it from {:.3}–{:.3}",
+            r.value,
+            r.fitted,
+            r.lo,
+            r.hi
+        );
+        write(json!({"stage": "pga", "range": r}))?;
+    }
+    tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
+    Ok(())
 }
 
 /// `"object"` of a body entry: the mesh and where the body frame sat in the reference capture.
@@ -1192,6 +1243,7 @@ fn finish(
     job: &mut Job,
     world: &World,
     ga: Option<&[FramePose]>,
+    ranges: &[ValueRange],
     timings: &Map<String, Value>,
     t_start: Instant,
 ) -> Result<()> {
@@ -1266,6 +1318,7 @@ fn finish(
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(job.video));
     let mut t = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, extra);
+    write_ranges(&mut t, ranges);
     for (pose, r) in t.bodies[0].poses.iter_mut().zip(&reported) {
         *pose = pganeus_io::Pose::from_geom(r);
     }
@@ -1307,6 +1360,42 @@ fn finish(
         job.out.join("trajectory.json").display()
     );
     Ok(())
+}
+
+/// Each contact value's range ([`recon::value_ranges`]) beside the value in a trajectory file:
+/// `restitution_range` and `friction_range`, `[lo, hi]`, in `contact` (the scene's), in a body entry (the
+/// scene's against one body, when not shared) or in a `contact.pairs` entry.
+pub(super) fn write_ranges(t: &mut pganeus_io::Trajectory, ranges: &[ValueRange]) {
+    use recon::ContactValue as C;
+    for r in ranges {
+        let key = match r.value {
+            C::SceneRestitution(_) | C::PairRestitution(_) => "restitution_range",
+            C::SceneFriction(_) | C::PairFriction(_) => "friction_range",
+        };
+        let entry = json!([r.lo, r.hi]);
+        match r.value {
+            C::SceneRestitution(None) | C::SceneFriction(None) => {
+                t.contact.extra.insert(key.into(), entry);
+            }
+            C::SceneRestitution(Some(b)) | C::SceneFriction(Some(b)) => {
+                if let Some(body) = t.bodies.get_mut(b) {
+                    body.extra.insert(key.into(), entry);
+                }
+            }
+            C::PairRestitution(p) | C::PairFriction(p) => {
+                if let Some(pair) = t
+                    .contact
+                    .extra
+                    .get_mut("pairs")
+                    .and_then(|v| v.as_array_mut())
+                    .and_then(|a| a.get_mut(p))
+                    .and_then(|v| v.as_object_mut())
+                {
+                    pair.insert(key.into(), entry);
+                }
+            }
+        }
+    }
 }
 
 /// Up to `count` frames, evenly spaced, one above the other.

@@ -27,8 +27,8 @@
 use super::checkpoint_of;
 use super::fit::{
     check_guess_in_view, exposure_at, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of,
-    read_guesses, read_video, scene_grid, search_first_pose_of, simulation_misses, strip, FitArgs, FitRecord,
-    RecordInputs, Stage,
+    read_guesses, read_video, report_ranges, scene_grid, search_first_pose_of, simulation_misses, strip, write_ranges,
+    FitArgs, FitRecord, RecordInputs, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
@@ -41,8 +41,8 @@ use pganeus_io::Image;
 use recon::image_loss::Occluder;
 use recon::video_fit::{evaluate_poses, ga_weights, lift_out};
 use recon::{
-    fit_colliding_bodies, FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PoseFromImage, PosesFromVideo,
-    VideoFitConfig, CONTACT_STARTS,
+    colliding_value_ranges, fit_colliding_bodies, FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PoseFromImage,
+    PosesFromVideo, ValueRange, VideoFitConfig, CONTACT_STARTS,
 };
 use serde_json::{json, Map, Value};
 use sim::sdf::SdfGrid;
@@ -277,13 +277,18 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     // explains that frame better. The second pass, started from a simulation, usually does even where its
     // round's simulation is not kept (the two-body collision: IoU ≥ 0.969 against the tracked pass's 0.77).
     let stand_ins = better_per_frame(&tracked, &ga);
+    let t = Instant::now();
     if after <= before {
-        finish(&m, &world, &stand_ins, second_round, &timings, t_start)
+        let ranges = value_ranges(&m, &mut log, &world, &ga)?;
+        time("ranges", t);
+        finish(&m, &world, &stand_ins, second_round, &ranges, &timings, t_start)
     } else {
         tracing::info!(
             "PGA on GA from the simulation explains the images worse ({after:.4} > {before:.4}): kept the first round"
         );
-        finish(&m, &from_tracked, &stand_ins, first_round, &timings, t_start)
+        let ranges = value_ranges(&m, &mut log, &from_tracked, &tracked)?;
+        time("ranges", t);
+        finish(&m, &from_tracked, &stand_ins, first_round, &ranges, &timings, t_start)
     }
 }
 
@@ -634,21 +639,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         tracing::info!("PGA: from {}", path.display());
         return world_from_file(m, &path);
     }
-    let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
-    let weights: Vec<Vec<f64>> = ga
-        .iter()
-        .map(|rs| {
-            let losses: Vec<ImageLoss> = rs.iter().map(|r| r.image.clone()).collect();
-            let fitted: Vec<bool> = rs.iter().map(|r| r.fitted).collect();
-            ga_weights(&losses, &fitted)
-        })
-        .collect();
-    // Rotations in metres at the bodies' mean radius, as the one-body fit weighs them.
-    let radius = m.world.bodies.iter().map(|b| b.bounding_radius).sum::<f64>() / m.world.bodies.len() as f64;
-    let cfg = PhysicsFitConfig {
-        rotation_weight: m.cfg.pga.rotation_weight * radius,
-        ..m.cfg.pga.clone()
-    };
+    let cfg = pga_config(m);
     let pairs = m.world.pairs();
     // At most: the launch, the frames after the first collision, each pair, the final joint fit.
     let steps = 3 + pairs.len();
@@ -663,16 +654,8 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         &cfg,
         m.cfg.pga_multi_start,
         m.world.clone(),
-        // Each body's depth counts least where GA did not hold it on the scene, as in the one-body fit.
-        recon::ObservedBodies {
-            eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
-            depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),
-            ..recon::ObservedBodies::new(poses, weights)
-        },
-        recon::LaunchSettings {
-            frames: m.cfg.launch_frames,
-            in_plane: m.cfg.launch_in_plane,
-        },
+        pga_observed(m, ga),
+        launch_settings(m),
         &mut |label, i, r| {
             rows.push(
                 json!({"stage": "pga", "step": label, "start": i, "restitution": r.restitution,
@@ -702,6 +685,57 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     }
     pganeus_io::write_trajectory(&path, &t)?;
     Ok(fit.world)
+}
+
+/// PGA's settings: rotations in metres at the bodies' mean radius, as the one-body fit weighs them.
+fn pga_config(m: &Multi) -> PhysicsFitConfig {
+    let radius = m.world.bodies.iter().map(|b| b.bounding_radius).sum::<f64>() / m.world.bodies.len() as f64;
+    PhysicsFitConfig {
+        rotation_weight: m.cfg.pga.rotation_weight * radius,
+        ..m.cfg.pga.clone()
+    }
+}
+
+/// GA's poses as PGA observes them: weighed by GA's residuals, each body's depth counting least where GA did
+/// not hold it on the scene, as in the one-body fit.
+fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
+    let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
+    let weights: Vec<Vec<f64>> = ga
+        .iter()
+        .map(|rs| {
+            let losses: Vec<ImageLoss> = rs.iter().map(|r| r.image.clone()).collect();
+            let fitted: Vec<bool> = rs.iter().map(|r| r.fitted).collect();
+            ga_weights(&losses, &fitted)
+        })
+        .collect();
+    recon::ObservedBodies {
+        eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
+        depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),
+        ..recon::ObservedBodies::new(poses, weights)
+    }
+}
+
+fn launch_settings(m: &Multi) -> recon::LaunchSettings {
+    recon::LaunchSettings {
+        frames: m.cfg.launch_frames,
+        in_plane: m.cfg.launch_in_plane,
+    }
+}
+
+/// The ranges of the reported world's contact values that the GA poses it was fitted to cannot tell apart
+/// (logged).
+fn value_ranges(m: &Multi, log: &mut Log, world: &World, ga: &[Vec<FramePose>]) -> Result<Vec<ValueRange>> {
+    let t = Instant::now();
+    let ranges = colliding_value_ranges(
+        &pga_config(m),
+        world,
+        &pga_observed(m, ga),
+        launch_settings(m),
+        m.cfg.ranges,
+    )
+    .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
+    report_ranges(&ranges, t, &mut |row| log.write(row))?;
+    Ok(ranges)
 }
 
 /// The world of a PGA file this command wrote: each body's initial state, the scene's and the pairs' values.
@@ -739,6 +773,7 @@ fn finish(
     world: &World,
     ga: &[Vec<FramePose>],
     sim_losses: Vec<Vec<ImageLoss>>,
+    ranges: &[ValueRange],
     timings: &Map<String, Value>,
     t_start: Instant,
 ) -> Result<()> {
@@ -806,6 +841,7 @@ fn finish(
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(m.video));
     let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, extra);
+    write_ranges(&mut t, ranges);
     for (b, body) in m.bodies.iter().enumerate() {
         let mesh = format!("object_{}.ply", body.name);
         let tb = &mut t.bodies[b];

@@ -1,0 +1,133 @@
+//! How well the observed motion pins each fitted contact value. A fit returns
+//! one value, but the motion may not tell it from others: a pair that sticks
+//! through an impact moves the same for every friction above the sticking one,
+//! and a value trades against others (a slide's friction against its launch
+//! speed). So each fitted contact value gets the range of values whose best
+//! simulation (every other value refitted) misses the observations by at most
+//! [`RANGE_LOSS_RATIO`] times what the fitted one does. These are not
+//! confidence intervals: where the model cannot follow the motion exactly (the
+//! reconstructed shapes, another engine's contacts) its own misfit, not the
+//! observations' noise, says what it can tell apart. A range reaching a bound
+//! says the motion does not bound the value on that side.
+//!
+//! Each value is stepped away from its fitted value on an even grid over its
+//! bounds, each step refitted from the one before (a profile), to the bound;
+//! the range ends past the farthest grid value within the bar (the loss is
+//! rugged where contacts decide: it may rise and fall again), interpolated
+//! toward the next grid value. Two things were tried and dropped: the others held at their
+//! fitted values (a slice), which is blind to trades between values, and a bar
+//! of the fitted loss itself on the distance to the fitted simulation, which
+//! puts noise-free truth exactly on the edge (the fit's own misfit is its
+//! distance from the truth).
+
+use crate::fit_physics::{ContactValue, FitError, Observed, PhysicsFit, PhysicsFitConfig};
+use rayon::prelude::*;
+use serde::Serialize;
+use sim::World;
+
+/// One fitted contact value and the range the observed motion cannot tell from it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ValueRange {
+    pub value: ContactValue,
+    pub fitted: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl ValueRange {
+    /// Whether `v` lies in the range.
+    pub fn contains(&self, v: f64) -> bool {
+        (self.lo..=self.hi).contains(&v)
+    }
+}
+
+/// How the ranges are scanned.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RangeScan {
+    /// Grid values over a contact value's bounds. Default 21 (steps of 0.05); 0: no ranges.
+    pub steps: usize,
+    /// Levenberg–Marquardt steps of the other values' refit at each grid value (each starts from the refit
+    /// of the grid value before). Default 6.
+    pub iterations: usize,
+}
+
+impl Default for RangeScan {
+    fn default() -> Self {
+        Self {
+            steps: 21,
+            iterations: 6,
+        }
+    }
+}
+
+/// A value is in the range while its best simulation's loss is at most this many times the fitted one's:
+/// twice covers every value whose simulation is as near the fitted one as the fitted one is to the
+/// observations (the triangle inequality), and the truth whenever the fit missed it by no more than the
+/// observations' own noise.
+pub const RANGE_LOSS_RATIO: f64 = 2.0;
+
+impl PhysicsFit {
+    /// The range of each fitted contact value (the module's docs).
+    pub fn contact_value_ranges(&self, scan: RangeScan) -> Vec<ValueRange> {
+        if scan.steps == 0 {
+            return Vec::new();
+        }
+        let x0 = self.fitted_values();
+        let tolerance = RANGE_LOSS_RATIO * self.full_loss();
+        let (lo, hi) = self.contact_bounds();
+        let steps = scan.steps.max(2);
+        let grid: Vec<f64> = (0..steps)
+            .map(|j| lo + (hi - lo) * j as f64 / (steps - 1) as f64)
+            .collect();
+        self.contact_values()
+            .par_iter()
+            .map(|&(u, value)| {
+                // Outward from the fitted value to the bound, each grid value refitted from the last; the edge
+                // is past the farthest value within the bar (a rugged loss may rise and fall again on the way).
+                let walk = |path: Vec<f64>| {
+                    let mut x = x0.clone();
+                    let mut inside = (x0[u], tolerance / RANGE_LOSS_RATIO);
+                    let mut outside = None;
+                    for v in path {
+                        let (loss, next) = self.refit_holding(u, v, &x, scan.iterations);
+                        if loss <= tolerance {
+                            (inside, outside) = ((v, loss), None);
+                        } else if outside.is_none() {
+                            outside = Some((v, loss));
+                        }
+                        x = next;
+                    }
+                    outside.map(|(v, loss)| inside.0 + (tolerance - inside.1) / (loss - inside.1) * (v - inside.0))
+                };
+                let above: Vec<f64> = grid.iter().copied().filter(|&v| v > x0[u]).collect();
+                let below: Vec<f64> = grid.iter().rev().copied().filter(|&v| v < x0[u]).collect();
+                let (down, up) = rayon::join(|| walk(below), || walk(above));
+                ValueRange {
+                    value,
+                    fitted: x0[u],
+                    lo: down.unwrap_or(lo),
+                    hi: up.unwrap_or(hi),
+                }
+            })
+            .collect()
+    }
+}
+
+/// The ranges of the contact values `cfg` fits, for a world fitted to `observed` (by this fit or a schedule
+/// of them: its initial states and values are taken as they are; the initial poses are refitted with the
+/// rest only with `cfg.fit_initial_pose`).
+pub fn contact_value_ranges(
+    cfg: &PhysicsFitConfig,
+    world: World,
+    observed: Vec<Observed>,
+    scan: RangeScan,
+) -> Result<Vec<ValueRange>, FitError> {
+    let fitted = world.clone();
+    let cfg = PhysicsFitConfig {
+        initial_window: 0,
+        ..cfg.clone()
+    };
+    let fit = PhysicsFit::new_bodies(cfg, world, observed)?.with_params_of(&fitted);
+    Ok(fit.contact_value_ranges(scan))
+}
