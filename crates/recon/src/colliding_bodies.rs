@@ -97,6 +97,10 @@ pub struct ScheduleStep {
     pub winner: usize,
     /// Eq. 11's loss of the winner over the step's frames.
     pub loss: f64,
+    /// Which values the starts set.
+    pub on: StartsOn,
+    /// Whether the step fits every frame of every body (its losses compare with the final fit's).
+    pub whole_video: bool,
 }
 
 /// The schedule's result.
@@ -271,6 +275,7 @@ pub fn fit_colliding_bodies(
                    on: StartsOn,
                    grid: &[(f64, f64)]|
      -> Result<(World, f64), FitError> {
+        let whole_video = obs.len() == poses.len() && obs.iter().all(|o| o.poses.len() == n);
         let fit = fit_multi_start_bodies(cfg, world, obs, grid, on, &mut |i, r| on_start(&label, i, r))?;
         let loss = fit.best.full_loss();
         steps.push(ScheduleStep {
@@ -278,6 +283,8 @@ pub fn fit_colliding_bodies(
             starts: fit.starts.clone(),
             winner: fit.winner,
             loss,
+            on,
+            whole_video,
         });
         let mut w = fit.best.fitted_world();
         w.config.frames = n;

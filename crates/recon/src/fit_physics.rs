@@ -836,6 +836,9 @@ pub struct StartResult {
     /// Eq. 11's loss over the whole sequence when its fit stopped.
     pub loss: f64,
     pub iterations: usize,
+    /// The values it ended at (the scene's, or the pair's, as the starts set them).
+    pub fitted_restitution: f64,
+    pub fitted_friction: f64,
 }
 
 /// The winner of a multi-start fit.
@@ -907,11 +910,18 @@ pub fn fit_multi_start_bodies(
         }
         let mut fit = PhysicsFit::new_bodies(cfg.clone(), w, observed.clone())?;
         let history = fit.run();
+        let end = fit.fitted_world();
+        let ended = match on {
+            StartsOn::Scene => end.scene_contact[observed.first().map_or(0, |o| o.body)],
+            StartsOn::Pair(p) => end.pair_contact[p],
+        };
         let r = StartResult {
             restitution,
             friction,
             loss: fit.full_loss(),
             iterations: history.len(),
+            fitted_restitution: ended.restitution,
+            fitted_friction: ended.friction,
         };
         on_start(i, &r);
         if best.as_ref().is_none_or(|(b, _, _)| r.loss < b.full_loss()) {

@@ -33,5 +33,5 @@ pub use physics_from_video::{
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom};
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
-pub use value_ranges::{contact_value_ranges, RangeScan, ValueRange, RANGE_LOSS_RATIO};
+pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;

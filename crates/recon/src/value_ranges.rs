@@ -20,7 +20,7 @@
 //! puts noise-free truth exactly on the edge (the fit's own misfit is its
 //! distance from the truth).
 
-use crate::fit_physics::{ContactValue, FitError, Observed, PhysicsFit, PhysicsFitConfig};
+use crate::fit_physics::{ContactValue, FitError, Observed, PhysicsFit, PhysicsFitConfig, StartResult, StartsOn};
 use rayon::prelude::*;
 use serde::Serialize;
 use sim::World;
@@ -114,6 +114,27 @@ impl PhysicsFit {
     }
 }
 
+/// `ranges` widened to hold the values other starts of a multi-start over the same poses ended at, where
+/// their loss is within the bar ([`RANGE_LOSS_RATIO`] times `best_loss`, the winner's): a start that
+/// ended in another basin is a simulation of those values that explains the poses within it, which a
+/// profile stepping from the winner may not reach (the tabletop drop: its winner's friction 0.41 profiled
+/// to 0.34–0.63, another start's 0.30 at 1.03 times its loss).
+pub fn widen_by_starts(ranges: &mut [ValueRange], starts: &[StartResult], on: StartsOn, best_loss: f64) {
+    for s in starts.iter().filter(|s| s.loss <= RANGE_LOSS_RATIO * best_loss) {
+        for r in ranges.iter_mut() {
+            let v = match (on, r.value) {
+                (StartsOn::Scene, ContactValue::SceneRestitution(None)) => s.fitted_restitution,
+                (StartsOn::Scene, ContactValue::SceneFriction(None)) => s.fitted_friction,
+                (StartsOn::Pair(p), ContactValue::PairRestitution(q)) if p == q => s.fitted_restitution,
+                (StartsOn::Pair(p), ContactValue::PairFriction(q)) if p == q => s.fitted_friction,
+                _ => continue,
+            };
+            r.lo = r.lo.min(v);
+            r.hi = r.hi.max(v);
+        }
+    }
+}
+
 /// The ranges of the contact values `cfg` fits, for a world fitted to `observed` (by this fit or a schedule
 /// of them: its initial states and values are taken as they are; the initial poses are refitted with the
 /// rest only with `cfg.fit_initial_pose`).
@@ -130,4 +151,50 @@ pub fn contact_value_ranges(
     };
     let fit = PhysicsFit::new_bodies(cfg, world, observed)?.with_params_of(&fitted);
     Ok(fit.contact_value_ranges(scan))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn start(loss: f64, restitution: f64, friction: f64) -> StartResult {
+        StartResult {
+            restitution: 0.5,
+            friction: 0.5,
+            loss,
+            iterations: 10,
+            fitted_restitution: restitution,
+            fitted_friction: friction,
+        }
+    }
+
+    #[test]
+    fn starts_within_the_bar_widen_their_own_values_only() {
+        let range = |value, lo, hi| ValueRange {
+            value,
+            fitted: (lo + hi) / 2.0,
+            lo,
+            hi,
+        };
+        let mut ranges = vec![
+            range(ContactValue::SceneRestitution(None), 0.49, 0.55),
+            range(ContactValue::SceneFriction(None), 0.34, 0.63),
+            range(ContactValue::PairFriction(0), 0.1, 0.2),
+        ];
+        let starts = [
+            start(0.1479, 0.50, 0.30), // within twice the winner's 0.143: widens both scene values
+            start(0.40, 0.15, 0.05),   // outside the bar: nothing
+        ];
+        widen_by_starts(&mut ranges, &starts, StartsOn::Scene, 0.143);
+        assert_eq!((ranges[0].lo, ranges[0].hi), (0.49, 0.55));
+        assert_eq!((ranges[1].lo, ranges[1].hi), (0.30, 0.63));
+        assert_eq!(
+            (ranges[2].lo, ranges[2].hi),
+            (0.1, 0.2),
+            "a pair's range is not the scene's"
+        );
+        widen_by_starts(&mut ranges, &[start(0.1, 0.5, 0.9)], StartsOn::Pair(0), 0.1);
+        assert_eq!((ranges[2].lo, ranges[2].hi), (0.1, 0.9));
+        assert_eq!((ranges[1].lo, ranges[1].hi), (0.30, 0.63));
+    }
 }

@@ -21,7 +21,7 @@ use recon::video_fit::{
 };
 use recon::{
     FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
-    PosesFromVideo, StartContact, StartFrom, ValueRange, VideoFitConfig,
+    PosesFromVideo, StartContact, StartFrom, StartResult, ValueRange, VideoFitConfig,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Map, Value};
@@ -1070,7 +1070,10 @@ fn stage_pga(
     start_contact: StartContact,
 ) -> Result<(World, Vec<FramePose>, usize, Vec<ValueRange>)> {
     let weights_cfg = job.cfg.pa.weights.clone();
-    let mut best: Option<(World, Vec<FramePose>, f64)> = None;
+    // The kept round: its world, GA's poses, the image loss of its simulation, and its multi-start's starts
+    // with the winner's loss (none for PA's world).
+    type Kept = (World, Vec<FramePose>, f64, Option<(Vec<StartResult>, f64)>);
+    let mut best: Option<Kept> = None;
     if from_pa {
         // PA's own simulation is the bar: PGA fits GA's poses, and where GA is noisier than PA was (depth
         // from a small silhouette), a round that explains the images worse is not kept.
@@ -1085,7 +1088,7 @@ fn stage_pga(
             &weights_cfg,
         )?);
         job.log(json!({"stage": "pga", "round": "pa", "image_loss": total}))?;
-        best = Some((start.clone(), ga.clone(), total));
+        best = Some((start.clone(), ga.clone(), total, None));
     }
     let mut ga = ga;
     let mut from = start;
@@ -1104,7 +1107,8 @@ fn stage_pga(
         let fit = fit_to_poses(&pga_cfg, multi, from.clone(), observed, &mut |i, r| {
             start_rows.push(
                 json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
-                "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
+                "friction": r.friction, "loss": r.loss, "iterations": r.iterations,
+                "fitted_restitution": r.fitted_restitution, "fitted_friction": r.fitted_friction}),
             );
             pb.inc(1);
         })
@@ -1120,7 +1124,7 @@ fn stage_pga(
         let total = total_loss(&sim_losses);
         report_stage(&format!("PGA round {}", round + 1), &world, &sim_losses);
         job.log(json!({"stage": "pga", "round": round, "winner": fit.winner, "image_loss": total}))?;
-        if best.as_ref().is_some_and(|(_, _, b)| total >= *b) {
+        if best.as_ref().is_some_and(|(_, _, b, _)| total >= *b) {
             tracing::info!(
                 "GA ↔ PGA: round {} did not lower the image loss; kept {}",
                 round + 1,
@@ -1133,11 +1137,20 @@ fn stage_pga(
             break;
         }
         kept = round + 1;
-        best = Some((world.clone(), ga.clone(), total));
+        best = Some((
+            world.clone(),
+            ga.clone(),
+            total,
+            Some((fit.starts.clone(), fit.best.full_loss())),
+        ));
         from = world;
     }
-    let (world, ga, _) = best.expect("at least one round");
-    let ranges = value_ranges(job, &world, &ga, start_contact)?;
+    let (world, ga, _, starts) = best.expect("at least one round");
+    let mut ranges = value_ranges(job, &world, &ga, start_contact)?;
+    if let Some((starts, loss)) = starts {
+        recon::widen_by_starts(&mut ranges, &starts, recon::StartsOn::Scene, loss);
+    }
+    report_ranges(&ranges, &mut |row| job.log(row))?;
     Ok((world, ga, kept, ranges))
 }
 
@@ -1180,16 +1193,12 @@ fn value_ranges(
     let observed = pga_observed(job, ga, start_contact);
     let ranges = recon::contact_value_ranges(&cfg, world.clone(), vec![observed], job.cfg.ranges)
         .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
-    report_ranges(&ranges, t, &mut |row| job.log(row))?;
+    tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
     Ok(ranges)
 }
 
-/// The value ranges in the log and in `log.jsonl` (through `write`), with the time they took since `t`.
-pub(super) fn report_ranges(
-    ranges: &[ValueRange],
-    t: Instant,
-    write: &mut dyn FnMut(Value) -> Result<()>,
-) -> Result<()> {
+/// The value ranges in the log and in `log.jsonl` (through `write`).
+pub(super) fn report_ranges(ranges: &[ValueRange], write: &mut dyn FnMut(Value) -> Result<()>) -> Result<()> {
     for r in ranges {
         tracing::info!(
             "{:?}: {:.3}, the motion cannot tell it from {:.3}–{:.3}",
@@ -1200,7 +1209,6 @@ pub(super) fn report_ranges(
         );
         write(json!({"stage": "pga", "range": r}))?;
     }
-    tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
     Ok(())
 }
 

@@ -259,7 +259,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         return Ok(());
     }
     let t = Instant::now();
-    let from_tracked = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
+    let (from_tracked, tracked_steps) = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
     time("pga_tracked", t);
     // GA again from that simulation (the one-body fit's GA from PA), then PGA on its poses; the round whose
     // simulation explains the images better is kept.
@@ -267,7 +267,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     let ga = stage_ga(&m, &mut log, &first, Some(&from_tracked), "ga.json", true)?;
     time("ga", t);
     let t = Instant::now();
-    let world = stage_pga(&m, &mut log, &ga, "pga.json")?;
+    let (world, steps) = stage_pga(&m, &mut log, &ga, "pga.json")?;
     time("pga", t);
     let (first_round, second_round) = (simulated_losses(&m, &from_tracked)?, simulated_losses(&m, &world)?);
     let total = |l: &[Vec<ImageLoss>]| l.iter().map(|b| recon::video_fit::total_loss(b)).sum::<f64>();
@@ -279,14 +279,14 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     let stand_ins = better_per_frame(&tracked, &ga);
     let t = Instant::now();
     if after <= before {
-        let ranges = value_ranges(&m, &mut log, &world, &ga)?;
+        let ranges = value_ranges(&m, &mut log, &world, &ga, &steps)?;
         time("ranges", t);
         finish(&m, &world, &stand_ins, second_round, &ranges, &timings, t_start)
     } else {
         tracing::info!(
             "PGA on GA from the simulation explains the images worse ({after:.4} > {before:.4}): kept the first round"
         );
-        let ranges = value_ranges(&m, &mut log, &from_tracked, &tracked)?;
+        let ranges = value_ranges(&m, &mut log, &from_tracked, &tracked, &tracked_steps)?;
         time("ranges", t);
         finish(&m, &from_tracked, &stand_ins, first_round, &ranges, &timings, t_start)
     }
@@ -633,11 +633,12 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
 
 /// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
 /// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]).
-fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<World> {
+/// PGA on GA's poses: the fitted world and the schedule's steps (none when read back from `file`).
+fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<(World, Vec<recon::ScheduleStep>)> {
     let path = m.out.join(file);
     if path.exists() {
         tracing::info!("PGA: from {}", path.display());
-        return world_from_file(m, &path);
+        return Ok((world_from_file(m, &path)?, Vec::new()));
     }
     let cfg = pga_config(m);
     let pairs = m.world.pairs();
@@ -659,7 +660,8 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         &mut |label, i, r| {
             rows.push(
                 json!({"stage": "pga", "step": label, "start": i, "restitution": r.restitution,
-                "friction": r.friction, "loss": r.loss, "iterations": r.iterations}),
+                "friction": r.friction, "loss": r.loss, "iterations": r.iterations,
+                "fitted_restitution": r.fitted_restitution, "fitted_friction": r.fitted_friction}),
             );
             pb.inc(1);
         },
@@ -684,7 +686,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
             .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
     }
     pganeus_io::write_trajectory(&path, &t)?;
-    Ok(fit.world)
+    Ok((fit.world, fit.steps))
 }
 
 /// PGA's settings: rotations in metres at the bodies' mean radius, as the one-body fit weighs them.
@@ -722,11 +724,18 @@ fn launch_settings(m: &Multi) -> recon::LaunchSettings {
     }
 }
 
-/// The ranges of the reported world's contact values that the GA poses it was fitted to cannot tell apart
-/// (logged).
-fn value_ranges(m: &Multi, log: &mut Log, world: &World, ga: &[Vec<FramePose>]) -> Result<Vec<ValueRange>> {
+/// The ranges of the reported world's contact values that the GA poses it was fitted to cannot tell apart,
+/// widened by the starts of the schedule's steps over the whole video that ended within their bar
+/// (`steps`: none for a world read back; logged).
+fn value_ranges(
+    m: &Multi,
+    log: &mut Log,
+    world: &World,
+    ga: &[Vec<FramePose>],
+    steps: &[recon::ScheduleStep],
+) -> Result<Vec<ValueRange>> {
     let t = Instant::now();
-    let ranges = colliding_value_ranges(
+    let mut ranges = colliding_value_ranges(
         &pga_config(m),
         world,
         &pga_observed(m, ga),
@@ -734,7 +743,11 @@ fn value_ranges(m: &Multi, log: &mut Log, world: &World, ga: &[Vec<FramePose>]) 
         m.cfg.ranges,
     )
     .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
-    report_ranges(&ranges, t, &mut |row| log.write(row))?;
+    for step in steps.iter().filter(|s| s.whole_video) {
+        recon::widen_by_starts(&mut ranges, &step.starts, step.on, step.loss);
+    }
+    tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
+    report_ranges(&ranges, &mut |row| log.write(row))?;
     Ok(ranges)
 }
 
