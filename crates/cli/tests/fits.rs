@@ -577,6 +577,8 @@ friction = 0.15
             "pga_tracked.json",
             "ga.json",
             "pga.json",
+            "pga_guess.json",
+            "pga_launch.json",
             "first_pose.json",
             "strip.png",
             "object_struck.ply",

@@ -110,6 +110,12 @@ pub struct CollidingFit {
     /// `(pair, frame)` of each pair's first contact in the observed poses.
     pub contacts: Vec<(usize, usize)>,
     pub steps: Vec<ScheduleStep>,
+    /// The world the schedule started from: each body's launch guessed from its first frames, the contact
+    /// values as given (the paper's Fig. 8, left).
+    pub guess: World,
+    /// The world after the launches were fitted on the frames before the first collision (Fig. 8, middle);
+    /// `None` when there was no such step.
+    pub after_launch: Option<World>,
 }
 
 /// How the schedule guesses and fits each body's launch.
@@ -263,6 +269,7 @@ pub fn fit_colliding_bodies(
         let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
         world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
     }
+    let guess = world.clone();
     // A body the first frame shows on the scene launches along it.
     let starts = launch_starts(&world, &observed, launch.in_plane);
     let observed_to = |upto: usize| observed_from_start(&observed, &starts, upto);
@@ -305,13 +312,20 @@ pub fn fit_colliding_bodies(
             grid,
         )?
         .0;
-        return Ok(CollidingFit { world, contacts, steps });
+        return Ok(CollidingFit {
+            world,
+            contacts,
+            steps,
+            guess,
+            after_launch: None,
+        });
     }
     if free >= 3 {
         // No body has met another yet: no pair value matters.
         let label = format!("launch, frames 0-{}", free - 1);
         world = run(label, no_pairs.clone(), world, observed_to(free), StartsOn::Scene, grid)?.0;
     }
+    let after_launch = (free >= 3).then(|| world.clone());
     // After the first collision, until the next: each body's state there, fitted afresh, and the scene's
     // values from how the bodies slide and settle. A launch's few frames tell the board's friction from a
     // deceleration that the launch speed can trade against (the tabletop collision: 0.36 for 0.25), and
@@ -376,7 +390,13 @@ pub fn fit_colliding_bodies(
     if polished_loss < loss {
         world = polished;
     }
-    Ok(CollidingFit { world, contacts, steps })
+    Ok(CollidingFit {
+        world,
+        contacts,
+        steps,
+        guess,
+        after_launch,
+    })
 }
 
 #[cfg(test)]

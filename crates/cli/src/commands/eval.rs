@@ -369,7 +369,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         }
     };
     // Steps: the reported poses, each stage file, each body's mesh.
-    let pb = super::progress(4 + fit.bodies.len() as u64, "eval");
+    let pb = super::progress(7 + fit.bodies.len() as u64, "eval");
     let scores = score_poses(&fit, video, &refs, camera.as_ref());
     pb.inc(1);
     // Where each fit put the true body's origin, frame by frame, beside the truth (the report's plots).
@@ -387,7 +387,8 @@ pub fn run(a: EvalArgs) -> Result<()> {
     }
     // The stages' own poses, where the fit folder has them.
     let mut stages = serde_json::Map::new();
-    for stage in ["pa", "ga", "pga"] {
+    // Several bodies: the first round's PGA, and the kept round's start and its state after the launches.
+    for stage in ["pa", "ga", "pga", "pga_tracked", "pga_guess", "pga_launch"] {
         let p = dir.join(format!("{stage}.json"));
         if a.fit.is_dir() && p.exists() {
             let t = pganeus_io::read_trajectory(&p)?;

@@ -259,37 +259,40 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         return Ok(());
     }
     let t = Instant::now();
-    let (from_tracked, tracked_steps) = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
+    let first_round = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
     time("pga_tracked", t);
     // GA again from that simulation (the one-body fit's GA from PA), then PGA on its poses; the round whose
     // simulation explains the images better is kept.
     let t = Instant::now();
-    let ga = stage_ga(&m, &mut log, &first, Some(&from_tracked), "ga.json", true)?;
+    let ga = stage_ga(&m, &mut log, &first, Some(&first_round.world), "ga.json", true)?;
     time("ga", t);
     let t = Instant::now();
-    let (world, steps) = stage_pga(&m, &mut log, &ga, "pga.json")?;
+    let second_round = stage_pga(&m, &mut log, &ga, "pga.json")?;
     time("pga", t);
-    let (first_round, second_round) = (simulated_losses(&m, &from_tracked)?, simulated_losses(&m, &world)?);
+    let (first_losses, second_losses) = (
+        simulated_losses(&m, &first_round.world)?,
+        simulated_losses(&m, &second_round.world)?,
+    );
     let total = |l: &[Vec<ImageLoss>]| l.iter().map(|b| recon::video_fit::total_loss(b)).sum::<f64>();
-    let (before, after) = (total(&first_round), total(&second_round));
+    let (before, after) = (total(&first_losses), total(&second_losses));
     log.write(json!({"stage": "pga", "image_loss_tracked": before, "image_loss": after}))?;
     // Where the kept simulation misses a frame, a GA pose stands in: of the two GA passes, the one that
     // explains that frame better. The second pass, started from a simulation, usually does even where its
     // round's simulation is not kept (the two-body collision: IoU ≥ 0.969 against the tracked pass's 0.77).
     let stand_ins = better_per_frame(&tracked, &ga);
-    let t = Instant::now();
-    if after <= before {
-        let ranges = value_ranges(&m, &mut log, &world, &ga, &steps)?;
-        time("ranges", t);
-        finish(&m, &world, &stand_ins, second_round, &ranges, &timings, t_start)
+    let (kept, kept_ga, losses) = if after <= before {
+        (second_round, &ga, second_losses)
     } else {
         tracing::info!(
             "PGA on GA from the simulation explains the images worse ({after:.4} > {before:.4}): kept the first round"
         );
-        let ranges = value_ranges(&m, &mut log, &from_tracked, &tracked, &tracked_steps)?;
-        time("ranges", t);
-        finish(&m, &from_tracked, &stand_ins, first_round, &ranges, &timings, t_start)
-    }
+        (first_round, &tracked, first_losses)
+    };
+    kept.write_schedule(&m)?;
+    let t = Instant::now();
+    let ranges = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
+    time("ranges", t);
+    finish(&m, &kept.world, &stand_ins, losses, &ranges, &timings, t_start)
 }
 
 /// Per body and frame, the GA pose of `a` or `b` with the lower image loss (a fitted one before one that
@@ -633,12 +636,45 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
 
 /// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
 /// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]).
-/// PGA on GA's poses: the fitted world and the schedule's steps (none when read back from `file`).
-fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<(World, Vec<recon::ScheduleStep>)> {
+/// One PGA round: the fitted world, and, when it was fitted rather than read back, the schedule's steps and
+/// the worlds it started from and reached after the launches (the paper's Fig. 8).
+struct PgaRound {
+    world: World,
+    steps: Vec<recon::ScheduleStep>,
+    guess: Option<World>,
+    after_launch: Option<World>,
+}
+
+impl PgaRound {
+    /// `pga_guess.json` and `pga_launch.json`: the simulations of the worlds the kept round started from and
+    /// reached after the launches, beside `pga.json` (`eval` scores them; the report draws them).
+    fn write_schedule(&self, m: &Multi) -> Result<()> {
+        for (name, w) in [("pga_guess.json", &self.guess), ("pga_launch.json", &self.after_launch)] {
+            if let Some(w) = w {
+                let traj = w.simulate(&w.params());
+                let mut t = scene_file::trajectory_file(&m.capture, w, &traj, sim::ENGINE, Map::new());
+                for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
+                    tb.extra
+                        .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
+                }
+                pganeus_io::write_trajectory(&m.out.join(name), &t)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// PGA on GA's poses (read back from `file` when it exists).
+fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<PgaRound> {
     let path = m.out.join(file);
     if path.exists() {
         tracing::info!("PGA: from {}", path.display());
-        return Ok((world_from_file(m, &path)?, Vec::new()));
+        return Ok(PgaRound {
+            world: world_from_file(m, &path)?,
+            steps: Vec::new(),
+            guess: None,
+            after_launch: None,
+        });
     }
     let cfg = pga_config(m);
     let pairs = m.world.pairs();
@@ -686,7 +722,12 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
             .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
     }
     pganeus_io::write_trajectory(&path, &t)?;
-    Ok((fit.world, fit.steps))
+    Ok(PgaRound {
+        world: fit.world,
+        steps: fit.steps,
+        guess: Some(fit.guess),
+        after_launch: fit.after_launch,
+    })
 }
 
 /// PGA's settings: rotations in metres at the bodies' mean radius, as the one-body fit weighs them.

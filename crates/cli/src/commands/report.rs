@@ -35,6 +35,8 @@ const PA: [u8; 3] = [31, 119, 180];
 const GA: [u8; 3] = [44, 160, 44];
 const PGA: [u8; 3] = [214, 39, 40];
 const REPORTED: [u8; 3] = [255, 127, 14];
+const GUESS: [u8; 3] = [148, 103, 189];
+const LAUNCH: [u8; 3] = [140, 86, 75];
 
 /// A JSON file, or None when it is not there; an unreadable one is an error naming it.
 fn read_value(p: &Path) -> Result<Option<Value>> {
@@ -350,6 +352,7 @@ fn fit_section(page: &mut Page, plots: &mut Plots, fit: &Path, name: &str, a: &R
 
     page.heading(3, "Charts");
     let mut charts = path_charts(name, &traj, &stages, eval.as_ref());
+    charts.extend(schedule_charts(name, &traj, fit, eval.as_ref())?);
     charts.extend(frame_charts(name, &traj, &stages));
     charts.extend(loss_charts(name, &fit.join("log.jsonl")));
     plots.add(page, charts)?;
@@ -476,17 +479,7 @@ fn paths(traj: &Trajectory, stages: &[(&str, [u8; 3], Option<Trajectory>)], eval
             body: b.name.clone(),
             paths: Vec::new(),
         };
-        let from_eval = |key: &str| -> Option<Vec<[f64; 3]>> {
-            let arr = eval?["paths_m"][key][&b.name].as_array()?;
-            Some(
-                arr.iter()
-                    .filter_map(|p| {
-                        let v: Vec<f64> = p.as_array()?.iter().filter_map(Value::as_f64).collect();
-                        (v.len() == 3).then(|| [v[0], v[1], v[2]])
-                    })
-                    .collect(),
-            )
-        };
+        let from_eval = |key: &str| eval_path(eval, key, &b.name);
         if let Some(t) = from_eval("truth") {
             set.paths.push(Track {
                 label: "truth".into(),
@@ -520,6 +513,20 @@ fn paths(traj: &Trajectory, stages: &[(&str, [u8; 3], Option<Trajectory>)], eval
         out.push(set);
     }
     out
+}
+
+/// Where `eval.json` put the true body's origin (`paths_m`) in the stage `key` for `body` (the fit's body frame
+/// related to the truth's).
+fn eval_path(eval: Option<&Value>, key: &str, body: &str) -> Option<Vec<[f64; 3]>> {
+    let arr = eval?["paths_m"][key][body].as_array()?;
+    Some(
+        arr.iter()
+            .filter_map(|p| {
+                let v: Vec<f64> = p.as_array()?.iter().filter_map(Value::as_f64).collect();
+                (v.len() == 3).then(|| [v[0], v[1], v[2]])
+            })
+            .collect(),
+    )
 }
 
 /// One body's paths: truth, the stages, the reported motion.
@@ -566,6 +573,73 @@ fn path_charts(
         out.push((format!("{name}_{}_height", set.body), height));
     }
     out
+}
+
+/// Several bodies (the paper's Fig. 8): how far each body is from where it started, frame by frame, in the
+/// schedule's initial guess (`pga_guess.json`), after its launch fit (`pga_launch.json`), in PGA's final
+/// simulation and in the truth. When a body starts moving, and how far it goes, shows the collision's time
+/// and its exchange of momentum.
+fn schedule_charts(name: &str, traj: &Trajectory, fit: &Path, eval: Option<&Value>) -> Result<Vec<(String, Chart)>> {
+    if traj.bodies.len() < 2 {
+        return Ok(Vec::new());
+    }
+    // The kept round's PGA: the second (`pga.json`) unless the log says its simulation explained the images
+    // worse than the first's (`pga_tracked.json`).
+    let first_kept = log_lines(&fit.join("log.jsonl"))
+        .iter()
+        .any(|l| matches!((f64_at(l, "image_loss_tracked"), f64_at(l, "image_loss")), (Some(a), Some(b)) if b > a));
+    let last = if first_kept { "pga_tracked" } else { "pga" };
+    let files = [
+        ("initial guess", GUESS, "pga_guess", stage_file(fit, "pga_guess")?),
+        (
+            "after the launch fit",
+            LAUNCH,
+            "pga_launch",
+            stage_file(fit, "pga_launch")?,
+        ),
+        ("final (PGA)", PGA, last, stage_file(fit, last)?),
+    ];
+    if files[0].3.is_none() {
+        return Ok(Vec::new());
+    }
+    let fps = if traj.fps > 0.0 { traj.fps } else { 30.0 };
+    let mut out = Vec::new();
+    for b in &traj.bodies {
+        let from_eval = |key: &str| eval_path(eval, key, &b.name);
+        let mut chart = Chart::new(
+            format!("{}: distance from its start (Fig. 8)", b.name),
+            "time (s)",
+            "distance (m)",
+        );
+        let mut add = |label: &str, color: [u8; 3], mark: Mark, points: Vec<[f64; 3]>| {
+            let Some(p0) = points.first().copied() else {
+                return;
+            };
+            let d = points
+                .iter()
+                .enumerate()
+                .map(|(k, p)| {
+                    let e = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
+                    (k as f64 / fps, (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+                })
+                .collect();
+            chart.series.push(Series::new(label, d, mark).colored(color));
+        };
+        if let Some(t) = from_eval("truth") {
+            add("truth", TRUTH, Mark::Line, t);
+        }
+        for (label, color, key, stage) in &files {
+            let points = from_eval(key).or_else(|| {
+                let s = stage.as_ref()?.body(&b.name)?;
+                Some(s.poses.iter().map(|p| p.t).collect())
+            });
+            if let Some(points) = points {
+                add(label, *color, Mark::Dashed, points);
+            }
+        }
+        out.push((format!("{name}_{}_schedule", b.name), chart));
+    }
+    Ok(out)
 }
 
 /// A stage file's own per-frame rows.
@@ -768,4 +842,67 @@ fn truth_ghosts(traj: &Trajectory, eval: Option<&Value>, bases: &[&Path]) -> Res
         out.push((m, tv.poses.iter().map(pganeus_io::Pose::to_geom).collect()));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// A trajectory file of bodies `a` and `b`, each moving along x by `step[body]` a frame.
+    fn file(d: &Path, name: &str, step: [f64; 2]) -> Trajectory {
+        let bodies: Vec<Value> = ["a", "b"]
+            .iter()
+            .zip(step)
+            .map(|(n, s)| {
+                let poses: Vec<Value> = (0..4)
+                    .map(|k| json!({"t": [s * k as f64, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0]}))
+                    .collect();
+                json!({"name": n, "initial": {"t": [0.0, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0],
+                    "v": [0.0, 0.0, 0.0], "omega": [0.0, 0.0, 0.0]}, "poses": poses})
+            })
+            .collect();
+        let t = json!({"capture": "collide", "fps": 30.0, "bodies": bodies,
+            "contact": {"restitution": 0.5, "friction": 0.5, "model": "pganeus"}});
+        std::fs::write(d.join(name), t.to_string()).unwrap();
+        serde_json::from_value(t).unwrap()
+    }
+
+    #[test]
+    fn several_bodies_get_the_schedule_chart_of_the_kept_round() {
+        let d = testkit::scratch_dir("cli", "schedule_charts");
+        let traj = file(&d, "trajectory.json", [0.01, 0.02]);
+        file(&d, "pga.json", [0.01, 0.02]);
+        // Without the schedule's files: no chart.
+        assert!(schedule_charts("f", &traj, &d, None).unwrap().is_empty());
+        file(&d, "pga_guess.json", [0.03, 0.0]);
+        file(&d, "pga_launch.json", [0.02, 0.01]);
+        file(&d, "pga_tracked.json", [0.05, 0.05]);
+        // The first round kept (its simulation explained the images better): its PGA is the final one.
+        std::fs::write(
+            d.join("log.jsonl"),
+            "{\"stage\":\"pga\",\"image_loss_tracked\":1.0,\"image_loss\":2.0}\n",
+        )
+        .unwrap();
+        let charts = schedule_charts("f", &traj, &d, None).unwrap();
+        assert_eq!(charts.len(), 2);
+        let (name, chart) = &charts[1];
+        assert_eq!(name, "f_b_schedule");
+        let labels: Vec<&str> = chart.series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(labels, ["initial guess", "after the launch fit", "final (PGA)"]);
+        // Body b's distance from its start in the last frame: 0 in the guess, 3 × 0.05 in the kept round's.
+        let last = |i: usize| chart.series[i].points.last().unwrap().1;
+        assert!(
+            last(0).abs() < 1e-12 && (last(2) - 0.15).abs() < 1e-12,
+            "{:?}",
+            chart.series
+        );
+        // One body: none.
+        let one: Trajectory = serde_json::from_value(json!({"capture": "c", "fps": 30.0,
+            "bodies": [serde_json::to_value(&traj.bodies[0]).unwrap()],
+            "contact": {"restitution": 0.5, "friction": 0.5, "model": "pganeus"}}))
+        .unwrap();
+        assert!(schedule_charts("f", &one, &d, None).unwrap().is_empty());
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }
