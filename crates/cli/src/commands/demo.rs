@@ -19,7 +19,7 @@ use std::time::Instant;
   pganeus demo
   pganeus demo --quick --out out/demo-quick")]
 pub struct DemoArgs {
-    /// Short training and a light fit on the first 12 frames: the whole chain in about 4.5 minutes (a smoke
+    /// Short training and a light fit on the first 12 frames: the whole chain in about 3 minutes (a smoke
     /// run; its figures are far from the method's).
     #[arg(long)]
     pub quick: bool,
@@ -101,7 +101,7 @@ rays_per_step = 256
 "#;
 
 /// One stage: a name, the subcommand's arguments, and its expected share of the time (seconds on two
-/// cores, measured; only for the ETA).
+/// cores, measured alone: the full demo of 2026-11-27, its fits with the value ranges; `--quick` in CI; only for the ETA).
 struct Stage {
     name: String,
     argv: Vec<String>,
@@ -141,7 +141,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
     let q = |quick_s: f64, full_s: f64| if quick { quick_s } else { full_s };
     add(
         "synth",
-        q(10.0, 10.0),
+        q(8.0, 10.0),
         &[
             "synth".into(),
             "--preset".into(),
@@ -154,9 +154,9 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         ],
     );
     for (name, capture, steps, expected) in [
-        ("train scene", "background", plan.scene_steps, q(50.0, 600.0)),
-        ("train toy_a", "toy_a", plan.object_steps, q(29.0, 90.0)),
-        ("train toy_b", "toy_b", plan.object_steps, q(29.0, 90.0)),
+        ("train scene", "background", plan.scene_steps, q(35.0, 275.0)),
+        ("train toy_a", "toy_a", plan.object_steps, q(20.0, 55.0)),
+        ("train toy_b", "toy_b", plan.object_steps, q(20.0, 55.0)),
     ] {
         let run = if capture == "background" { "scene" } else { capture };
         let mut args: Vec<String> = vec![
@@ -186,10 +186,10 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
     if let Some(r) = plan.merge_field_res {
         args.extend(["--field-res".into(), r.to_string()]);
     }
-    add("merge", q(12.0, 20.0), &args);
+    add("merge", q(12.0, 15.0), &args);
     add(
         "bake",
-        q(10.0, 30.0),
+        q(3.0, 5.0),
         &[
             "bake".into(),
             s(&runs.join("scene")),
@@ -221,10 +221,10 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
         }
-        add(&format!("fit {video}"), q(68.0, 250.0), &args);
+        add(&format!("fit {video}"), q(40.0, 145.0), &args);
         add(
             &format!("eval {video}"),
-            q(5.0, 10.0),
+            q(2.0, 3.0),
             &[
                 "eval".into(),
                 s(&fit_dir),
@@ -235,7 +235,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
             ],
         );
     }
-    add("report", q(5.0, 8.0), &["report".into(), s(out)]);
+    add("report", q(2.0, 3.0), &["report".into(), s(out)]);
     v
 }
 
