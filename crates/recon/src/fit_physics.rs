@@ -499,7 +499,7 @@ impl PhysicsFit {
     }
 
     /// The unknowns' current values.
-    fn values(&self) -> Vec<f64> {
+    pub(crate) fn values(&self) -> Vec<f64> {
         self.unknowns.values(&self.params)
     }
 
@@ -725,46 +725,25 @@ impl PhysicsFit {
         &self.contact_values
     }
 
-    /// The unknowns' fitted values.
-    pub(crate) fn fitted_values(&self) -> Vec<f64> {
-        self.values()
-    }
-
     /// This fit's values but the `u`-th, refitted for at most `iterations` steps over the whole sequence from
     /// the values `x`, with the `u`-th held at `v`: the loss it ends at and every value (the `u`-th `v`).
     pub(crate) fn refit_holding(&self, u: usize, v: f64, x: &[f64], iterations: usize) -> (f64, Vec<f64>) {
         let mut x = x.to_vec();
         x[u] = v;
-        let params = self.with_values(&x);
-        let mut world = self.world.clone();
-        world.config.frames = self.frames;
-        let unknowns = self.unknowns.without(u);
-        if unknowns.is_empty() || iterations == 0 {
-            return (self.loss_in(&world, &params), x);
+        // This fit over the whole sequence, restarted, with one value fewer.
+        let mut held = self.clone();
+        held.cfg.iterations = iterations;
+        held.params = self.with_values(&x);
+        held.unknowns = self.unknowns.without(u);
+        held.bounds.lo.remove(u);
+        held.bounds.hi.remove(u);
+        held.contact_values.clear();
+        held.iteration = 0;
+        held.converged = false;
+        held.set_window(0);
+        if !held.unknowns.is_empty() && iterations > 0 {
+            held.run();
         }
-        let mut bounds = self.bounds.clone();
-        bounds.lo.remove(u);
-        bounds.hi.remove(u);
-        let mut held = PhysicsFit {
-            cfg: PhysicsFitConfig {
-                iterations,
-                ..self.cfg.clone()
-            },
-            world,
-            params,
-            unknowns,
-            bounds,
-            lambda: 1e-3,
-            loss: f64::INFINITY,
-            iteration: 0,
-            converged: false,
-            window: self.frames,
-            probe: 1.0,
-            contact_values: Vec::new(),
-            ..self.clone()
-        };
-        held.loss = held.loss_at(&held.params.clone());
-        held.run();
         (held.loss, self.unknowns.values(&held.params))
     }
 

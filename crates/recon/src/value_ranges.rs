@@ -73,7 +73,7 @@ impl PhysicsFit {
         if scan.steps == 0 {
             return Vec::new();
         }
-        let x0 = self.fitted_values();
+        let x0 = self.values();
         let tolerance = RANGE_LOSS_RATIO * self.full_loss();
         let (lo, hi) = self.contact_bounds();
         let steps = scan.steps.max(2);

@@ -282,6 +282,13 @@ pub fn total_loss(losses: &[ImageLoss]) -> f64 {
     losses.iter().map(|l| l.loss).sum()
 }
 
+/// [`ga_weights`] of GA's fitted frames as `PosesFromVideo` returns them.
+pub fn ga_weights_of(frames: &[crate::FramePose]) -> Vec<f64> {
+    let losses: Vec<ImageLoss> = frames.iter().map(|r| r.image.clone()).collect();
+    let fitted: Vec<bool> = frames.iter().map(|r| r.fitted).collect();
+    ga_weights(&losses, &fitted)
+}
+
 /// PGA's weight of each GA pose: 0 where GA had no mask, else `min(1, median / residual)` of the image
 /// losses, so frames GA could not explain (occlusion, blur, a wrong basin) count less than the rest.
 pub fn ga_weights(losses: &[ImageLoss], fitted: &[bool]) -> Vec<f64> {

@@ -418,14 +418,6 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
             .cloned()
             .unwrap_or(Value::Null);
         let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:.2}"));
-        // The range `fit` found the motion cannot tell apart, where `eval` read one.
-        let range = |v: &Value| match v
-            .as_array()
-            .map(|r| r.iter().filter_map(Value::as_f64).collect::<Vec<_>>())
-        {
-            Some(r) if r.len() == 2 => format!(" in {:.2}–{:.2}", r[0], r[1]),
-            _ => String::new(),
-        };
         writeln!(
             md,
             "| {video} | {} / {} | {} / {} | {} | {} | {} % | {} ({}){} | {} ({}){} |",
@@ -438,10 +430,10 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
             f(&par["v0_error_percent"]),
             f(&par["restitution"]),
             f(&par["restitution_true"]),
-            range(&par["restitution_range"]),
+            super::report::range_text(par.get("restitution_range")),
             f(&par["friction"]),
             f(&par["friction_true"]),
-            range(&par["friction_range"]),
+            super::report::range_text(par.get("friction_range")),
         )?;
         if mesh_line.is_none() {
             if let Some(m) = e["meshes"].as_object().and_then(|m| m.values().next()) {

@@ -231,6 +231,10 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
     Value::Object(out)
 }
 
+/// The stage files of a fit folder that are scored beside the result (several bodies: the first round's PGA,
+/// and the kept round's start and its state after the launches).
+const STAGE_FILES: [&str; 6] = ["pa", "ga", "pga", "pga_tracked", "pga_guess", "pga_launch"];
+
 /// Each pair's contact values against the truth's, matched by the bodies' names (where the truth's model is
 /// the project's own and both files name pairs).
 fn pair_errors(fit: &Trajectory, video: &Trajectory) -> Option<Value> {
@@ -271,14 +275,19 @@ fn pair_entry<'a>(t: &'a Trajectory, names: &[String; 2]) -> Option<&'a serde_js
 fn add_ranges(row: &mut Value, fitted: &serde_json::Map<String, Value>) {
     for value in ["restitution", "friction"] {
         let key = format!("{value}_range");
-        let range = fitted.get(&key).and_then(|r| {
-            let r = r.as_array()?;
-            Some([r.first()?.as_f64()?, r.get(1)?.as_f64()?])
-        });
+        let range = fitted.get(&key).and_then(range_pair);
         if let (Some([lo, hi]), Some(truth)) = (range, row[format!("{value}_true")].as_f64()) {
             row[key] = json!([lo, hi]);
             row[format!("{value}_true_in_range")] = json!((lo..=hi).contains(&truth));
         }
+    }
+}
+
+/// A `[lo, hi]` range as `fit` writes it (`restitution_range`, `friction_range`), if `v` is one.
+pub(super) fn range_pair(v: &Value) -> Option<[f64; 2]> {
+    match v.as_array()?.as_slice() {
+        [lo, hi] => Some([lo.as_f64()?, hi.as_f64()?]),
+        _ => None,
     }
 }
 
@@ -298,13 +307,11 @@ fn values_text(row: &Value) -> String {
 /// `"; the motion cannot tell 0.31–0.99 apart, the truth inside"` for an error row with ranges, else nothing.
 fn range_text(row: &Value, value: &str) -> String {
     match (
-        row[format!("{value}_range")].as_array(),
+        range_pair(&row[format!("{value}_range")]),
         row[format!("{value}_true_in_range")].as_bool(),
     ) {
-        (Some(r), Some(inside)) => format!(
-            " [the motion cannot tell {:.3}–{:.3} apart: the truth {}]",
-            r[0].as_f64().unwrap_or(f64::NAN),
-            r[1].as_f64().unwrap_or(f64::NAN),
+        (Some([lo, hi]), Some(inside)) => format!(
+            " [the motion cannot tell {lo:.3}–{hi:.3} apart: the truth {}]",
             if inside { "inside" } else { "outside" }
         ),
         _ => String::new(),
@@ -369,7 +376,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         }
     };
     // Steps: the reported poses, each stage file, each body's mesh.
-    let pb = super::progress(7 + fit.bodies.len() as u64, "eval");
+    let pb = super::progress((1 + STAGE_FILES.len() + fit.bodies.len()) as u64, "eval");
     let scores = score_poses(&fit, video, &refs, camera.as_ref());
     pb.inc(1);
     // Where each fit put the true body's origin, frame by frame, beside the truth (the report's plots).
@@ -387,8 +394,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     }
     // The stages' own poses, where the fit folder has them.
     let mut stages = serde_json::Map::new();
-    // Several bodies: the first round's PGA, and the kept round's start and its state after the launches.
-    for stage in ["pa", "ga", "pga", "pga_tracked", "pga_guess", "pga_launch"] {
+    for stage in STAGE_FILES {
         let p = dir.join(format!("{stage}.json"));
         if a.fit.is_dir() && p.exists() {
             let t = pganeus_io::read_trajectory(&p)?;

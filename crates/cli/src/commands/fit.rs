@@ -17,7 +17,7 @@ use neus::ObjectModel;
 use pganeus_io::Image;
 use recon::poses_from_video::carried_on;
 use recon::video_fit::{
-    evaluate_poses, fit_to_poses, ga_weights, launch_guess, lift_out, pose_from_guess, total_loss, TOUCHING,
+    evaluate_poses, fit_to_poses, ga_weights_of, launch_guess, lift_out, pose_from_guess, total_loss, TOUCHING,
 };
 use recon::{
     FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
@@ -1166,9 +1166,7 @@ fn pga_config(job: &Job) -> PhysicsFitConfig {
 /// GA's poses as PGA observes them: weighed by GA's residuals, each frame's depth counting least where GA
 /// did not hold the body on the scene.
 fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> recon::Observed {
-    let losses: Vec<ImageLoss> = ga.iter().map(|r| r.image.clone()).collect();
-    let fitted: Vec<bool> = ga.iter().map(|r| r.fitted).collect();
-    let weights = ga_weights(&losses, &fitted);
+    let weights = ga_weights_of(ga);
     let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
     recon::Observed {
         start: start_contact,

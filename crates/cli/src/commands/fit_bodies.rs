@@ -39,7 +39,7 @@ use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Compo
 use neus::ObjectModel;
 use pganeus_io::Image;
 use recon::image_loss::Occluder;
-use recon::video_fit::{evaluate_poses, ga_weights, lift_out};
+use recon::video_fit::{evaluate_poses, ga_weights_of, lift_out};
 use recon::{
     colliding_value_ranges, fit_colliding_bodies, FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PoseFromImage,
     PosesFromVideo, ValueRange, VideoFitConfig, CONTACT_STARTS,
@@ -634,8 +634,6 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
         .collect()
 }
 
-/// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
-/// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]).
 /// One PGA round: the fitted world, and, when it was fitted rather than read back, the schedule's steps and
 /// the worlds it started from and reached after the launches (the paper's Fig. 8).
 struct PgaRound {
@@ -651,20 +649,16 @@ impl PgaRound {
     fn write_schedule(&self, m: &Multi) -> Result<()> {
         for (name, w) in [("pga_guess.json", &self.guess), ("pga_launch.json", &self.after_launch)] {
             if let Some(w) = w {
-                let traj = w.simulate(&w.params());
-                let mut t = scene_file::trajectory_file(&m.capture, w, &traj, sim::ENGINE, Map::new());
-                for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
-                    tb.extra
-                        .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
-                }
-                pganeus_io::write_trajectory(&m.out.join(name), &t)?;
+                write_simulation(m, w, &m.out.join(name))?;
             }
         }
         Ok(())
     }
 }
 
-/// PGA on GA's poses (read back from `file` when it exists).
+/// Stage 3, PGA on GA's poses: the launches before the first contact between bodies, then each pair that
+/// meets from a grid of starts, with every value over the whole video ([`recon::colliding_bodies`]); read
+/// back from `file` when it exists.
 fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<PgaRound> {
     let path = m.out.join(file);
     if path.exists() {
@@ -715,19 +709,25 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     for s in &fit.steps {
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
-    let traj = fit.world.simulate(&fit.world.params());
-    let mut t = scene_file::trajectory_file(&m.capture, &fit.world, &traj, sim::ENGINE, Map::new());
-    for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
-        tb.extra
-            .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
-    }
-    pganeus_io::write_trajectory(&path, &t)?;
+    write_simulation(m, &fit.world, &path)?;
     Ok(PgaRound {
         world: fit.world,
         steps: fit.steps,
         guess: Some(fit.guess),
         after_launch: fit.after_launch,
     })
+}
+
+/// `world`'s simulation as a trajectory file at `path`, each body with its object entry.
+fn write_simulation(m: &Multi, world: &World, path: &Path) -> Result<()> {
+    let traj = world.simulate(&world.params());
+    let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, Map::new());
+    for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
+        tb.extra
+            .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
+    }
+    pganeus_io::write_trajectory(path, &t)?;
+    Ok(())
 }
 
 /// PGA's settings: rotations in metres at the bodies' mean radius, as the one-body fit weighs them.
@@ -743,14 +743,7 @@ fn pga_config(m: &Multi) -> PhysicsFitConfig {
 /// not hold it on the scene, as in the one-body fit.
 fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
     let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
-    let weights: Vec<Vec<f64>> = ga
-        .iter()
-        .map(|rs| {
-            let losses: Vec<ImageLoss> = rs.iter().map(|r| r.image.clone()).collect();
-            let fitted: Vec<bool> = rs.iter().map(|r| r.fitted).collect();
-            ga_weights(&losses, &fitted)
-        })
-        .collect();
+    let weights: Vec<Vec<f64>> = ga.iter().map(|rs| ga_weights_of(rs)).collect();
     recon::ObservedBodies {
         eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
         depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),

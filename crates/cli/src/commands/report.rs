@@ -360,14 +360,10 @@ fn fit_section(page: &mut Page, plots: &mut Plots, fit: &Path, name: &str, a: &R
 }
 
 /// `" in 0.48–0.55"`: the range `fit` wrote beside a contact value (`key`), or nothing.
-fn range_text(entry: &serde_json::Map<String, Value>, key: &str) -> String {
-    let range = entry.get(key).and_then(Value::as_array);
-    match range
-        .map(|r| r.iter().filter_map(Value::as_f64).collect::<Vec<_>>())
-        .as_deref()
-    {
+pub(super) fn range_text(range: Option<&Value>) -> String {
+    match range.and_then(super::eval::range_pair) {
         Some([lo, hi]) => format!(" in {lo:.2}–{hi:.2}"),
-        _ => String::new(),
+        None => String::new(),
     }
 }
 
@@ -403,8 +399,8 @@ fn parameter_table(page: &mut Page, traj: &Trajectory, eval: Option<&Value>) {
             v0,
             fmt(e.and_then(|e| f64_at(e, "v0_error_percent")), 1),
             format!("[{:.2}, {:.2}, {:.2}]", w[0], w[1], w[2]),
-            with_truth(restitution, "restitution") + &range_text(&traj.contact.extra, "restitution_range"),
-            with_truth(friction, "friction") + &range_text(&traj.contact.extra, "friction_range"),
+            with_truth(restitution, "restitution") + &range_text(traj.contact.extra.get("restitution_range")),
+            with_truth(friction, "friction") + &range_text(traj.contact.extra.get("friction_range")),
             fmt(b.extra.get("mass").and_then(Value::as_f64), 4),
         ]);
     }
