@@ -2,7 +2,7 @@
 //! mass), mass properties, contact points, and its SDF for body–body contacts.
 
 use crate::contact_points::spread_contact_points;
-use crate::mass_properties_mesh::{mass_properties, mesh_volume};
+use crate::mass_properties_mesh::{mass_properties, mesh_area, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
 use crate::sdf::{SdfGrid, Shape};
 use geom::{Mat3, Pose, TriMesh, Vec3};
@@ -57,6 +57,8 @@ pub struct RigidBody {
     pub inertia_inv: Mat3<f64>,
     /// Contact points in the body frame.
     pub contact_points: Vec<Vec3<f64>>,
+    /// Typical distance between neighbouring contact points, m (√(area / count)).
+    pub contact_spacing: f64,
     /// Radius of a ball about the origin holding the whole body.
     pub bounding_radius: f64,
     /// Signed distance in the body frame, for contacts with other bodies.
@@ -116,6 +118,7 @@ impl RigidBody {
             ContactSampling::Surface { count, seed } => spread_contact_points(&mesh, count, seed),
             ContactSampling::Vertices => mesh.vertices.iter().map(|v| Vec3::cst(*v)).collect(),
         };
+        let contact_spacing = (mesh_area(&mesh) / contact_points.len() as f64).sqrt();
         let bounding_radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
         let sdf = match sdf {
             Some(s) => s.transformed(Pose::from_translation(-com)),
@@ -132,6 +135,7 @@ impl RigidBody {
             inertia: props.inertia,
             inertia_inv,
             contact_points,
+            contact_spacing,
             bounding_radius,
             sdf,
             mesh_offset: com,

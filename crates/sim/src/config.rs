@@ -51,6 +51,11 @@ pub struct SimConfig {
     pub contact_model: ContactModel,
     /// Sweeps of the `multi_point` solver over its contact points. Default 10.
     pub solver_sweeps: usize,
+    /// Slide each contact point near the other surface along its body's surface to where that surface
+    /// faces the other one (its support), where the body curves: a ball rolls as a ball, not as a
+    /// polyhedron of its samples that knocks and bounces at each one. Flat faces and corners keep their
+    /// samples. `false`: the samples as they are (the paper's). Default true.
+    pub support_points: bool,
 }
 
 /// How the colliding points of a body against the scene or another body act.
@@ -98,6 +103,7 @@ impl Default for SimConfig {
             friction_model: FrictionModel::Coulomb,
             contact_model: ContactModel::MeanPoint,
             solver_sweeps: 10,
+            support_points: true,
         }
     }
 }

@@ -236,6 +236,7 @@ impl World {
             friction: cfg.friction_model,
             model: cfg.contact_model,
             sweeps: cfg.solver_sweeps,
+            supports: cfg.support_points,
         };
         let pairs = self.pairs();
         let mut states: Vec<BodyState<S>> = (0..self.bodies.len())

@@ -304,3 +304,38 @@ fn multi_point_derivatives_of_a_box_sliding_to_rest_match_finite_differences() {
     let expected = 1.3 / (0.45 * 9.81);
     assert!((stopped / expected - 1.0).abs() < 0.05, "{stopped} against {expected}");
 }
+
+/// A spinning ball lands once and bounces, both contact models: its contact points slide to its support
+/// (`support_points`), which moves with the ball's pose; the derivatives carry that motion.
+#[test]
+fn a_ball_landing_on_its_support_has_exact_gradients() {
+    for model in MODELS {
+        let w = world_with(
+            config_in(model, 60.0, 9, 10),
+            ground(),
+            vec![(
+                sphere_body(0.02, 0.1, 500),
+                BodyState::new(
+                    [0.0, 0.0, 0.035],
+                    [0.9, 0.1, 0.3, 0.2],
+                    [0.6, 0.2, -1.2],
+                    [4.0, -6.0, 2.0],
+                ),
+                contact(0.5, 0.1),
+            )],
+        );
+        let traj = w.simulate(&w.params());
+        let landings = traj.contacts.iter().filter(|c| c.scene[0]).count();
+        assert_eq!(landings, 1, "{model:?}: one landing in these frames");
+        let wrt: Vec<usize> = (0..14).collect();
+        // The tessellated ball's inertia is nearly isotropic, so its derivatives by the initial rotation
+        // and between spin axes are ~1e-5, where differences at eps 1e-6 of a spinning ball carry ~2e-6 of
+        // rounding (1e-12 of its spin); at 1e-5 they cross no switch here.
+        let tol = GradTolerance {
+            eps: 1e-5,
+            abs_tol: 5e-7,
+            ..GradTolerance::default()
+        };
+        check_world(&format!("{model:?} ball landing"), &w, &wrt, tol);
+    }
+}

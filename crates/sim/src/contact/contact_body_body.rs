@@ -3,6 +3,7 @@
 
 use super::contact_set::{select_contacts, Colliding};
 use super::sequential_impulses::{solve, Law, Row, Side};
+use super::support_point::{Near, Touch};
 use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
 use crate::config::ContactModel;
 use crate::sdf::Sdf;
@@ -24,40 +25,49 @@ pub(crate) fn contact_body_body<S: Real>(
     if (ta - tb).norm() > a.bounding_radius + b.bounding_radius + delta {
         return false;
     }
-    let pose_b_re = sb.pose.re();
-    let rot_a_re = sa.pose.q.re().to_mat();
+    let (pose_a_re, pose_b_re) = (sa.pose.re(), sb.pose.re());
+    let rot_a_re = pose_a_re.q.to_mat();
     let (va, wa, vb, wb) = (sa.v.re(), sa.omega.re(), sb.v.re(), sb.omega.re());
+    // `b` seen from `a` (a's body frame).
+    let b_from_a = |x: Vec3<f64>| {
+        let (d, g) = b.sdf.distance_grad(&pose_b_re, pose_a_re.transform_point(x));
+        (d, pose_a_re.inverse_transform_vector(g.normalize_or(Vec3::zero())))
+    };
+    // The fastest any point of `a` moves relative to `b` (a bound).
+    let speed = (va - vb).norm() + wa.norm() * a.bounding_radius + wb.norm() * (a.bounding_radius + (ta - tb).norm());
+    let near = Near::find(a, det, speed, &b_from_a);
     let mut sum = Vec3::<f64>::zero();
     let mut sum_sq = 0.0;
+    let mut first: Option<Vec3<f64>> = None;
     let mut count = 0usize;
-    let mut deepest: Option<(f64, usize)> = None;
     let mut colliding = Vec::new();
-    for (i, r) in a.contact_points.iter().enumerate() {
-        let x = ta + rot_a_re.mul_vec(*r);
-        let (d, g) = b.sdf.distance_grad(&pose_b_re, x);
-        if d > delta {
-            continue;
-        }
-        if d < deepest.map_or(0.0, |(dd, _)| dd) {
-            deepest = Some((d, i));
-        }
+    for (i, touch) in near.touches.iter().enumerate() {
+        let x = ta + rot_a_re.mul_vec(touch.point);
         let rel = (va + wa.cross(x - ta)) - (vb + wb.cross(x - tb));
-        let n = g.normalize_or(Vec3::zero());
-        if det.collides(d, rel.dot(n)) {
-            sum += *r;
-            sum_sq += r.norm_sq();
+        let n = rot_a_re.mul_vec(touch.normal);
+        if det.collides(touch.distance, rel.dot(n)) {
+            // About the first point: the spread of points slid to one support is zero, not rounding noise.
+            let from_first = touch.point - first.get_or_insert(touch.point).to_owned();
+            sum += from_first;
+            sum_sq += from_first.norm_sq();
             count += 1;
-            if det.model == ContactModel::MultiPoint {
-                colliding.push(Colliding {
-                    index: i,
-                    distance: d,
-                    normal: n,
-                    at: x,
-                });
-            }
+            colliding.push(Colliding {
+                index: i,
+                distance: touch.distance,
+                normal: n,
+                at: x,
+            });
         }
     }
     let rot_a = sa.pose.q.to_mat();
+    let rot_a_t = rot_a.transpose();
+    // The a-frame point of a touch with its derivatives (a support moves with both poses).
+    let local = |touch: &Touch| {
+        touch.local(|x: Vec3<S>| {
+            let (_, g) = b.sdf.distance_grad(&sb.pose, sa.pose.t + rot_a.mul_vec(x));
+            -rot_a_t.mul_vec(g.normalize_or(Vec3::zero()))
+        })
+    };
     let mut hit = false;
     if det.model == ContactModel::MultiPoint && count > 0 {
         let mut chosen = Vec::new();
@@ -65,7 +75,7 @@ pub(crate) fn contact_body_body<S: Real>(
         let rows: Vec<Row<S>> = chosen
             .iter()
             .filter_map(|&c| {
-                let x = sa.pose.t + rot_a.mul_vec(Vec3::lift(a.contact_points[colliding[c].index]));
+                let x = sa.pose.t + rot_a.mul_vec(local(&near.touches[colliding[c].index]));
                 let (_, g) = b.sdf.distance_grad(&sb.pose, x);
                 g.try_normalize().map(|n| Row {
                     ra: x - sa.pose.t,
@@ -90,8 +100,11 @@ pub(crate) fn contact_body_body<S: Real>(
         };
         hit = solve(&mut side_a, Some(side_b), &rows, &Law::of(restitution, friction, det)) > 0;
     } else if count > 0 {
-        let rbar = sum * (1.0 / count as f64);
-        let c = sa.pose.t + rot_a.mul_vec(Vec3::lift(rbar));
+        let rbar = colliding
+            .iter()
+            .fold(Vec3::<S>::zero(), |acc, c| acc + local(&near.touches[c.index]))
+            * S::cst(1.0 / count as f64);
+        let c = sa.pose.t + rot_a.mul_vec(rbar);
         let (ra, rb) = (c - sa.pose.t, c - sb.pose.t);
         let (_, g) = b.sdf.distance_grad(&sb.pose, c);
         if let Some(n) = g.try_normalize() {
@@ -118,8 +131,8 @@ pub(crate) fn contact_body_body<S: Real>(
         }
     }
     // Positional correction, shared by inverse mass.
-    if let Some((_, i)) = deepest {
-        let x = sa.pose.t + rot_a.mul_vec(Vec3::lift(a.contact_points[i]));
+    if let Some(deepest) = near.deepest() {
+        let x = sa.pose.t + rot_a.mul_vec(local(deepest));
         let (d, g) = b.sdf.distance_grad(&sb.pose, x);
         if d.re() < 0.0 {
             if let Some(n) = g.try_normalize() {

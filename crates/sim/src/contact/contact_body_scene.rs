@@ -2,6 +2,7 @@
 
 use super::contact_set::{select_contacts, Colliding};
 use super::sequential_impulses::{solve, Law, Row, Side};
+use super::support_point::{Near, Touch};
 use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
 use crate::config::ContactModel;
 use crate::sdf::{Sdf, Shape};
@@ -27,39 +28,48 @@ pub(crate) fn contact_body_scene<S: Real>(
     }
     // Detection (Eq. 8) runs on plain numbers: the set of colliding points is
     // a discrete choice, its derivative is zero.
-    let rot_re = st.pose.q.re().to_mat();
+    let pose_re = st.pose.re();
+    let rot_re = pose_re.q.to_mat();
     let (v_re, w_re) = (st.v.re(), st.omega.re());
+    // The other surface seen from the body (body frame).
+    let scene_from_body = |x: Vec3<f64>| {
+        let (d, g) = scene.distance_grad_local(pose_re.transform_point(x));
+        (d, pose_re.inverse_transform_vector(g.normalize_or(Vec3::zero())))
+    };
+    let speed = v_re.norm() + w_re.norm() * body.bounding_radius;
+    let near = Near::find(body, det, speed, &scene_from_body);
     let mut sum = Vec3::<f64>::zero();
     let mut sum_sq = 0.0;
+    let mut first: Option<Vec3<f64>> = None;
     let mut count = 0usize;
-    let mut deepest: Option<(f64, usize)> = None;
     let mut colliding = Vec::new();
-    for (i, r) in body.contact_points.iter().enumerate() {
-        let rw = rot_re.mul_vec(*r);
-        let (d, g) = scene.distance_grad_local(t_re + rw);
-        if d > delta {
-            continue;
-        }
-        if d < deepest.map_or(0.0, |(dd, _)| dd) {
-            deepest = Some((d, i));
-        }
+    for (i, touch) in near.touches.iter().enumerate() {
+        let rw = rot_re.mul_vec(touch.point);
         let vel = v_re + w_re.cross(rw);
-        let n = g.normalize_or(Vec3::zero());
-        if det.collides(d, vel.dot(n)) {
-            sum += *r;
-            sum_sq += r.norm_sq();
+        let n = rot_re.mul_vec(touch.normal);
+        if det.collides(touch.distance, vel.dot(n)) {
+            // About the first point: the spread of points slid to one support is zero, not rounding noise.
+            let from_first = touch.point - first.get_or_insert(touch.point).to_owned();
+            sum += from_first;
+            sum_sq += from_first.norm_sq();
             count += 1;
-            if det.model == ContactModel::MultiPoint {
-                colliding.push(Colliding {
-                    index: i,
-                    distance: d,
-                    normal: n,
-                    at: t_re + rw,
-                });
-            }
+            colliding.push(Colliding {
+                index: i,
+                distance: touch.distance,
+                normal: n,
+                at: pose_re.t + rw,
+            });
         }
     }
     let rot = st.pose.q.to_mat();
+    let rot_t = rot.transpose();
+    // The body-frame point of a touch with its derivatives (a support moves with the pose).
+    let local = |touch: &Touch| {
+        touch.local(|x: Vec3<S>| {
+            let (_, g) = scene.distance_grad_local(st.pose.t + rot.mul_vec(x));
+            -rot_t.mul_vec(g.normalize_or(Vec3::zero()))
+        })
+    };
     let mut hit = 0;
     if det.model == ContactModel::MultiPoint && count > 0 {
         let mut chosen = Vec::new();
@@ -67,7 +77,7 @@ pub(crate) fn contact_body_scene<S: Real>(
         let rows: Vec<Row<S>> = chosen
             .iter()
             .filter_map(|&c| {
-                let r = rot.mul_vec(Vec3::lift(body.contact_points[colliding[c].index]));
+                let r = rot.mul_vec(local(&near.touches[colliding[c].index]));
                 let (_, g) = scene.distance_grad_local(st.pose.t + r);
                 g.try_normalize().map(|n| Row {
                     ra: r,
@@ -84,8 +94,11 @@ pub(crate) fn contact_body_scene<S: Real>(
         };
         hit = solve(&mut side, None, &rows, &Law::of(restitution, friction, det));
     } else if count > 0 {
-        let rbar = sum * (1.0 / count as f64);
-        let r = rot.mul_vec(Vec3::lift(rbar));
+        let rbar = colliding
+            .iter()
+            .fold(Vec3::<S>::zero(), |acc, c| acc + local(&near.touches[c.index]))
+            * S::cst(1.0 / count as f64);
+        let r = rot.mul_vec(rbar);
         let (_, g) = scene.distance_grad_local(st.pose.t + r);
         if let Some(n) = g.try_normalize() {
             let vc = st.v + st.omega.cross(r);
@@ -104,8 +117,8 @@ pub(crate) fn contact_body_scene<S: Real>(
         }
     }
     // Positional correction: move the deepest point back onto the surface.
-    if let Some((_, i)) = deepest {
-        let x = st.pose.t + rot.mul_vec(Vec3::lift(body.contact_points[i]));
+    if let Some(deepest) = near.deepest() {
+        let x = st.pose.t + rot.mul_vec(local(deepest));
         let (d, g) = scene.distance_grad_local(x);
         if d.re() < 0.0 {
             if let Some(n) = g.try_normalize() {

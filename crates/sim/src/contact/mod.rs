@@ -6,6 +6,7 @@ mod contact_body_body;
 mod contact_body_scene;
 mod contact_set;
 mod sequential_impulses;
+mod support_point;
 
 pub(crate) use contact_body_body::contact_body_body;
 pub(crate) use contact_body_scene::contact_body_scene;
@@ -26,6 +27,8 @@ pub(crate) struct Detection {
     pub model: ContactModel,
     /// Sweeps of the multi-point solver.
     pub sweeps: usize,
+    /// Slide samples to their body's support ([`support_point`]).
+    pub supports: bool,
 }
 
 impl Detection {

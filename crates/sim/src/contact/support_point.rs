@@ -1,0 +1,363 @@
+//! Where a curved body really touches. A body's contact points are samples
+//! of its surface, and a curved surface meets the other one between them:
+//! rolling over samples is rolling a polygon, which knocks at every sample and
+//! loses speed, and the samples just ahead of a rolling contact turn toward
+//! the other surface, so they look like an impact and bounce the body.
+//!
+//! A sample near the other surface is slid along the body's own surface (its
+//! SDF) to where that surface faces the other one (the body's normal opposite
+//! the other's normal: the support point, where a smooth body touches), by
+//! Newton steps on the normal with the surface's curvature (its shape
+//! operator, by differences of the SDF's normal). Where the surface does not
+//! curve (a flat face) there is no such place, and where it lies beyond the
+//! sample's share of the surface (it belongs to other samples) or the step
+//! does not bring the point nearer the other surface (a corner is already
+//! the support), the sample stays: a face still rests on its spread of points
+//! and a box still lands on its corners.
+//!
+//! Derivatives: the support point moves with the pose (a ball's contact stays
+//! under its centre however it turns). One Newton step taken again in the
+//! generic scalar from the converged point ([`Support::lifted`]) carries that
+//! motion into the dual numbers (exactly for a sphere).
+
+use super::Detection;
+use crate::sdf::{Sdf, Shape};
+use crate::RigidBody;
+use geom::{Real, Vec3};
+
+/// Newton steps per sample.
+const STEPS: usize = 6;
+/// Steps stop when the normal is within this (sine of the) angle of facing: converged to rounding, so the
+/// point does not wobble with the sample it came from.
+const FACING_SIN_DONE: f64 = 1e-13;
+/// A support is kept when its normal is within this angle of facing after the steps.
+const FACING_SIN: f64 = 1e-5;
+/// Curvatures below this fraction of 1/reach count as flat (1/m · reach).
+const FLAT_CURVATURE: f64 = 1e-3;
+
+/// A slide that rises more than this fraction of its length is off a corner, not toward a support.
+const UPHILL: f64 = 0.05;
+
+/// How far a sample may slide, in contact-point spacings.
+const REACH_SPACINGS: f64 = 4.0;
+
+/// A body's point near the other surface (body frame): where it is (at its support if it slid there), the
+/// other surface's distance there and its unit normal.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Touch {
+    pub point: Vec3<f64>,
+    pub distance: f64,
+    pub normal: Vec3<f64>,
+    support: Option<Support>,
+}
+
+impl Touch {
+    /// The point with its derivatives. `facing(x)`: the body-frame unit vector opposite the other
+    /// surface's normal at the body-frame point `x`, in the generic scalar.
+    pub fn local<S: Real>(&self, facing: impl Fn(Vec3<S>) -> Vec3<S>) -> Vec3<S> {
+        match &self.support {
+            Some(s) => s.lifted(facing(Vec3::lift(self.point))),
+            None => Vec3::lift(self.point),
+        }
+    }
+}
+
+/// A body's points within the contact threshold of the other surface, the nearest slid to their supports.
+pub(crate) struct Near {
+    pub touches: Vec<Touch>,
+}
+
+impl Near {
+    /// `speed`: the fastest any point of the body moves (m/s); `other(x)`: the other surface's distance and
+    /// unit normal at the body-frame point `x`.
+    pub fn find(body: &RigidBody, det: &Detection, speed: f64, other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Self {
+        let mut touches: Vec<Touch> = body
+            .contact_points
+            .iter()
+            .filter_map(|&point| {
+                let (distance, normal) = other(point);
+                (distance <= det.delta).then_some(Touch {
+                    point,
+                    distance,
+                    normal,
+                    support: None,
+                })
+            })
+            .collect();
+        if det.supports && !touches.is_empty() {
+            // Only samples that may reach the surface within the substep (or the skin without the
+            // speculative rule), and a spacing more: the support is found from the samples nearest it.
+            let nearest = touches.iter().map(|t| t.distance).fold(f64::INFINITY, f64::min);
+            let band = det.speculative_dt.map_or(det.delta, |dt| dt * speed) + body.contact_spacing;
+            let reach = REACH_SPACINGS * body.contact_spacing;
+            for touch in touches.iter_mut().filter(|t| t.distance <= nearest + band) {
+                if let Some(support) = support_point(&body.sdf, touch.point, reach, other) {
+                    let (distance, normal) = other(support.point);
+                    *touch = Touch {
+                        point: support.point,
+                        distance,
+                        normal,
+                        support: Some(support),
+                    };
+                }
+            }
+        }
+        Self { touches }
+    }
+
+    /// The deepest point below the other surface, if any.
+    pub fn deepest(&self) -> Option<&Touch> {
+        self.touches
+            .iter()
+            .filter(|t| t.distance < 0.0)
+            .min_by(|a, b| a.distance.total_cmp(&b.distance))
+    }
+}
+
+/// A sample moved to where its surface faces the other one (body frame).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Support {
+    pub point: Vec3<f64>,
+    /// The body's unit normal there.
+    normal: Vec3<f64>,
+    /// Tangent basis at the point and the inverse of the shape operator in it (zero along flat directions).
+    basis: [Vec3<f64>; 2],
+    inverse: [[f64; 2]; 2],
+}
+
+impl Support {
+    /// The point with its derivatives: `facing` is the body-frame unit vector opposite the other surface's
+    /// normal at the point, in the generic scalar. Its value is (nearly) the body's normal there, so the
+    /// step is (nearly) zero in value and carries how the support moves in its derivatives.
+    pub fn lifted<S: Real>(&self, facing: Vec3<S>) -> Vec3<S> {
+        let miss = facing - Vec3::lift(self.normal);
+        let (a, b) = (miss.dot(Vec3::lift(self.basis[0])), miss.dot(Vec3::lift(self.basis[1])));
+        let inv = &self.inverse;
+        // The step's value is the point's residual (below the facing tolerance): dropped, so the value is
+        // the point itself.
+        let s0 = a * inv[0][0] + b * inv[0][1];
+        let s1 = a * inv[1][0] + b * inv[1][1];
+        let (s0, s1) = (s0 - S::cst(s0.re()), s1 - S::cst(s1.re()));
+        Vec3::lift(self.point) + Vec3::lift(self.basis[0]) * s0 + Vec3::lift(self.basis[1]) * s1
+    }
+}
+
+/// Slide the sample `r` (body frame) along `body`'s surface to its support against the other surface,
+/// moving at most `reach`. `other(x)` is the other surface's distance and unit normal at the body-frame
+/// point `x`. `None`: the sample stays where it is.
+pub(crate) fn support_point(
+    body: &Shape,
+    r: Vec3<f64>,
+    reach: f64,
+    other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>),
+) -> Option<Support> {
+    let eps = 0.25 * reach;
+    let flat = FLAT_CURVATURE / reach;
+    // On the SDF's own surface first (a mesh's samples lie a little off a grid's level set), so the
+    // steps' descent is measured on one surface.
+    let mut x = project(body, r)?;
+    let d_start = other(x).0;
+    let mut moved = 0.0;
+    let mut converged = false;
+    for _ in 0..STEPS {
+        let local = Local::at(body, x, eps, flat)?;
+        let facing = -other(x).1;
+        let (a, b) = (facing.dot(local.basis[0]), facing.dot(local.basis[1]));
+        if a.hypot(b) < FACING_SIN_DONE {
+            converged = true;
+            break;
+        }
+        let step = local.basis[0] * (local.inverse[0][0] * a + local.inverse[0][1] * b)
+            + local.basis[1] * (local.inverse[1][0] * a + local.inverse[1][1] * b);
+        let length = step.norm();
+        if length == 0.0 || moved + length > reach {
+            // Flat here, or the facing place is another sample's.
+            break;
+        }
+        let to = project(body, x + step)?;
+        let d_to = other(to).0;
+        // Sliding off a corner (already the support) lifts the point: stay. Measured from the start, as the
+        // last steps near a support gain little and a grid's level set is rough at 1e-7 m.
+        if d_to > d_start + UPHILL * (moved + length) {
+            break;
+        }
+        (x, moved) = (to, moved + length);
+    }
+    let local = Local::at(body, x, eps, flat)?;
+    if !converged {
+        // One more look after the last step.
+        let facing = -other(x).1;
+        converged = facing.dot(local.basis[0]).hypot(facing.dot(local.basis[1])) < FACING_SIN;
+    }
+    if moved == 0.0 || !converged {
+        return None;
+    }
+    Some(Support {
+        point: x,
+        normal: local.normal,
+        basis: local.basis,
+        inverse: local.inverse,
+    })
+}
+
+/// The body's surface around a point: its unit normal, a tangent basis and the inverse of the shape operator.
+struct Local {
+    normal: Vec3<f64>,
+    basis: [Vec3<f64>; 2],
+    inverse: [[f64; 2]; 2],
+}
+
+impl Local {
+    fn at(body: &Shape, x: Vec3<f64>, eps: f64, flat: f64) -> Option<Self> {
+        let normal = surface_normal(body, x)?.1;
+        let basis = tangent_basis(normal);
+        // Shape operator W[i][j] = e_i · ∂n/∂s_j: the normal's change between the surface points found from
+        // x ± eps e_j (projected along the SDF's gradient, whose normal they share) over their distance
+        // along e_j, exact on a sphere.
+        let mut w = [[0.0; 2]; 2];
+        for j in 0..2 {
+            let at = |s: f64| {
+                let y = x + basis[j] * s;
+                surface_normal(body, y).map(|(d, n)| (y - n * d, n))
+            };
+            let ((p_plus, n_plus), (p_minus, n_minus)) = (at(eps)?, at(-eps)?);
+            let run = basis[j].dot(p_plus - p_minus);
+            if run.abs() < 1e-12 {
+                return None;
+            }
+            for i in 0..2 {
+                w[i][j] = basis[i].dot(n_plus - n_minus) / run;
+            }
+        }
+        Some(Self {
+            normal,
+            basis,
+            inverse: pseudo_inverse(w, flat),
+        })
+    }
+}
+
+/// The inverse of the symmetric part of `w` on its convex directions (eigenvalues above `flat`); flat and
+/// concave directions get zero (no step along them).
+fn pseudo_inverse(w: [[f64; 2]; 2], flat: f64) -> [[f64; 2]; 2] {
+    let (a, b, c) = (w[0][0], 0.5 * (w[0][1] + w[1][0]), w[1][1]);
+    let invert = |lambda: f64| if lambda > flat { 1.0 / lambda } else { 0.0 };
+    if b.abs() <= 1e-12 * (a.abs() + c.abs()) {
+        // Diagonal already (a sphere's, whatever the basis).
+        return [[invert(a), 0.0], [0.0, invert(c)]];
+    }
+    let mean = 0.5 * (a + c);
+    let spread = (0.25 * (a - c).powi(2) + b * b).sqrt();
+    let mut inv = [[0.0; 2]; 2];
+    for lambda in [mean + spread, mean - spread] {
+        // Eigenvector of [[a, b], [b, c]] for lambda (b ≠ 0, so the two are distinct and orthogonal).
+        let v = [lambda - c, b];
+        let len2 = v[0] * v[0] + v[1] * v[1];
+        for i in 0..2 {
+            for j in 0..2 {
+                inv[i][j] += v[i] * v[j] / len2 * invert(lambda);
+            }
+        }
+    }
+    inv
+}
+
+/// The nearest point of the body's surface to `x` (one projection along the SDF's gradient).
+fn project(body: &Shape, x: Vec3<f64>) -> Option<Vec3<f64>> {
+    let (d, n) = surface_normal(body, x)?;
+    Some(x - n * d)
+}
+
+/// The body's distance and unit normal at `x` for the search. A grid's trilinear gradient jumps from cell
+/// to cell, so no point of it may face the other surface exactly; its normal here is the central
+/// difference of its (continuous) values a cell apart, which turns continuously.
+fn surface_normal(body: &Shape, x: Vec3<f64>) -> Option<(f64, Vec3<f64>)> {
+    match body {
+        Shape::Grid(grid) => {
+            let h = grid.spacing;
+            let at = |dx: f64, dy: f64, dz: f64| grid.distance_local(x + Vec3::new(dx, dy, dz));
+            let g = Vec3::new(
+                at(h, 0.0, 0.0) - at(-h, 0.0, 0.0),
+                at(0.0, h, 0.0) - at(0.0, -h, 0.0),
+                at(0.0, 0.0, h) - at(0.0, 0.0, -h),
+            );
+            Some((grid.distance_local(x), g.try_normalize()?))
+        }
+        Shape::Transformed { pose, shape } => {
+            let (d, n) = surface_normal(shape, pose.inverse_transform_point(x))?;
+            Some((d, pose.transform_vector(n)))
+        }
+        _ => {
+            let (d, g) = body.distance_grad_local(x);
+            Some((d, g.try_normalize()?))
+        }
+    }
+}
+
+/// Two unit vectors orthogonal to `n` and to each other.
+fn tangent_basis(n: Vec3<f64>) -> [Vec3<f64>; 2] {
+    let helper = if n.x.abs() < 0.9 {
+        Vec3::new(1.0, 0.0, 0.0)
+    } else {
+        Vec3::new(0.0, 1.0, 0.0)
+    };
+    let e1 = n.cross(helper).normalize_or(Vec3::new(0.0, 0.0, 1.0));
+    [e1, n.cross(e1)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sdf::{Cuboid, Sphere};
+    use geom::Dual;
+
+    fn plane_below(x: Vec3<f64>) -> (f64, Vec3<f64>) {
+        (x.z + 0.02, Vec3::new(0.0, 0.0, 1.0))
+    }
+
+    #[test]
+    fn a_sample_on_a_ball_slides_to_the_bottom() {
+        let ball = Shape::Sphere(Sphere { radius: 0.02 });
+        let angle: f64 = 0.1;
+        let r = Vec3::new(0.02 * angle.sin(), 0.0, -0.02 * angle.cos());
+        let s = support_point(&ball, r, 0.006, &plane_below).expect("moves");
+        assert!((s.point - Vec3::new(0.0, 0.0, -0.02)).norm() < 1e-7, "{:?}", s.point);
+        // Beyond its reach it stays.
+        let far = Vec3::new(0.02 * 0.5f64.sin(), 0.0, -0.02 * 0.5f64.cos());
+        assert!(support_point(&ball, far, 0.006, &plane_below).is_none());
+    }
+
+    #[test]
+    fn samples_on_a_face_and_at_a_corner_stay() {
+        let cube = Shape::Cuboid(Cuboid { half: [0.02; 3] });
+        let tilted = |x: Vec3<f64>| (x.z + 0.03, Vec3::new(0.1, 0.0, 1.0).normalize_or(Vec3::zero()));
+        assert!(support_point(&cube, Vec3::new(0.005, 0.003, -0.02), 0.006, &tilted).is_none());
+        assert!(support_point(&cube, Vec3::new(0.02, 0.02, -0.02), 0.006, &tilted).is_none());
+    }
+
+    #[test]
+    fn the_lifted_support_of_a_ball_moves_as_the_facing_turns() {
+        // A ball's support against a surface with normal −f is radius · f: as f turns, so does the point.
+        let ball = Shape::Sphere(Sphere { radius: 0.02 });
+        let r = Vec3::new(0.001, 0.0005, -0.02).normalize_or(Vec3::zero()) * 0.02;
+        let s = support_point(&ball, r, 0.006, &plane_below).unwrap();
+        let (ax, ay) = (Dual::<2>::var(0.0, 0), Dual::<2>::var(0.0, 1));
+        let facing = Vec3::new(ax, ay, Dual::new(-1.0));
+        let lifted = s.lifted(facing);
+        assert!(
+            (lifted.re() - Vec3::new(0.0, 0.0, -0.02)).norm() < 1e-6,
+            "{:?}",
+            lifted.re()
+        );
+        for (slot, axis) in [(0, 0usize), (1, 1)] {
+            let d = [lifted.x.eps[slot], lifted.y.eps[slot], lifted.z.eps[slot]];
+            for (k, dk) in d.iter().enumerate() {
+                let want = if k == axis { 0.02 } else { 0.0 };
+                assert!(
+                    (dk - want).abs() < 5e-3 * 0.02,
+                    "d point[{k}] / d facing[{axis}] = {dk}, want {want}"
+                );
+            }
+        }
+    }
+}
