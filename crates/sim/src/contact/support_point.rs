@@ -8,12 +8,14 @@
 //! SDF) to where that surface faces the other one (the body's normal opposite
 //! the other's normal: the support point, where a smooth body touches), by
 //! Newton steps on the normal with the surface's curvature (its shape
-//! operator, by differences of the SDF's normal). Where the surface does not
-//! curve (a flat face) there is no such place, and where it lies beyond the
-//! sample's share of the surface (it belongs to other samples) or the step
-//! does not bring the point nearer the other surface (a corner is already
-//! the support), the sample stays: a face still rests on its spread of points
-//! and a box still lands on its corners.
+//! operator, by differences of the SDF's normal between surface points; a
+//! baked grid's normal from central differences of its values, which turn
+//! continuously where its trilinear gradient jumps). Where the surface does
+//! not curve (a flat face) there is no such place, and where it lies beyond
+//! the sample's share of the surface (it belongs to other samples) or sliding
+//! there lifts the point (a corner is already the support), the sample stays:
+//! a face still rests on its spread of points and a box still lands on its
+//! corners.
 //!
 //! Derivatives: the support point moves with the pose (a ball's contact stays
 //! under its centre however it turns). One Newton step taken again in the
@@ -158,46 +160,35 @@ pub(crate) fn support_point(
     let mut x = project(body, r)?;
     let d_start = other(x).0;
     let mut moved = 0.0;
-    let mut converged = false;
-    for _ in 0..STEPS {
+    for steps in 0..=STEPS {
         let local = Local::at(body, x, eps, flat)?;
         let facing = -other(x).1;
         let (a, b) = (facing.dot(local.basis[0]), facing.dot(local.basis[1]));
-        if a.hypot(b) < FACING_SIN_DONE {
-            converged = true;
-            break;
-        }
+        let residual = a.hypot(b);
         let step = local.basis[0] * (local.inverse[0][0] * a + local.inverse[0][1] * b)
             + local.basis[1] * (local.inverse[1][0] * a + local.inverse[1][1] * b);
         let length = step.norm();
-        if length == 0.0 || moved + length > reach {
-            // Flat here, or the facing place is another sample's.
-            break;
+        // Stop when converged to rounding, out of steps, flat here (no step), or when the facing place is
+        // another sample's.
+        let mut stop = residual < FACING_SIN_DONE || steps == STEPS || length == 0.0 || moved + length > reach;
+        let mut to = x;
+        if !stop {
+            to = project(body, x + step)?;
+            // Sliding off a corner (already the support) lifts the point: stay. Measured from the start, as
+            // the last steps near a support gain little and a grid's level set is rough at 1e-7 m.
+            stop = other(to).0 > d_start + UPHILL * (moved + length);
         }
-        let to = project(body, x + step)?;
-        let d_to = other(to).0;
-        // Sliding off a corner (already the support) lifts the point: stay. Measured from the start, as the
-        // last steps near a support gain little and a grid's level set is rough at 1e-7 m.
-        if d_to > d_start + UPHILL * (moved + length) {
-            break;
+        if stop {
+            return (moved > 0.0 && residual < FACING_SIN).then_some(Support {
+                point: x,
+                normal: local.normal,
+                basis: local.basis,
+                inverse: local.inverse,
+            });
         }
         (x, moved) = (to, moved + length);
     }
-    let local = Local::at(body, x, eps, flat)?;
-    if !converged {
-        // One more look after the last step.
-        let facing = -other(x).1;
-        converged = facing.dot(local.basis[0]).hypot(facing.dot(local.basis[1])) < FACING_SIN;
-    }
-    if moved == 0.0 || !converged {
-        return None;
-    }
-    Some(Support {
-        point: x,
-        normal: local.normal,
-        basis: local.basis,
-        inverse: local.inverse,
-    })
+    None // not reached: the last pass stops
 }
 
 /// The body's surface around a point: its unit normal, a tangent basis and the inverse of the shape operator.
