@@ -1,6 +1,7 @@
 //! A rigid body: its closed mesh in the body frame (origin at the centre of
 //! mass), mass properties, contact points, and its SDF for body–body contacts.
 
+use crate::contact::SampleStart;
 use crate::contact_points::spread_contact_points;
 use crate::mass_properties_mesh::{mass_properties, mesh_area, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
@@ -59,6 +60,8 @@ pub struct RigidBody {
     pub contact_points: Vec<Vec3<f64>>,
     /// Typical distance between neighbouring contact points, m (√(area / count)).
     pub contact_spacing: f64,
+    /// Where each contact point's search for its support starts (found once: the body's own surface).
+    pub(crate) sample_starts: Vec<SampleStart>,
     /// Radius of a ball about the origin holding the whole body.
     pub bounding_radius: f64,
     /// Signed distance in the body frame, for contacts with other bodies.
@@ -128,6 +131,7 @@ impl RigidBody {
             )),
         };
         let inertia_inv = props.inertia.try_inverse().ok_or(BodyError::Mass(m))?;
+        let sample_starts = SampleStart::of_samples(&sdf, &contact_points, contact_spacing);
         Ok(Self {
             name: name.to_string(),
             mesh,
@@ -136,6 +140,7 @@ impl RigidBody {
             inertia_inv,
             contact_points,
             contact_spacing,
+            sample_starts,
             bounding_radius,
             sdf,
             mesh_offset: com,

@@ -29,13 +29,17 @@ pub(crate) fn contact_body_body<S: Real>(
     let rot_a_re = pose_a_re.q.to_mat();
     let (va, wa, vb, wb) = (sa.v.re(), sa.omega.re(), sb.v.re(), sb.omega.re());
     // `b` seen from `a` (a's body frame).
+    // a's frame to b's: x_b = R_bᵀ (t_a + R_a x − t_b).
+    let rot_b_re_t = pose_b_re.q.to_mat().transpose();
+    let a_to_b = rot_b_re_t.mul_mat(&rot_a_re);
+    let (b_to_a, a_origin_in_b) = (a_to_b.transpose(), rot_b_re_t.mul_vec(ta - tb));
     let b_from_a = |x: Vec3<f64>| {
-        let (d, g) = b.sdf.distance_grad(&pose_b_re, pose_a_re.transform_point(x));
-        (d, pose_a_re.inverse_transform_vector(g.normalize_or(Vec3::zero())))
+        let (d, g) = b.sdf.distance_grad_local(a_origin_in_b + a_to_b.mul_vec(x));
+        (d, b_to_a.mul_vec(g.normalize_or(Vec3::zero())))
     };
     // The fastest any point of `a` moves relative to `b` (a bound).
     let speed = (va - vb).norm() + wa.norm() * a.bounding_radius + wb.norm() * (a.bounding_radius + (ta - tb).norm());
-    let near = Near::find(a, det, speed, &b_from_a);
+    let near = Near::find(a, det, speed, b_from_a);
     let mut sum = Vec3::<f64>::zero();
     let mut sum_sq = 0.0;
     let mut first: Option<Vec3<f64>> = None;

@@ -32,12 +32,13 @@ pub(crate) fn contact_body_scene<S: Real>(
     let rot_re = pose_re.q.to_mat();
     let (v_re, w_re) = (st.v.re(), st.omega.re());
     // The other surface seen from the body (body frame).
+    let rot_re_t = rot_re.transpose();
     let scene_from_body = |x: Vec3<f64>| {
-        let (d, g) = scene.distance_grad_local(pose_re.transform_point(x));
-        (d, pose_re.inverse_transform_vector(g.normalize_or(Vec3::zero())))
+        let (d, g) = scene.distance_grad_local(t_re + rot_re.mul_vec(x));
+        (d, rot_re_t.mul_vec(g.normalize_or(Vec3::zero())))
     };
     let speed = v_re.norm() + w_re.norm() * body.bounding_radius;
-    let near = Near::find(body, det, speed, &scene_from_body);
+    let near = Near::find(body, det, speed, scene_from_body);
     let mut sum = Vec3::<f64>::zero();
     let mut sum_sq = 0.0;
     let mut first: Option<Vec3<f64>> = None;

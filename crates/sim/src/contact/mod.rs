@@ -10,6 +10,7 @@ mod support_point;
 
 pub(crate) use contact_body_body::contact_body_body;
 pub(crate) use contact_body_scene::contact_body_scene;
+pub(crate) use support_point::SampleStart;
 
 use crate::config::{ContactModel, FrictionModel};
 use geom::{Mat3, Real, Vec3};

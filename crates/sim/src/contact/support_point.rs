@@ -40,6 +40,9 @@ const FLAT_CURVATURE: f64 = 1e-3;
 /// A slide that rises more than this fraction of its length is off a corner, not toward a support.
 const UPHILL: f64 = 0.05;
 
+/// Normals that turn by more than this (cos 10°) between a surface point and just inside it meet at a crease.
+const CREASE_COS: f64 = 0.985;
+
 /// How far a sample may slide, in contact-point spacings.
 const REACH_SPACINGS: f64 = 4.0;
 
@@ -64,6 +67,30 @@ impl Touch {
     }
 }
 
+/// Where a sample's search starts, found once per body (the surface is the body's own): the sample on the
+/// SDF's surface and the surface around it. `None` where the surface is flat there (the sample never
+/// moves, and costs nothing per substep) or the search cannot start.
+#[derive(Clone, Debug)]
+pub(crate) struct SampleStart(Option<(Vec3<f64>, Local)>);
+
+impl SampleStart {
+    /// The starts of `points` on `body` (body frame), for contact points `spacing` apart.
+    pub fn of_samples(body: &Shape, points: &[Vec3<f64>], spacing: f64) -> Vec<Self> {
+        let reach = REACH_SPACINGS * spacing;
+        let (eps, flat) = (0.25 * reach, FLAT_CURVATURE / reach);
+        points
+            .iter()
+            .map(|&r| {
+                SampleStart(
+                    project(body, r)
+                        .and_then(|x| Local::at(body, x, eps, flat).map(|local| (x, local)))
+                        .filter(|(x, local)| local.inverse != [[0.0; 2]; 2] && !near_crease(body, *x, local, eps)),
+                )
+            })
+            .collect()
+    }
+}
+
 /// A body's points within the contact threshold of the other surface, the nearest slid to their supports.
 pub(crate) struct Near {
     pub touches: Vec<Touch>,
@@ -72,28 +99,35 @@ pub(crate) struct Near {
 impl Near {
     /// `speed`: the fastest any point of the body moves (m/s); `other(x)`: the other surface's distance and
     /// unit normal at the body-frame point `x`.
-    pub fn find(body: &RigidBody, det: &Detection, speed: f64, other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Self {
-        let mut touches: Vec<Touch> = body
+    pub fn find(body: &RigidBody, det: &Detection, speed: f64, other: impl Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Self {
+        let mut touches: Vec<(usize, Touch)> = body
             .contact_points
             .iter()
-            .filter_map(|&point| {
+            .enumerate()
+            .filter_map(|(i, &point)| {
                 let (distance, normal) = other(point);
-                (distance <= det.delta).then_some(Touch {
-                    point,
-                    distance,
-                    normal,
-                    support: None,
-                })
+                (distance <= det.delta).then_some((
+                    i,
+                    Touch {
+                        point,
+                        distance,
+                        normal,
+                        support: None,
+                    },
+                ))
             })
             .collect();
         if det.supports && !touches.is_empty() {
             // Only samples that may reach the surface within the substep (or the skin without the
             // speculative rule), and a spacing more: the support is found from the samples nearest it.
-            let nearest = touches.iter().map(|t| t.distance).fold(f64::INFINITY, f64::min);
+            let nearest = touches.iter().map(|(_, t)| t.distance).fold(f64::INFINITY, f64::min);
             let band = det.speculative_dt.map_or(det.delta, |dt| dt * speed) + body.contact_spacing;
             let reach = REACH_SPACINGS * body.contact_spacing;
-            for touch in touches.iter_mut().filter(|t| t.distance <= nearest + band) {
-                if let Some(support) = support_point(&body.sdf, touch.point, reach, other) {
+            for (i, touch) in touches.iter_mut().filter(|(_, t)| t.distance <= nearest + band) {
+                let SampleStart(Some(start)) = &body.sample_starts[*i] else {
+                    continue;
+                };
+                if let Some(support) = support_point(&body.sdf, start, reach, &other) {
                     let (distance, normal) = other(support.point);
                     *touch = Touch {
                         point: support.point,
@@ -104,7 +138,9 @@ impl Near {
                 }
             }
         }
-        Self { touches }
+        Self {
+            touches: touches.into_iter().map(|(_, t)| t).collect(),
+        }
     }
 
     /// The deepest point below the other surface, if any.
@@ -144,24 +180,28 @@ impl Support {
     }
 }
 
-/// Slide the sample `r` (body frame) along `body`'s surface to its support against the other surface,
-/// moving at most `reach`. `other(x)` is the other surface's distance and unit normal at the body-frame
-/// point `x`. `None`: the sample stays where it is.
-pub(crate) fn support_point(
+/// Slide a sample (body frame) from its `start` along `body`'s surface to its support against the other
+/// surface, moving at most `reach`. `other(x)` is the other surface's distance and unit normal at the
+/// body-frame point `x`. `None`: the sample stays where it is.
+fn support_point(
     body: &Shape,
-    r: Vec3<f64>,
+    start: &(Vec3<f64>, Local),
     reach: f64,
     other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>),
 ) -> Option<Support> {
     let eps = 0.25 * reach;
     let flat = FLAT_CURVATURE / reach;
-    // On the SDF's own surface first (a mesh's samples lie a little off a grid's level set), so the
+    // The start is on the SDF's own surface (a mesh's samples lie a little off a grid's level set), so the
     // steps' descent is measured on one surface.
-    let mut x = project(body, r)?;
+    let mut x = start.0;
     let d_start = other(x).0;
     let mut moved = 0.0;
     for steps in 0..=STEPS {
-        let local = Local::at(body, x, eps, flat)?;
+        let local = if steps == 0 {
+            start.1.clone()
+        } else {
+            Local::at(body, x, eps, flat)?
+        };
         let facing = -other(x).1;
         let (a, b) = (facing.dot(local.basis[0]), facing.dot(local.basis[1]));
         let residual = a.hypot(b);
@@ -192,7 +232,8 @@ pub(crate) fn support_point(
 }
 
 /// The body's surface around a point: its unit normal, a tangent basis and the inverse of the shape operator.
-struct Local {
+#[derive(Clone, Debug)]
+pub(crate) struct Local {
     normal: Vec3<f64>,
     basis: [Vec3<f64>; 2],
     inverse: [[f64; 2]; 2],
@@ -226,6 +267,23 @@ impl Local {
             inverse: pseudo_inverse(w, flat),
         })
     }
+}
+
+/// Whether a sharp edge lies within `eps` of `x` (a box's): there the normal jumps, no point faces the
+/// other surface exactly and the search would only wander. Off a crease the SDF's gradient is the same
+/// just inside the surface as on it; past a crease, the points a probe lands on (the edge) have one
+/// normal outside (diagonal) and another just inside (a face's).
+fn near_crease(body: &Shape, x: Vec3<f64>, local: &Local, eps: f64) -> bool {
+    let inside = 0.1 * eps;
+    local.basis.iter().any(|&e| {
+        [eps, -eps].iter().any(|&s| {
+            let y = x + e * s;
+            surface_normal(body, y).is_none_or(|(d, n)| {
+                let p = y - n * d;
+                surface_normal(body, p - n * inside).is_none_or(|(_, n_in)| n_in.dot(n) < CREASE_COS)
+            })
+        })
+    })
 }
 
 /// The inverse of the symmetric part of `w` on its convex directions (eigenvalues above `flat`); flat and
@@ -302,6 +360,12 @@ mod tests {
     use crate::sdf::{Cuboid, Sphere};
     use geom::Dual;
 
+    /// The search from a raw sample (its start found as a body's are).
+    fn slide(body: &Shape, r: Vec3<f64>, reach: f64, other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Option<Support> {
+        let start = SampleStart::of_samples(body, &[r], reach / REACH_SPACINGS).remove(0);
+        support_point(body, start.0.as_ref()?, reach, other)
+    }
+
     fn plane_below(x: Vec3<f64>) -> (f64, Vec3<f64>) {
         (x.z + 0.02, Vec3::new(0.0, 0.0, 1.0))
     }
@@ -311,19 +375,19 @@ mod tests {
         let ball = Shape::Sphere(Sphere { radius: 0.02 });
         let angle: f64 = 0.1;
         let r = Vec3::new(0.02 * angle.sin(), 0.0, -0.02 * angle.cos());
-        let s = support_point(&ball, r, 0.006, &plane_below).expect("moves");
+        let s = slide(&ball, r, 0.006, &plane_below).expect("moves");
         assert!((s.point - Vec3::new(0.0, 0.0, -0.02)).norm() < 1e-7, "{:?}", s.point);
         // Beyond its reach it stays.
         let far = Vec3::new(0.02 * 0.5f64.sin(), 0.0, -0.02 * 0.5f64.cos());
-        assert!(support_point(&ball, far, 0.006, &plane_below).is_none());
+        assert!(slide(&ball, far, 0.006, &plane_below).is_none());
     }
 
     #[test]
     fn samples_on_a_face_and_at_a_corner_stay() {
         let cube = Shape::Cuboid(Cuboid { half: [0.02; 3] });
         let tilted = |x: Vec3<f64>| (x.z + 0.03, Vec3::new(0.1, 0.0, 1.0).normalize_or(Vec3::zero()));
-        assert!(support_point(&cube, Vec3::new(0.005, 0.003, -0.02), 0.006, &tilted).is_none());
-        assert!(support_point(&cube, Vec3::new(0.02, 0.02, -0.02), 0.006, &tilted).is_none());
+        assert!(slide(&cube, Vec3::new(0.005, 0.003, -0.02), 0.006, &tilted).is_none());
+        assert!(slide(&cube, Vec3::new(0.02, 0.02, -0.02), 0.006, &tilted).is_none());
     }
 
     #[test]
@@ -331,7 +395,7 @@ mod tests {
         // A ball's support against a surface with normal −f is radius · f: as f turns, so does the point.
         let ball = Shape::Sphere(Sphere { radius: 0.02 });
         let r = Vec3::new(0.001, 0.0005, -0.02).normalize_or(Vec3::zero()) * 0.02;
-        let s = support_point(&ball, r, 0.006, &plane_below).unwrap();
+        let s = slide(&ball, r, 0.006, &plane_below).unwrap();
         let (ax, ay) = (Dual::<2>::var(0.0, 0), Dual::<2>::var(0.0, 1));
         let facing = Vec3::new(ax, ay, Dual::new(-1.0));
         let lifted = s.lifted(facing);
