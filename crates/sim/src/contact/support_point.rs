@@ -29,11 +29,13 @@ use geom::{Real, Vec3};
 
 /// Newton steps per sample.
 const STEPS: usize = 6;
-/// Steps stop when the normal is within this (sine of the) angle of facing: converged to rounding, so the
-/// point does not wobble with the sample it came from.
-const FACING_SIN_DONE: f64 = 1e-13;
-/// A support is kept when its normal is within this angle of facing after the steps.
-const FACING_SIN: f64 = 1e-5;
+/// Steps stop when the next one is shorter than this fraction of the reach (or stalls there): converged to
+/// rounding, so the point does not wobble with the sample it came from.
+const STEP_DONE: f64 = 1e-14;
+/// A support is kept when the step still to go after the last one is shorter than this fraction of the
+/// reach. Only the curved directions count: on a cylinder tilted against the other surface the sample
+/// slides round to the lowest line and stays at its place along the axis (where no point faces exactly).
+const STEP_CLOSE: f64 = 1e-6;
 /// Curvatures below this fraction of 1/reach count as flat (1/m · reach).
 const FLAT_CURVATURE: f64 = 1e-3;
 
@@ -42,6 +44,9 @@ const UPHILL: f64 = 0.05;
 
 /// Normals that turn by more than this (cos 10°) between a surface point and just inside it meet at a crease.
 const CREASE_COS: f64 = 0.985;
+
+/// Searches in a row that find no support before the rest of a substep's samples keep their places.
+const MAX_MISSES: usize = 8;
 
 /// How far a sample may slide, in contact-point spacings.
 const REACH_SPACINGS: f64 = 4.0;
@@ -76,8 +81,7 @@ pub(crate) struct SampleStart(Option<(Vec3<f64>, Local)>);
 impl SampleStart {
     /// The starts of `points` on `body` (body frame), for contact points `spacing` apart.
     pub fn of_samples(body: &Shape, points: &[Vec3<f64>], spacing: f64) -> Vec<Self> {
-        let reach = REACH_SPACINGS * spacing;
-        let (eps, flat) = (0.25 * reach, FLAT_CURVATURE / reach);
+        let Lengths { probe: eps, flat, .. } = Lengths::of(body, spacing);
         points
             .iter()
             .map(|&r| {
@@ -119,22 +123,46 @@ impl Near {
             .collect();
         if det.supports && !touches.is_empty() {
             // Only samples that may reach the surface within the substep (or the skin without the
-            // speculative rule), and a spacing more: the support is found from the samples nearest it.
+            // speculative rule), and a quarter spacing higher: the support is found from the samples nearest
+            // it, which on a surface curved at radii above two spacings lie within that of its height.
             let nearest = touches.iter().map(|(_, t)| t.distance).fold(f64::INFINITY, f64::min);
-            let band = det.speculative_dt.map_or(det.delta, |dt| dt * speed) + body.contact_spacing;
-            let reach = REACH_SPACINGS * body.contact_spacing;
-            for (i, touch) in touches.iter_mut().filter(|(_, t)| t.distance <= nearest + band) {
+            let band = det.speculative_dt.map_or(det.delta, |dt| dt * speed) + 0.25 * body.contact_spacing;
+            let lengths = Lengths::of(&body.sdf, body.contact_spacing);
+            // Deepest first: a sample within a spacing of a support already found shares it (a ball's
+            // samples round its lowest point all slide there), and after a few searches in a row that find
+            // nothing (samples of a rounded edge by a face that nearly faces the other surface), the rest
+            // keep their places.
+            let mut order: Vec<usize> = (0..touches.len())
+                .filter(|&k| touches[k].1.distance <= nearest + band && body.sample_starts[touches[k].0].0.is_some())
+                .collect();
+            order.sort_by(|&a, &b| touches[a].1.distance.total_cmp(&touches[b].1.distance));
+            let mut found: Vec<Touch> = Vec::new();
+            let mut misses = 0;
+            for k in order {
+                let (i, touch) = &mut touches[k];
                 let SampleStart(Some(start)) = &body.sample_starts[*i] else {
                     continue;
                 };
-                if let Some(support) = support_point(&body.sdf, start, reach, &other) {
-                    let (distance, normal) = other(support.point);
-                    *touch = Touch {
-                        point: support.point,
-                        distance,
-                        normal,
-                        support: Some(support),
-                    };
+                if let Some(shared) = found.iter().find(|f| (f.point - start.0).norm() < body.contact_spacing) {
+                    *touch = *shared;
+                    continue;
+                }
+                if misses == MAX_MISSES {
+                    continue;
+                }
+                match support_point(&body.sdf, start, lengths, &other) {
+                    Some(support) => {
+                        let (distance, normal) = other(support.point);
+                        *touch = Touch {
+                            point: support.point,
+                            distance,
+                            normal,
+                            support: Some(support),
+                        };
+                        found.push(*touch);
+                        misses = 0;
+                    }
+                    None => misses += 1,
                 }
             }
         }
@@ -186,31 +214,42 @@ impl Support {
 fn support_point(
     body: &Shape,
     start: &(Vec3<f64>, Local),
-    reach: f64,
+    lengths: Lengths,
     other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>),
 ) -> Option<Support> {
-    let eps = 0.25 * reach;
-    let flat = FLAT_CURVATURE / reach;
+    let Lengths {
+        reach,
+        probe: eps,
+        flat,
+    } = lengths;
     // The start is on the SDF's own surface (a mesh's samples lie a little off a grid's level set), so the
     // steps' descent is measured on one surface.
     let mut x = start.0;
     let d_start = other(x).0;
     let mut moved = 0.0;
+    let mut last = f64::INFINITY;
     for steps in 0..=STEPS {
         let local = if steps == 0 {
             start.1.clone()
         } else {
             Local::at(body, x, eps, flat)?
         };
+        if local.inverse == [[0.0; 2]; 2] {
+            // Slid off the curved part onto a flat one (a face by a rounded edge, nearly facing): the face's
+            // own samples stand for it.
+            return None;
+        }
         let facing = -other(x).1;
         let (a, b) = (facing.dot(local.basis[0]), facing.dot(local.basis[1]));
-        let residual = a.hypot(b);
         let step = local.basis[0] * (local.inverse[0][0] * a + local.inverse[0][1] * b)
             + local.basis[1] * (local.inverse[1][0] * a + local.inverse[1][1] * b);
         let length = step.norm();
-        // Stop when converged to rounding, out of steps, flat here (no step), or when the facing place is
-        // another sample's.
-        let mut stop = residual < FACING_SIN_DONE || steps == STEPS || length == 0.0 || moved + length > reach;
+        // Stop when converged to rounding, stalled (Newton's steps shrink fast toward a support; they creep
+        // where the curvature ends before the facing place, as at a face's border), out of steps, or when
+        // the facing place is another sample's.
+        let stalled = length > 0.5 * last;
+        last = length;
+        let mut stop = length < STEP_DONE * reach || stalled || steps == STEPS || moved + length > reach;
         let mut to = x;
         if !stop {
             to = project(body, x + step)?;
@@ -219,7 +258,7 @@ fn support_point(
             stop = other(to).0 > d_start + UPHILL * (moved + length);
         }
         if stop {
-            return (moved > 0.0 && residual < FACING_SIN).then_some(Support {
+            return (moved > 0.0 && length < STEP_CLOSE * reach).then_some(Support {
                 point: x,
                 normal: local.normal,
                 basis: local.basis,
@@ -229,6 +268,39 @@ fn support_point(
         (x, moved) = (to, moved + length);
     }
     None // not reached: the last pass stops
+}
+
+/// The lengths of a body's search.
+#[derive(Clone, Copy, Debug)]
+struct Lengths {
+    /// How far a sample may slide.
+    reach: f64,
+    /// The step of the differences that give the surface's curvature: a tenth of a spacing (the curvature
+    /// at the sample, not smeared over its neighbours': a face's sample by a rounded edge is flat), or a
+    /// grid's cell where the SDF is a grid (below it a grid has no curvature of its own).
+    probe: f64,
+    /// Curvatures below this are flat, 1/m.
+    flat: f64,
+}
+
+impl Lengths {
+    fn of(body: &Shape, spacing: f64) -> Self {
+        let reach = REACH_SPACINGS * spacing;
+        Self {
+            reach,
+            probe: (0.1 * spacing).max(grid_cell(body)),
+            flat: FLAT_CURVATURE / reach,
+        }
+    }
+}
+
+/// The cell of a grid SDF (placed or not), 0 for an analytic one.
+fn grid_cell(body: &Shape) -> f64 {
+    match body {
+        Shape::Grid(grid) => grid.spacing,
+        Shape::Transformed { shape, .. } => grid_cell(shape),
+        _ => 0.0,
+    }
 }
 
 /// The body's surface around a point: its unit normal, a tangent basis and the inverse of the shape operator.
@@ -274,7 +346,7 @@ impl Local {
 /// just inside the surface as on it; past a crease, the points a probe lands on (the edge) have one
 /// normal outside (diagonal) and another just inside (a face's).
 fn near_crease(body: &Shape, x: Vec3<f64>, local: &Local, eps: f64) -> bool {
-    let inside = 0.1 * eps;
+    let inside = eps;
     local.basis.iter().any(|&e| {
         [eps, -eps].iter().any(|&s| {
             let y = x + e * s;
@@ -362,8 +434,9 @@ mod tests {
 
     /// The search from a raw sample (its start found as a body's are).
     fn slide(body: &Shape, r: Vec3<f64>, reach: f64, other: &dyn Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Option<Support> {
-        let start = SampleStart::of_samples(body, &[r], reach / REACH_SPACINGS).remove(0);
-        support_point(body, start.0.as_ref()?, reach, other)
+        let spacing = reach / REACH_SPACINGS;
+        let start = SampleStart::of_samples(body, &[r], spacing).remove(0);
+        support_point(body, start.0.as_ref()?, Lengths::of(body, spacing), other)
     }
 
     fn plane_below(x: Vec3<f64>) -> (f64, Vec3<f64>) {
