@@ -21,6 +21,13 @@
 //! under its centre however it turns). One Newton step taken again in the
 //! generic scalar from the converged point ([`Support::lifted`]) carries that
 //! motion into the dual numbers (exactly for a sphere).
+//!
+//! Cost: each sample's start (its place on the SDF's surface and the
+//! curvature there) is found once per body, so flat samples and those by a
+//! sharp edge never search; per substep only the samples near the lowest
+//! search, deepest first, sharing the supports found, and a run of searches
+//! that find nothing ends the searching (a box costs nothing, the synth toy
+//! about three times its simulation without supports).
 
 use super::Detection;
 use crate::sdf::{Sdf, Shape};
