@@ -196,6 +196,7 @@ pub fn colliding_value_ranges(
     observed: &ObservedBodies,
     launch: LaunchSettings,
     scan: RangeScan,
+    progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<ValueRange>, FitError> {
     let n = observed.poses.first().map_or(0, |p| p.len());
     let cfg = PhysicsFitConfig {
@@ -207,6 +208,7 @@ pub fn colliding_value_ranges(
         world.clone(),
         observed_from_start(observed, &launch_starts(world, observed, launch.in_plane), n),
         scan,
+        progress,
     )
 }
 

@@ -69,7 +69,8 @@ pub const RANGE_LOSS_RATIO: f64 = 2.0;
 
 impl PhysicsFit {
     /// The range of each fitted contact value (the module's docs).
-    pub fn contact_value_ranges(&self, scan: RangeScan) -> Vec<ValueRange> {
+    /// `progress` hears each refit: (refits done, refits in all).
+    pub fn contact_value_ranges(&self, scan: RangeScan, progress: &(dyn Fn(usize, usize) + Sync)) -> Vec<ValueRange> {
         if scan.steps == 0 {
             return Vec::new();
         }
@@ -80,7 +81,13 @@ impl PhysicsFit {
         let grid: Vec<f64> = (0..steps)
             .map(|j| lo + (hi - lo) * j as f64 / (steps - 1) as f64)
             .collect();
-        self.contact_values()
+        let values = self.contact_values();
+        let total: usize = values
+            .iter()
+            .map(|&(u, _)| grid.iter().filter(|&&v| v != x0[u]).count())
+            .sum();
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        values
             .par_iter()
             .map(|&(u, value)| {
                 // Outward from the fitted value to the bound, each grid value refitted from the last; the edge
@@ -91,6 +98,7 @@ impl PhysicsFit {
                     let mut outside = None;
                     for v in path {
                         let (loss, next) = self.refit_holding(u, v, &x, scan.iterations);
+                        progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
                         if loss <= tolerance {
                             (inside, outside) = ((v, loss), None);
                         } else if outside.is_none() {
@@ -143,6 +151,7 @@ pub fn contact_value_ranges(
     world: World,
     observed: Vec<Observed>,
     scan: RangeScan,
+    progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<ValueRange>, FitError> {
     let fitted = world.clone();
     let cfg = PhysicsFitConfig {
@@ -150,7 +159,7 @@ pub fn contact_value_ranges(
         ..cfg.clone()
     };
     let fit = PhysicsFit::new_bodies(cfg, world, observed)?.with_params_of(&fitted);
-    Ok(fit.contact_value_ranges(scan))
+    Ok(fit.contact_value_ranges(scan, progress))
 }
 
 #[cfg(test)]

@@ -88,7 +88,7 @@ fn ranges_of(truth: &World, start_contact: StartContact) -> Vec<ValueRange> {
     .unwrap()
     .best;
 
-    fit.contact_value_ranges(RangeScan::default())
+    fit.contact_value_ranges(RangeScan::default(), &|_, _| {})
 }
 
 fn range(ranges: &[ValueRange], friction: bool) -> ValueRange {

@@ -769,14 +769,20 @@ fn value_ranges(
     steps: &[recon::ScheduleStep],
 ) -> Result<Vec<ValueRange>> {
     let t = Instant::now();
+    let pb = super::progress(0, "value ranges");
     let mut ranges = colliding_value_ranges(
         &pga_config(m),
         world,
         &pga_observed(m, ga),
         launch_settings(m),
         m.cfg.ranges,
+        &|done, all| {
+            pb.set_length(all as u64);
+            pb.set_position(done as u64);
+        },
     )
     .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
+    pb.finish_and_clear();
     for step in steps.iter().filter(|s| s.whole_video) {
         recon::widen_by_starts(&mut ranges, &step.starts, step.on, step.loss);
     }
