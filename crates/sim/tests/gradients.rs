@@ -311,7 +311,10 @@ fn multi_point_derivatives_of_a_box_sliding_to_rest_match_finite_differences() {
 fn a_ball_landing_on_its_support_has_exact_gradients() {
     for model in MODELS {
         let w = world_with(
-            config_in(model, 60.0, 9, 10),
+            SimConfig {
+                support_points: true,
+                ..config_in(model, 60.0, 9, 10)
+            },
             ground(),
             vec![(
                 sphere_body(0.02, 0.1, 500),

@@ -2,7 +2,7 @@
 //! loses no energy, so it neither slows nor hops. Its contact points are
 //! samples of its surface; rolled over as they are, they make a polyhedron
 //! that knocks at every sample, slows the ball and bounces it off the board
-//! (`support_points = false`: 0.9 → 0.5 m/s in a second, hops of millimetres).
+//! (`support_points = false`, the default: 0.9 → 0.5 m/s in a second, hops of millimetres).
 mod common;
 use common::*;
 use sim::{BodyState, ContactSampling, MassSpec, RigidBody, SimConfig};
@@ -11,6 +11,13 @@ const RADIUS: f64 = 0.02;
 
 fn roll(cfg: SimConfig, points: usize) -> (f64, f64, f64) {
     roll_body(cfg, sphere_body(RADIUS, 0.1, points))
+}
+
+fn with_supports(model: sim::ContactModel) -> SimConfig {
+    SimConfig {
+        support_points: true,
+        ..config_in(model, 30.0, 31, 20)
+    }
 }
 
 /// Height above rest at worst, speed after 1 s and slip then.
@@ -46,7 +53,7 @@ fn roll_body(cfg: SimConfig, ball: RigidBody) -> (f64, f64, f64) {
 fn a_rolling_ball_neither_slows_nor_hops() {
     for model in MODELS {
         for points in [500, 2000] {
-            let (hop, v, slip) = roll(config_in(model, 30.0, 31, 20), points);
+            let (hop, v, slip) = roll(with_supports(model), points);
             eprintln!(
                 "{model:?} {points} points: hop {:.3} mm, speed after 1 s {v:.3} m/s, slip {slip:.4} m/s",
                 hop * 1e3
@@ -81,7 +88,7 @@ fn a_rolling_ball_from_a_mesh_and_its_grid_rolls_too() {
     .unwrap();
     assert!(matches!(ball.sdf, sim::sdf::Shape::Grid(_)));
     for model in MODELS {
-        let (hop, v, slip) = roll_body(config_in(model, 30.0, 31, 20), ball.clone());
+        let (hop, v, slip) = roll_body(with_supports(model), ball.clone());
         eprintln!(
             "{model:?} grid: hop {:.3} mm, speed after 1 s {v:.3} m/s, slip {slip:.4} m/s",
             hop * 1e3

@@ -221,7 +221,7 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
         }
-        add(&format!("fit {video}"), q(40.0, 175.0), &args);
+        add(&format!("fit {video}"), q(40.0, 145.0), &args);
         add(
             &format!("eval {video}"),
             q(2.0, 3.0),
