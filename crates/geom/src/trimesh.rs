@@ -28,6 +28,17 @@ impl TriMesh {
             self.vertices[c as usize],
         ]
     }
+
+    /// The area of face `f`.
+    pub fn triangle_area(&self, f: usize) -> f64 {
+        let [a, b, c] = self.triangle(f).map(crate::Vec3::<f64>::cst);
+        0.5 * (b - a).cross(c - a).norm()
+    }
+
+    /// The surface area (every face's).
+    pub fn area(&self) -> f64 {
+        (0..self.faces.len()).map(|f| self.triangle_area(f)).sum()
+    }
 }
 
 /// The smallest axis-aligned box holding `points`: `(min, max)` (infinite and

@@ -3,7 +3,7 @@
 
 use crate::contact::SampleStart;
 use crate::contact_points::spread_contact_points;
-use crate::mass_properties_mesh::{mass_properties, mesh_area, mesh_volume};
+use crate::mass_properties_mesh::{mass_properties, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
 use crate::sdf::{SdfGrid, Shape};
 use geom::{Mat3, Pose, TriMesh, Vec3};
@@ -121,7 +121,7 @@ impl RigidBody {
             ContactSampling::Surface { count, seed } => spread_contact_points(&mesh, count, seed),
             ContactSampling::Vertices => mesh.vertices.iter().map(|v| Vec3::cst(*v)).collect(),
         };
-        let contact_spacing = (mesh_area(&mesh) / contact_points.len() as f64).sqrt();
+        let contact_spacing = (mesh.area() / contact_points.len() as f64).sqrt();
         let bounding_radius = mesh.vertices.iter().map(|v| Vec3::cst(*v).norm()).fold(0.0, f64::max);
         let sdf = match sdf {
             Some(s) => s.transformed(Pose::from_translation(-com)),

@@ -56,13 +56,3 @@ pub fn mass_properties(mesh: &TriMesh, mass: f64) -> MassProperties {
 pub fn mesh_volume(mesh: &TriMesh) -> f64 {
     volume_moments(mesh).0
 }
-
-/// Surface area of the mesh.
-pub fn mesh_area(mesh: &TriMesh) -> f64 {
-    (0..mesh.faces.len())
-        .map(|f| {
-            let [a, b, c] = mesh.triangle(f).map(Vec3::<f64>::cst);
-            0.5 * (b - a).cross(c - a).norm()
-        })
-        .sum()
-}

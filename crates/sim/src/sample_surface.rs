@@ -15,8 +15,7 @@ pub fn sample_surface_with_normals(mesh: &TriMesh, count: usize, seed: u64) -> V
     let mut cumulative = Vec::with_capacity(mesh.faces.len());
     let mut total = 0.0;
     for f in 0..mesh.faces.len() {
-        let [a, b, c] = mesh.triangle(f).map(Vec3::<f64>::cst);
-        total += (b - a).cross(c - a).norm() * 0.5;
+        total += mesh.triangle_area(f);
         cumulative.push(total);
     }
     let mut rng = SplitMix64::new(seed);

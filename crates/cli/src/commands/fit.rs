@@ -1190,11 +1190,8 @@ fn value_ranges(
     };
     let observed = pga_observed(job, ga, start_contact);
     let pb = super::progress(0, "value ranges");
-    let ranges = recon::contact_value_ranges(&cfg, world.clone(), vec![observed], job.cfg.ranges, &|done, all| {
-        pb.set_length(all as u64);
-        pb.set_position(done as u64);
-    })
-    .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
+    let ranges = recon::contact_value_ranges(&cfg, world.clone(), vec![observed], job.cfg.ranges, &super::follow(&pb))
+        .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
     pb.finish_and_clear();
     tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
     Ok(ranges)

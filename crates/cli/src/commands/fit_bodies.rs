@@ -776,10 +776,7 @@ fn value_ranges(
         &pga_observed(m, ga),
         launch_settings(m),
         m.cfg.ranges,
-        &|done, all| {
-            pb.set_length(all as u64);
-            pb.set_position(done as u64);
-        },
+        &super::follow(&pb),
     )
     .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
     pb.finish_and_clear();

@@ -31,6 +31,14 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
+/// `pb` as a library's progress callback `(done, all)` (the total known only once the work starts).
+pub fn follow(pb: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
+    move |done, all| {
+        pb.set_length(all as u64);
+        pb.set_position(done as u64);
+    }
+}
+
 /// A run folder's checkpoint, or the checkpoint file itself.
 pub(crate) fn checkpoint_of(run: &std::path::Path) -> std::path::PathBuf {
     if run.is_dir() {

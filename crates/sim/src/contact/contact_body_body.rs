@@ -1,10 +1,10 @@
 //! Two bodies: the points of `a` against the SDF of `b` (in `b`'s frame), for
 //! one substep. Call twice with the roles swapped for both directions.
 
-use super::contact_set::{select_contacts, Colliding};
+use super::contact_set::select_contacts;
 use super::sequential_impulses::{solve, Law, Row, Side};
 use super::support_point::{Near, Touch};
-use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
+use super::{angular_term, contact_impulse, torsional_impulse, world_inertia_inv, Detection};
 use crate::config::ContactModel;
 use crate::sdf::Sdf;
 use crate::{BodyState, RigidBody};
@@ -25,12 +25,11 @@ pub(crate) fn contact_body_body<S: Real>(
     if (ta - tb).norm() > a.bounding_radius + b.bounding_radius + delta {
         return false;
     }
-    let (pose_a_re, pose_b_re) = (sa.pose.re(), sb.pose.re());
-    let rot_a_re = pose_a_re.q.to_mat();
+    let rot_a_re = sa.pose.q.re().to_mat();
     let (va, wa, vb, wb) = (sa.v.re(), sa.omega.re(), sb.v.re(), sb.omega.re());
     // `b` seen from `a` (a's body frame).
     // a's frame to b's: x_b = R_bᵀ (t_a + R_a x − t_b).
-    let rot_b_re_t = pose_b_re.q.to_mat().transpose();
+    let rot_b_re_t = sb.pose.q.re().to_mat().transpose();
     let a_to_b = rot_b_re_t.mul_mat(&rot_a_re);
     let (b_to_a, a_origin_in_b) = (a_to_b.transpose(), rot_b_re_t.mul_vec(ta - tb));
     let b_from_a = |x: Vec3<f64>| {
@@ -40,29 +39,9 @@ pub(crate) fn contact_body_body<S: Real>(
     // The fastest any point of `a` moves relative to `b` (a bound).
     let speed = (va - vb).norm() + wa.norm() * a.bounding_radius + wb.norm() * (a.bounding_radius + (ta - tb).norm());
     let near = Near::find(a, det, speed, b_from_a);
-    let mut sum = Vec3::<f64>::zero();
-    let mut sum_sq = 0.0;
-    let mut first: Option<Vec3<f64>> = None;
-    let mut count = 0usize;
-    let mut colliding = Vec::new();
-    for (i, touch) in near.touches.iter().enumerate() {
-        let x = ta + rot_a_re.mul_vec(touch.point);
-        let rel = (va + wa.cross(x - ta)) - (vb + wb.cross(x - tb));
-        let n = rot_a_re.mul_vec(touch.normal);
-        if det.collides(touch.distance, rel.dot(n)) {
-            // About the first point: the spread of points slid to one support is zero, not rounding noise.
-            let from_first = touch.point - first.get_or_insert(touch.point).to_owned();
-            sum += from_first;
-            sum_sq += from_first.norm_sq();
-            count += 1;
-            colliding.push(Colliding {
-                index: i,
-                distance: touch.distance,
-                normal: n,
-                at: x,
-            });
-        }
-    }
+    let colliding = near.colliding(det, &rot_a_re, ta, |x| {
+        (va + wa.cross(x - ta)) - (vb + wb.cross(x - tb))
+    });
     let rot_a = sa.pose.q.to_mat();
     let rot_a_t = rot_a.transpose();
     // The a-frame point of a touch with its derivatives (a support moves with both poses).
@@ -73,7 +52,7 @@ pub(crate) fn contact_body_body<S: Real>(
         })
     };
     let mut hit = false;
-    if det.model == ContactModel::MultiPoint && count > 0 {
+    if det.model == ContactModel::MultiPoint && !colliding.is_empty() {
         let mut chosen = Vec::new();
         select_contacts(&colliding, &mut chosen);
         let rows: Vec<Row<S>> = chosen
@@ -103,12 +82,8 @@ pub(crate) fn contact_body_body<S: Real>(
             inv_inertia: ib_inv,
         };
         hit = solve(&mut side_a, Some(side_b), &rows, &Law::of(restitution, friction, det)) > 0;
-    } else if count > 0 {
-        let rbar = colliding
-            .iter()
-            .fold(Vec3::<S>::zero(), |acc, c| acc + local(&near.touches[c.index]))
-            * S::cst(1.0 / count as f64);
-        let c = sa.pose.t + rot_a.mul_vec(rbar);
+    } else if !colliding.is_empty() {
+        let c = sa.pose.t + rot_a.mul_vec(near.mean(&colliding, local));
         let (ra, rb) = (c - sa.pose.t, c - sb.pose.t);
         let (_, g) = b.sdf.distance_grad(&sb.pose, c);
         if let Some(n) = g.try_normalize() {
@@ -124,7 +99,7 @@ pub(crate) fn contact_body_body<S: Real>(
                 sa.omega += ia_inv.mul_vec(ra.cross(j));
                 sb.v -= j * S::cst(1.0 / b.mass);
                 sb.omega -= ib_inv.mul_vec(rb.cross(j));
-                let radius = patch_radius(sum, sum_sq, count);
+                let radius = near.patch_radius(&colliding);
                 let spin = (sa.omega - sb.omega).dot(n);
                 let inv_n = n.dot(ia_inv.mul_vec(n)) + n.dot(ib_inv.mul_vec(n));
                 let tau = torsional_impulse(spin, inv_n, j.dot(n), friction, radius);

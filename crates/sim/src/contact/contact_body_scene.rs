@@ -1,9 +1,9 @@
 //! One body against the static scene, for one substep.
 
-use super::contact_set::{select_contacts, Colliding};
+use super::contact_set::select_contacts;
 use super::sequential_impulses::{solve, Law, Row, Side};
 use super::support_point::{Near, Touch};
-use super::{angular_term, contact_impulse, patch_radius, torsional_impulse, world_inertia_inv, Detection};
+use super::{angular_term, contact_impulse, torsional_impulse, world_inertia_inv, Detection};
 use crate::config::ContactModel;
 use crate::sdf::{Sdf, Shape};
 use crate::{BodyState, RigidBody};
@@ -28,8 +28,7 @@ pub(crate) fn contact_body_scene<S: Real>(
     }
     // Detection (Eq. 8) runs on plain numbers: the set of colliding points is
     // a discrete choice, its derivative is zero.
-    let pose_re = st.pose.re();
-    let rot_re = pose_re.q.to_mat();
+    let rot_re = st.pose.q.re().to_mat();
     let (v_re, w_re) = (st.v.re(), st.omega.re());
     // The other surface seen from the body (body frame).
     let rot_re_t = rot_re.transpose();
@@ -39,29 +38,7 @@ pub(crate) fn contact_body_scene<S: Real>(
     };
     let speed = v_re.norm() + w_re.norm() * body.bounding_radius;
     let near = Near::find(body, det, speed, scene_from_body);
-    let mut sum = Vec3::<f64>::zero();
-    let mut sum_sq = 0.0;
-    let mut first: Option<Vec3<f64>> = None;
-    let mut count = 0usize;
-    let mut colliding = Vec::new();
-    for (i, touch) in near.touches.iter().enumerate() {
-        let rw = rot_re.mul_vec(touch.point);
-        let vel = v_re + w_re.cross(rw);
-        let n = rot_re.mul_vec(touch.normal);
-        if det.collides(touch.distance, vel.dot(n)) {
-            // About the first point: the spread of points slid to one support is zero, not rounding noise.
-            let from_first = touch.point - first.get_or_insert(touch.point).to_owned();
-            sum += from_first;
-            sum_sq += from_first.norm_sq();
-            count += 1;
-            colliding.push(Colliding {
-                index: i,
-                distance: touch.distance,
-                normal: n,
-                at: pose_re.t + rw,
-            });
-        }
-    }
+    let colliding = near.colliding(det, &rot_re, t_re, |x| v_re + w_re.cross(x - t_re));
     let rot = st.pose.q.to_mat();
     let rot_t = rot.transpose();
     // The body-frame point of a touch with its derivatives (a support moves with the pose).
@@ -72,7 +49,7 @@ pub(crate) fn contact_body_scene<S: Real>(
         })
     };
     let mut hit = 0;
-    if det.model == ContactModel::MultiPoint && count > 0 {
+    if det.model == ContactModel::MultiPoint && !colliding.is_empty() {
         let mut chosen = Vec::new();
         select_contacts(&colliding, &mut chosen);
         let rows: Vec<Row<S>> = chosen
@@ -94,12 +71,8 @@ pub(crate) fn contact_body_scene<S: Real>(
             inv_inertia: world_inertia_inv(&rot, &body.inertia_inv),
         };
         hit = solve(&mut side, None, &rows, &Law::of(restitution, friction, det));
-    } else if count > 0 {
-        let rbar = colliding
-            .iter()
-            .fold(Vec3::<S>::zero(), |acc, c| acc + local(&near.touches[c.index]))
-            * S::cst(1.0 / count as f64);
-        let r = rot.mul_vec(rbar);
+    } else if !colliding.is_empty() {
+        let r = rot.mul_vec(near.mean(&colliding, local));
         let (_, g) = scene.distance_grad_local(st.pose.t + r);
         if let Some(n) = g.try_normalize() {
             let vc = st.v + st.omega.cross(r);
@@ -110,7 +83,7 @@ pub(crate) fn contact_body_scene<S: Real>(
             if let Some(j) = contact_impulse(vc, n, &k, restitution, friction, det) {
                 st.v += j * S::cst(1.0 / body.mass);
                 st.omega += iw_inv.mul_vec(r.cross(j));
-                let radius = patch_radius(sum, sum_sq, count);
+                let radius = near.patch_radius(&colliding);
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
                 hit = 1;

@@ -9,7 +9,8 @@
 
 use geom::Vec3;
 
-/// A colliding contact point: its index in the body's points, its distance to the other surface and that
+/// A colliding contact point: its index among the body's points near the other surface
+/// ([`super::support_point::Near`]), its distance to the other surface and that
 /// surface's unit normal there (plain numbers).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Colliding {

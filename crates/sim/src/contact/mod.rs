@@ -116,12 +116,6 @@ pub(crate) fn torsional_impulse<S: Real>(spin_n: S, inv_inertia_n: S, jn: S, fri
     }
 }
 
-/// RMS distance of points from their mean, from `Σ r` and `Σ |r|²`.
-pub(crate) fn patch_radius(sum: Vec3<f64>, sum_sq: f64, count: usize) -> f64 {
-    let n = count as f64;
-    (sum_sq / n - (sum * (1.0 / n)).norm_sq()).max(0.0).sqrt()
-}
-
 /// `[r]× I⁻¹ [r]×` (the angular part of the contact mass matrix).
 pub(crate) fn angular_term<S: Real>(r: Vec3<S>, inertia_inv_world: &Mat3<S>) -> Mat3<S> {
     let k = Mat3::skew(r);

@@ -94,7 +94,7 @@ fn effective_mass<S: Real>(a: &Side<'_, S>, b: &Option<Side<'_, S>>, r: &Row<S>,
 }
 
 /// Two unit vectors completing `n` to an orthonormal frame.
-fn tangents<S: Real>(n: Vec3<S>) -> (Vec3<S>, Vec3<S>) {
+pub(crate) fn tangents<S: Real>(n: Vec3<S>) -> (Vec3<S>, Vec3<S>) {
     let nr = n.re();
     // The world axis least aligned with n.
     let axis = if nr.x.abs() < 0.57 {
