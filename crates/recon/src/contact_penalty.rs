@@ -9,13 +9,18 @@
 //! the scene and σ a length scale:
 //!
 //! - sinking, `λ_in · mean_j (exp(max(0, −s_j) / σ) − 1)`,
-//! - floating, `λ_out · (exp(max(0, min_j s_j) / σ) − 1)`: the nearest point
-//!   must touch.
+//! - floating, `λ_out · Σ_sides (exp(max(0, min_{j facing the side} s_j) / σ) − 1)`:
+//!   on each side of the scene the contact is known on (the board, a wall: the
+//!   scene's normal there), the nearest point facing it must touch. A body that
+//!   hits a wall while it slides on the board touches both; with one nearest
+//!   point for the whole scene, the wall's held it and the body floated up the
+//!   wall along the line of sight (the demo slide's frame 10: 10 mm above the
+//!   board, 14 mm off).
 //!
 //! The paper's form divides by PA's own distances instead of σ; a fixed scale
 //! keeps the penalty finite where PA's point sat exactly on the surface.
 
-use geom::Pose;
+use geom::{Pose, Vec3};
 use serde::{Deserialize, Serialize};
 use sim::sdf::Shape;
 use sim::RigidBody;
@@ -47,7 +52,34 @@ pub struct ContactTerm<'a> {
     pub scene: &'a Shape,
     /// Indices into the body's contact points.
     pub points: Vec<usize>,
+    /// The sides of the scene the body is known to touch ([`contact_sides`]): unit normals of the scene.
+    /// Empty: one side, whichever the nearest point faces.
+    pub sides: Vec<Vec3<f64>>,
     pub cfg: ContactPenaltyConfig,
+}
+
+/// A point's signed distance to the scene, where it is and the scene's normal there.
+type Touch = (f64, Vec3<f64>, Vec3<f64>);
+
+/// A point faces a side where the scene's normal at it is within 45° of the side's.
+const SIDE_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// Whether the scene normal `n` at a point faces `side`.
+pub fn faces(n: Vec3<f64>, side: Vec3<f64>) -> bool {
+    n.dot(side) >= SIDE_COS * n.norm()
+}
+
+/// The sides of the scene that points at these scene normals touch: one unit normal per group of
+/// normals within 45° of each other (the first of the group stands for it).
+pub fn contact_sides(normals: impl IntoIterator<Item = Vec3<f64>>) -> Vec<Vec3<f64>> {
+    let mut sides: Vec<Vec3<f64>> = Vec::new();
+    for n in normals {
+        let len = n.norm();
+        if len > 0.0 && !sides.iter().any(|&s| faces(n, s)) {
+            sides.push(n * (1.0 / len));
+        }
+    }
+    sides
 }
 
 impl ContactTerm<'_> {
@@ -69,7 +101,9 @@ impl ContactTerm<'_> {
                 *g += w * d;
             }
         };
-        let mut nearest: Option<(f64, geom::Vec3<f64>, geom::Vec3<f64>)> = None;
+        // The nearest point on each side (one side, any normal, when none is given).
+        let sides = self.sides.len().max(1);
+        let mut nearest: Vec<Option<Touch>> = vec![None; sides];
         for &i in &self.points {
             let x = pose.t + rot.mul_vec(self.body.contact_points[i]);
             let (s, n) = sim::sdf::Sdf::distance_grad_local(self.scene, x);
@@ -78,11 +112,14 @@ impl ContactTerm<'_> {
                 value += c.lambda_in * (e - 1.0) / m;
                 add(-c.lambda_in * e / (c.scale * m), x, n);
             }
-            if nearest.is_none_or(|(best, _, _)| s < best) {
-                nearest = Some((s, x, n));
+            for (k, best) in nearest.iter_mut().enumerate() {
+                let facing = self.sides.get(k).is_none_or(|&side| faces(n, side));
+                if facing && best.is_none_or(|(b, _, _)| s < b) {
+                    *best = Some((s, x, n));
+                }
             }
         }
-        if let Some((s, x, n)) = nearest.filter(|(s, _, _)| *s > 0.0) {
+        for (s, x, n) in nearest.into_iter().flatten().filter(|(s, _, _)| *s > 0.0) {
             let e = (s / c.scale).exp();
             value += c.lambda_out * (e - 1.0);
             add(c.lambda_out * e / c.scale, x, n);

@@ -20,7 +20,7 @@ pub use colliding_bodies::{
     colliding_value_ranges, first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies,
     ScheduleStep,
 };
-pub use contact_penalty::{ContactPenaltyConfig, ContactTerm};
+pub use contact_penalty::{contact_sides, ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
 pub use fit_physics::{
     fit_multi_start, fit_multi_start_bodies, ContactValue, FitError, FitStats, MultiStart, Observed, PhysicsFit,

@@ -19,7 +19,7 @@
 //! [`PosesFromVideo::step`]; frames whose mask is empty keep their start and
 //! say so.
 
-use crate::contact_penalty::{ContactPenaltyConfig, ContactTerm};
+use crate::contact_penalty::{contact_sides, faces, ContactPenaltyConfig, ContactTerm};
 use crate::first_pose_search::{search_first_pose, FirstPoseSearchConfig};
 use crate::image_loss::{window_union, FrameTarget, ImageLoss, ImageLossWeights, Occluder};
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
@@ -27,7 +27,7 @@ use geom::{Pose, Vec3};
 use neus::compose::ComposedRay;
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
-use sim::{points_near_scene, BodyState, Trajectory, World};
+use sim::{points_near_scene, BodyState, NearPoint, Trajectory, World};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -154,14 +154,15 @@ impl StartFrom {
 struct Start {
     pose: Pose<f64>,
     contacts: Vec<usize>,
-    /// Whether the contact is known: PA's simulated body is on the scene at this frame's time near this
-    /// pose, a tracked body holds the board, or the fitted frames around this one touch it
-    /// ([`PosesFromVideo::held_between`]: the two before it, or one on each side in the pass back). The
-    /// penalty then keeps the body from floating as well as from sinking. Points that merely lie near the
+    /// The sides of the scene (its normals there, [`contact_sides`]) the contact is known on, empty where
+    /// none is: PA's simulated body is on the scene at this frame's time near this pose, a tracked body
+    /// holds the board, or the fitted frames around this one touch it ([`PosesFromVideo::sides_held_between`]:
+    /// the two before it, or one on each side in the pass back). The penalty then keeps the body from
+    /// floating off each of those sides as well as from sinking. Points that merely lie near the
     /// scene at a guessed start only keep it from sinking: a body bouncing off the board between two frames
     /// is near it at a guess carried on from the fall, and holding it there put the tabletop drop's frame
     /// after a bounce 10 mm off along the line of sight, where the image tells depth least.
-    holds: bool,
+    held: Vec<Vec3<f64>>,
     from: StartFrom,
     /// Far from a converged PA's pose: larger steps.
     wide: bool,
@@ -170,7 +171,7 @@ struct Start {
 impl Start {
     /// Whether the body is held on the scene from this start (a known contact and points to hold).
     fn held(&self) -> bool {
-        self.holds && !self.contacts.is_empty()
+        !self.held.is_empty() && !self.contacts.is_empty()
     }
 }
 
@@ -212,7 +213,10 @@ pub struct PosesFromVideo<'a> {
     world: &'a World,
     body: usize,
     starts: Vec<Pose<f64>>,
+    /// PA's touching points in each frame, and the sides of the scene they touch (empty where PA's body is
+    /// off the scene).
     contacts: Vec<Vec<usize>>,
+    pa_sides: Vec<Vec<Vec3<f64>>>,
     /// Without PA: starts carried on at the pace of the last two fitted frames.
     tracking: bool,
     /// Tracking: the penalty holds the points touching the scene at each frame's start ([`Self::holding_contacts`]).
@@ -232,6 +236,37 @@ pub struct PosesFromVideo<'a> {
     chain: Option<usize>,
     /// The video's other bodies in each frame ([`Self::set_occluders`]).
     occluders: Vec<Vec<Occluder<'a>>>,
+}
+
+/// The sides of the scene a body touches, from all its points (nearest first, [`PosesFromVideo::points`]):
+/// none when the nearest is farther than `threshold`, else those of the points within
+/// [`crate::video_fit::TOUCHING`] of the nearest. A body on the board beside a wall a few millimetres off
+/// touches the board only; one floating a little over the board still has that side.
+fn sides_touched(points: &[NearPoint<f64>], threshold: f64) -> Vec<Vec3<f64>> {
+    let Some(first) = points.first().filter(|p| p.distance <= threshold) else {
+        return Vec::new();
+    };
+    let within = (first.distance + crate::video_fit::TOUCHING).min(threshold);
+    contact_sides(points.iter().take_while(|p| p.distance <= within).map(|p| p.gradient))
+}
+
+/// Points on each side a body touching the scene's sides needs at least this many of its own in the penalty.
+const POINTS_PER_SIDE: usize = 4;
+
+/// The points the penalty holds, from all the body's points (nearest first): the `count` nearest within
+/// `threshold`, and on each of `sides` that none of them faces, the nearest few facing it
+/// ([`POINTS_PER_SIDE`], however far: a body pressed into a wall has its nearest points all on the wall,
+/// and a start carried back from frames that floated may be more than the threshold over the board).
+fn pick_points(points: &[NearPoint<f64>], threshold: f64, sides: &[Vec3<f64>], count: usize) -> Vec<usize> {
+    let near = points.iter().take_while(|p| p.distance <= threshold).count();
+    let mut picked: Vec<usize> = (0..near.min(count)).collect();
+    for &side in sides {
+        if !picked.iter().any(|&i| faces(points[i].gradient, side)) {
+            let facing = (0..points.len()).filter(|&i| faces(points[i].gradient, side));
+            picked.extend(facing.take(POINTS_PER_SIDE));
+        }
+    }
+    picked.into_iter().map(|i| points[i].index).collect()
 }
 
 /// The pose after `b` at the pace from `a` to `b` (constant velocity and spin).
@@ -264,21 +299,23 @@ impl<'a> PosesFromVideo<'a> {
         // PA's contact holds a frame where PA's body is on the scene at the frame's own time. Not every frame
         // PA flags: a frame is flagged for any contact since the one before, and after a bounce, which lasts a
         // substep, the body is off the scene again when the frame is taken.
-        let contacts = starts
+        let (contacts, pa_sides) = starts
             .iter()
             .enumerate()
             .map(|(k, pose)| {
                 let touched = pa.contacts[k].scene.get(body).copied().unwrap_or(false);
                 if !touched {
-                    return Vec::new();
+                    return (Vec::new(), Vec::new());
                 }
-                let near = points_near_scene(&world.bodies[body], pose, &world.scene, world.config.contact_threshold);
-                if near.first().is_none_or(|p| p.distance > crate::video_fit::TOUCHING) {
-                    return Vec::new();
+                let points = points_near_scene(&world.bodies[body], pose, &world.scene, f64::INFINITY);
+                if points.first().is_none_or(|p| p.distance > crate::video_fit::TOUCHING) {
+                    return (Vec::new(), Vec::new());
                 }
-                near.into_iter().take(cfg.contact_points).map(|p| p.index).collect()
+                let threshold = world.config.contact_threshold;
+                let sides = sides_touched(&points, threshold);
+                (pick_points(&points, threshold, &sides, cfg.contact_points), sides)
             })
-            .collect();
+            .unzip();
         Ok(Self {
             cfg,
             object,
@@ -288,6 +325,7 @@ impl<'a> PosesFromVideo<'a> {
             body,
             starts,
             contacts,
+            pa_sides,
             tracking: false,
             hold_touching: false,
             results: Vec::new(),
@@ -324,6 +362,7 @@ impl<'a> PosesFromVideo<'a> {
             body,
             starts: vec![first; frames.len()],
             contacts: vec![Vec::new(); frames.len()],
+            pa_sides: vec![Vec::new(); frames.len()],
             tracking: true,
             hold_touching: false,
             results: Vec::new(),
@@ -427,11 +466,15 @@ impl<'a> PosesFromVideo<'a> {
         }
         let after = if k + 2 < n { self.results[k + 2].pose } else { next };
         let scale = self.step_scale(pace(&next, &after));
-        let holds = k > 0 && self.held_between(k - 1, k + 1);
-        self.replace_if_better(k, start, scale, holds, StartFrom::Backward, 0.0)
+        let held = if k > 0 {
+            self.sides_held_between(k - 1, k + 1)
+        } else {
+            Vec::new()
+        };
+        self.replace_if_better(k, start, scale, held, StartFrom::Backward, 0.0)
     }
 
-    /// Frame `k` fitted from `start` (steps scaled by `scale`; the contact held where `holds`) and scored
+    /// Frame `k` fitted from `start` (steps scaled by `scale`; the contact held on the sides `held`) and scored
     /// against its current pose on the same pixels: it replaces it if its loss is lower by `margin` (a share
     /// of the current one's). Whether it did.
     fn replace_if_better(
@@ -439,7 +482,7 @@ impl<'a> PosesFromVideo<'a> {
         k: usize,
         start: Pose<f64>,
         scale: f64,
-        holds: bool,
+        held: Vec<Vec3<f64>>,
         from: StartFrom,
         margin: f64,
     ) -> Result<bool, PosesFromVideoError> {
@@ -451,12 +494,14 @@ impl<'a> PosesFromVideo<'a> {
             ..self.cfg.pose.clone()
         };
         let frame = &self.frames[k];
-        let contacts = self.touching(&start);
+        let contacts = self.touching(&start, &held);
+        let holds = !held.is_empty();
         let term = |points: Vec<usize>| ContactTerm {
             body: &self.world.bodies[self.body],
             scene: &self.world.scene,
             points,
             cfg: self.penalty_config(holds),
+            sides: held.clone(),
         };
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
@@ -527,12 +572,12 @@ impl<'a> PosesFromVideo<'a> {
             );
             match found {
                 Ok((pose, _)) => {
-                    let holds = self.held_between(k - 2, k - 1);
+                    let held = self.sides_held_between(k - 2, k - 1);
                     tracing::debug!(
                         "frame {k}: explained poorly ({:.4}); searched afresh",
                         self.results[k].image.loss
                     );
-                    if self.replace_if_better(k, pose, 1.0, holds, StartFrom::Searched, SWITCH_MARGIN)? {
+                    if self.replace_if_better(k, pose, 1.0, held, StartFrom::Searched, SWITCH_MARGIN)? {
                         // Popped from the end: every fitted frame before the last whose next frame is fitted
                         // too (the start is carried back from it), the last but one first.
                         self.backward = (0..k)
@@ -550,18 +595,22 @@ impl<'a> PosesFromVideo<'a> {
         Ok(())
     }
 
-    /// Whether fitted frames `a` and `b` both have the body touching the scene: a contact that lasted over a
-    /// frame (resting, sliding, rolling) is taken to go on in the frames between and after them, where a
-    /// bounce lasts less than a frame. Without it the tabletop drop's rolling frame 12 floated 7.6 mm
-    /// toward the camera. Touching is within the simulator's contact threshold (5 mm by default), as the
-    /// points the penalty holds are chosen: GA's frames kept only from sinking may sit a few millimetres off.
-    fn held_between(&self, a: usize, b: usize) -> bool {
-        let touches = |k: usize| {
-            self.results
-                .get(k)
-                .is_some_and(|r| r.fitted && !self.touching(&r.pose).is_empty())
+    /// The sides of the scene that fitted frames `a` and `b` both have the body touching (`b`'s normals;
+    /// empty where there are none): a contact that lasted over a frame (resting, sliding, rolling) is taken
+    /// to go on in the frames between and after them, where a bounce lasts less than a frame. Without it the
+    /// tabletop drop's rolling frame 12 floated 7.6 mm toward the camera. Touching is within the simulator's
+    /// contact threshold (5 mm by default), as the points the penalty holds are chosen: GA's frames kept only
+    /// from sinking may sit a few millimetres off ([`sides_touched`]).
+    fn sides_held_between(&self, a: usize, b: usize) -> Vec<Vec3<f64>> {
+        let sides = |k: usize| match self.results.get(k) {
+            Some(r) if r.fitted => self.sides_at(&r.pose),
+            _ => Vec::new(),
         };
-        touches(a) && touches(b)
+        let before = sides(a);
+        sides(b)
+            .into_iter()
+            .filter(|&s| before.iter().any(|&t| faces(t, s)))
+            .collect()
     }
 
     /// The penalty's config: whole where the contact is known ([`Start::holds`]), else without its floating
@@ -573,14 +622,26 @@ impl<'a> PosesFromVideo<'a> {
         }
     }
 
-    /// The contact points of the body near the scene at `pose` (the penalty of a start that is not PA's).
-    fn touching(&self, pose: &Pose<f64>) -> Vec<usize> {
+    /// Every contact point of the body with its distance to the scene at `pose`, nearest first.
+    fn points(&self, pose: &Pose<f64>) -> Vec<NearPoint<f64>> {
         let w = self.world;
-        points_near_scene(&w.bodies[self.body], pose, &w.scene, w.config.contact_threshold)
-            .into_iter()
-            .take(self.cfg.contact_points)
-            .map(|p| p.index)
-            .collect()
+        points_near_scene(&w.bodies[self.body], pose, &w.scene, f64::INFINITY)
+    }
+
+    /// The sides of the scene the body touches at `pose` ([`sides_touched`]).
+    fn sides_at(&self, pose: &Pose<f64>) -> Vec<Vec3<f64>> {
+        sides_touched(&self.points(pose), self.world.config.contact_threshold)
+    }
+
+    /// The contact points of the body near the scene at `pose` (the penalty of a start that is not PA's),
+    /// with points on each side in `held` ([`pick_points`]).
+    fn touching(&self, pose: &Pose<f64>, held: &[Vec3<f64>]) -> Vec<usize> {
+        pick_points(
+            &self.points(pose),
+            self.world.config.contact_threshold,
+            held,
+            self.cfg.contact_points,
+        )
     }
 
     /// The starts of frame `k`: PA's (or, tracking, the carried-on one) first, then with `hypotheses` the
@@ -612,17 +673,44 @@ impl<'a> PosesFromVideo<'a> {
         // Tracking without holding (the paper's `--no-pa`): no penalty at all.
         let penalised = !self.tracking || holding;
         // A contact that lasted over the two fitted frames before (the same for every start of this frame).
-        let lasting = penalised && k >= 2 && self.held_between(k - 2, k - 1);
+        let lasting = if penalised && k >= 2 {
+            self.sides_held_between(k - 2, k - 1)
+        } else {
+            Vec::new()
+        };
+        let mut held = lasting.clone();
+        if pa_holds {
+            held.extend(&self.pa_sides[k]);
+        }
+        if holding {
+            held.extend(self.sides_at(&physics));
+        }
+        let held = contact_sides(held);
+        let contacts = if pa_holds {
+            // PA's points, and points on the sides held that PA's body does not touch (a wall the images put
+            // the body against).
+            let mut points = self.contacts[k].clone();
+            let missing: Vec<Vec3<f64>> = held
+                .iter()
+                .copied()
+                .filter(|&s| !self.pa_sides[k].iter().any(|&t| faces(t, s)))
+                .collect();
+            let threshold = self.world.config.contact_threshold;
+            for i in pick_points(&self.points(&physics), threshold, &missing, 0) {
+                if !points.contains(&i) {
+                    points.push(i);
+                }
+            }
+            points
+        } else if penalised {
+            self.touching(&physics, &held)
+        } else {
+            Vec::new()
+        };
         let mut out = vec![Start {
             pose: physics,
-            contacts: if pa_holds {
-                self.contacts[k].clone()
-            } else if penalised {
-                self.touching(&physics)
-            } else {
-                Vec::new()
-            },
-            holds: pa_holds || holding || lasting,
+            contacts,
+            held,
             from: StartFrom::Physics,
             wide: !trusted,
         }];
@@ -637,8 +725,8 @@ impl<'a> PosesFromVideo<'a> {
             let pose = frame.centred_on_mask(&pose);
             if !out.iter().any(|s| same_start(&s.pose, &pose)) {
                 out.push(Start {
-                    contacts: self.touching(&pose),
-                    holds: lasting,
+                    contacts: self.touching(&pose, &lasting),
+                    held: lasting.clone(),
                     pose,
                     from,
                     wide: true,
@@ -723,8 +811,13 @@ impl<'a> PosesFromVideo<'a> {
                     }
                     match self.sizing.pop() {
                         Some((j, start)) => {
-                            let holds = self.results[j].in_contact;
-                            self.replace_if_better(j, start, 1.0, holds, StartFrom::Sized, 0.0)?;
+                            // Held where it was, on the sides its fitted pose touches.
+                            let held = if self.results[j].in_contact {
+                                self.sides_at(&self.results[j].pose)
+                            } else {
+                                Vec::new()
+                            };
+                            self.replace_if_better(j, start, 1.0, held, StartFrom::Sized, 0.0)?;
                             Ok(Some(&self.results[j]))
                         }
                         None => Ok(None),
@@ -769,7 +862,8 @@ impl<'a> PosesFromVideo<'a> {
                     body: &self.world.bodies[self.body],
                     scene: &self.world.scene,
                     points: s.contacts.clone(),
-                    cfg: self.penalty_config(s.holds),
+                    cfg: self.penalty_config(!s.held.is_empty()),
+                    sides: s.held.clone(),
                 })
             });
         }

@@ -287,6 +287,7 @@ fn the_contact_penalty_gradient_matches_finite_differences() {
         body,
         scene: &w.scene,
         points,
+        sides: Vec::new(),
         cfg: ContactPenaltyConfig::default(),
     };
     let tilt = Quat::exp(Vec3::new(0.05, -0.08, 0.3));
@@ -313,4 +314,48 @@ fn the_contact_penalty_gradient_matches_finite_differences() {
             );
         }
     }
+}
+
+#[test]
+fn a_body_against_a_wall_is_held_on_the_board_too() {
+    let w = world(V0, TRUTH);
+    let body = &w.bodies[0];
+    // The board (z = 0) and a wall facing −x at x = 0.1.
+    let scene = sim::sdf::Shape::Union(vec![
+        sim::sdf::Shape::Plane(sim::sdf::Plane {
+            normal: [0.0, 0.0, 1.0],
+            offset: 0.0,
+        }),
+        sim::sdf::Shape::Plane(sim::sdf::Plane {
+            normal: [-1.0, 0.0, 0.0],
+            offset: -0.1,
+        }),
+    ]);
+    // The cube's bottom and its +x face: the points within 5 mm of either at the pose touching both.
+    let touching = Pose::new(Quat::identity(), Vec3::new(0.1 - RADIUS, 0.0, RADIUS));
+    let near = sim::points_near_scene(body, &touching, &scene, 0.005);
+    let points: Vec<usize> = near.iter().map(|p| p.index).collect();
+    let sides = recon::contact_sides(near.iter().map(|p| p.gradient));
+    assert_eq!(sides.len(), 2, "board and wall: {sides:?}");
+    let term = |sides: Vec<Vec3<f64>>| ContactTerm {
+        body,
+        scene: &scene,
+        points: points.clone(),
+        sides,
+        cfg: ContactPenaltyConfig::default(),
+    };
+    // Slid 4 mm up the wall (toward a camera looking down at it): the wall still touches.
+    let floating = Pose::new(Quat::identity(), touching.t + Vec3::new(0.0, 0.0, 0.004));
+    let (any_side, _) = term(Vec::new()).evaluate(&floating);
+    let (both_sides, grad) = term(sides.clone()).evaluate(&floating);
+    assert!(
+        any_side < 1e-12,
+        "one nearest point for the whole scene: the wall holds it ({any_side})"
+    );
+    assert!(both_sides > 0.1, "held on the board too: {both_sides}");
+    assert!(grad[2] > 0.0, "the penalty pulls it down: {grad:?}");
+    assert!(
+        term(sides).evaluate(&touching).0 < 1e-12,
+        "no penalty where it touches both"
+    );
 }

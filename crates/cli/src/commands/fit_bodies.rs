@@ -27,8 +27,8 @@
 use super::checkpoint_of;
 use super::fit::{
     check_guess_in_view, exposure_at, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of,
-    read_guesses, read_video, report_ranges, scene_grid, search_first_pose_of, simulation_misses, strip, write_ranges,
-    FitArgs, FitRecord, RecordInputs, Stage,
+    read_guesses, read_video, report_ranges, reported_poses, scene_grid, search_first_pose_of, strip, write_ranges,
+    FitArgs, FitRecord, RecordInputs, ReportedPose, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
@@ -332,10 +332,7 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
     let poses = body_poses(&world.simulate(&world.params()), nb);
     let mut all = Vec::with_capacity(nb);
     for (b, body) in m.bodies.iter().enumerate() {
-        let others: Vec<(&ObjectModel, &[Pose<f64>])> = (0..nb)
-            .filter(|&o| o != b)
-            .map(|o| (&*m.bodies[o].object, poses[o].as_slice()))
-            .collect();
+        let others = others_along(m, b, &poses);
         all.push(evaluate_poses(
             &body.object,
             &m.scene_pre,
@@ -348,6 +345,14 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
         )?);
     }
     Ok(all)
+}
+
+/// The bodies other than `b` with their poses in every frame (`poses[o]`), as `evaluate_poses` takes them.
+fn others_along<'a>(m: &'a Multi, b: usize, poses: &'a [Vec<Pose<f64>>]) -> Vec<(&'a ObjectModel, &'a [Pose<f64>])> {
+    (0..m.bodies.len())
+        .filter(|&o| o != b)
+        .map(|o| (&*m.bodies[o].object, poses[o].as_slice()))
+        .collect()
 }
 
 /// The other bodies as occluders of body `b`, at `pose_of(o)`.
@@ -831,16 +836,26 @@ fn finish(
     let nb = m.bodies.len();
     let traj = world.simulate(&world.params());
     let sim_poses = body_poses(&traj, nb);
-    let mut reported = sim_poses.clone();
-    let mut source = vec![vec!["simulated"; n]; nb];
-    for (b, losses) in sim_losses.iter().enumerate() {
-        for k in 0..n {
-            let g = &ga[b][k];
-            if simulation_misses(&losses[k], g) {
-                reported[b][k] = g.pose;
-                source[b][k] = "ga";
-            }
-        }
+    let eye = m.bodies[0].frames[0].camera.center();
+    let mut reported = Vec::with_capacity(nb);
+    let mut source = Vec::with_capacity(nb);
+    for (b, body) in m.bodies.iter().enumerate() {
+        // Scored as `sim_losses` were: the other bodies where the simulation puts them.
+        let others = others_along(m, b, &sim_poses);
+        let score = |poses: &[Pose<f64>]| {
+            evaluate_poses(
+                &body.object,
+                &m.scene_pre,
+                &body.frames,
+                poses,
+                &others,
+                &m.cfg.ga.pose.weights,
+            )
+        };
+        let radius = world.bodies[b].bounding_radius;
+        let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], eye, radius, score)?;
+        reported.push(poses);
+        source.push(from.iter().map(|s| s.name()).collect::<Vec<_>>());
     }
     // Renders of the reported poses, every body over the pre-rendered scene.
     let cam = m.bodies[0].frames[0].camera;
@@ -923,11 +938,15 @@ fn finish(
         let s = &world.initial[b];
         let ious: Vec<f64> = rows[b].iter().filter_map(|r| r["iou"].as_f64()).collect();
         summary.push(format!(
-            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA",
+            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA ({} at the simulation's depth)",
             body.name,
             s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
             ious.iter().cloned().fold(f64::INFINITY, f64::min),
-            source[b].iter().filter(|s| **s == "ga").count()
+            source[b].iter().filter(|s| **s != "simulated").count(),
+            source[b]
+                .iter()
+                .filter(|s| **s == ReportedPose::GaAtSimulatedDepth.name())
+                .count()
         ));
     }
     for (p, (i, j)) in world.pairs().into_iter().enumerate() {
