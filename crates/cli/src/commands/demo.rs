@@ -401,8 +401,9 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
     writeln!(
         md,
         "## Fits against the truth\n\n| video | position mm (mean / worst) | rotation ° (mean / worst) | \
-         ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) and its range | friction (true) and its range |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- |"
+         ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) and its range | friction (true) and its range | \
+         poses reported: simulated / GA's at the simulation's depth / GA's |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     )?;
     let mut mesh_line = None;
     for video in ["slide", "drop"] {
@@ -418,9 +419,15 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
             .cloned()
             .unwrap_or(Value::Null);
         let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:.2}"));
+        // Which pose each frame reports (`fit`'s choice, in eval's rows).
+        let reported = |source: &str| {
+            e["frames"]
+                .as_array()
+                .map_or(0, |rows| rows.iter().filter(|r| r["fit_pose"] == source).count())
+        };
         writeln!(
             md,
-            "| {video} | {} / {} | {} / {} | {} | {} | {} % | {} ({}){} | {} ({}){} |",
+            "| {video} | {} / {} | {} / {} | {} | {} | {} % | {} ({}){} | {} ({}){} | {} / {} / {} |",
             f(&body["position_mm"]["mean"]),
             f(&body["position_mm"]["worst"]),
             f(&body["rotation_deg"]["mean"]),
@@ -434,6 +441,9 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
             f(&par["friction"]),
             f(&par["friction_true"]),
             super::report::range_text(par.get("friction_range")),
+            reported("simulated"),
+            reported("ga_at_simulated_depth"),
+            reported("ga"),
         )?;
         if mesh_line.is_none() {
             if let Some(m) = e["meshes"].as_object().and_then(|m| m.values().next()) {
@@ -499,7 +509,9 @@ mod tests {
                         "silhouette_iou": {"worst": 0.95}}},
                     "parameters": {"toy": {"v0_error_percent": 3.0, "restitution": 0.48,
                         "restitution_true": 0.5, "friction": 0.26, "friction_true": 0.25}},
-                    "meshes": {"toy": {"chamfer_mean_mm": 0.9, "chamfer_p95_mm": 2.0, "volume_iou": 0.93}}
+                    "meshes": {"toy": {"chamfer_mean_mm": 0.9, "chamfer_p95_mm": 2.0, "volume_iou": 0.93}},
+                    "frames": [{"fit_pose": "simulated"}, {"fit_pose": "ga_at_simulated_depth"},
+                        {"fit_pose": "ga"}, {"fit_pose": "simulated"}]
                 });
                 let dir = PathBuf::from(&argv[2]);
                 std::fs::create_dir_all(&dir)?;
@@ -543,7 +555,9 @@ mod tests {
         assert!(!calls.borrow()[0].contains(&"--force".to_string()));
         let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
         assert!(
-            report.contains("| slide | 1.00 / 2.00 | 0.50 / 1.50 | 0.70 | 0.95 | 3.00 % | 0.48 (0.50) | 0.26 (0.25) |"),
+            report.contains(
+                "| slide | 1.00 / 2.00 | 0.50 / 1.50 | 0.70 | 0.95 | 3.00 % | 0.48 (0.50) | 0.26 (0.25) | 2 / 1 / 1 |"
+            ),
             "{report}"
         );
         assert!(report.contains("Chamfer mean 0.90 mm"), "{report}");
