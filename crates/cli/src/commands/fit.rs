@@ -1293,15 +1293,18 @@ pub(super) fn reported_poses<E>(
     score: impl Fn(&[Pose<f64>]) -> std::result::Result<Vec<ImageLoss>, E>,
 ) -> std::result::Result<(Vec<Pose<f64>>, Vec<ReportedPose>), E> {
     let n = simulated.len();
-    // How far the simulated pose is from GA's across the line of sight (frames GA did not fit: nothing).
+    // GA's poses at the simulation's depth; what is left between them and the simulated poses is how far
+    // the simulation is from GA across the line of sight (frames GA did not fit: nothing).
+    let slid: Vec<Pose<f64>> = (0..n)
+        .map(|k| recon::video_fit::at_depth_of(&ga[k].pose, &simulated[k], eye))
+        .collect();
     let across: Vec<f64> = (0..n)
-        .map(|k| match &ga[k] {
-            g if g.fitted => {
-                let dir = (g.pose.t - eye).normalize_or(Vec3::new(0.0, 0.0, -1.0));
-                let d = simulated[k].t - g.pose.t;
-                (d - dir * d.dot(dir)).norm()
+        .map(|k| {
+            if ga[k].fitted {
+                (simulated[k].t - slid[k].t).norm()
+            } else {
+                0.0
             }
-            _ => 0.0,
         })
         .collect();
     let follows = |k: usize| {
@@ -1315,20 +1318,18 @@ pub(super) fn reported_poses<E>(
         .map(|(s, g)| simulation_misses(s, g))
         .collect();
     let mut poses = simulated.to_vec();
-    let mut source = vec![ReportedPose::Simulated; simulated.len()];
-    if !missed.iter().any(|&m| m) {
+    let mut source = vec![ReportedPose::Simulated; n];
+    if !(0..n).any(|k| missed[k] && follows(k)) {
+        for k in (0..n).filter(|&k| missed[k]) {
+            (poses[k], source[k]) = (ga[k].pose, ReportedPose::Ga);
+        }
         return Ok((poses, source));
     }
-    let slid: Vec<Pose<f64>> = (0..n)
-        .map(|k| {
-            if missed[k] && follows(k) {
-                recon::video_fit::at_depth_of(&ga[k].pose, &simulated[k], eye)
-            } else {
-                simulated[k]
-            }
-        })
+    // Scored where they may be reported; the other frames at the simulated pose, not looked at.
+    let candidates: Vec<Pose<f64>> = (0..n)
+        .map(|k| if missed[k] && follows(k) { slid[k] } else { simulated[k] })
         .collect();
-    let slid_losses = score(&slid)?;
+    let slid_losses = score(&candidates)?;
     for k in (0..n).filter(|&k| missed[k]) {
         (poses[k], source[k]) = if !follows(k) || simulation_misses(&slid_losses[k], &ga[k]) {
             (ga[k].pose, ReportedPose::Ga)
