@@ -15,7 +15,9 @@
 //! explained far worse than the best ones (a tumble lost on the way leaves the
 //! body at rest on the wrong face), it is searched afresh, as `--init auto`
 //! searches the first, and the pass back then goes over every frame from there
-//! while the frames carried back explain them better. One frame per
+//! while the frames carried back explain them better. Last, the frames still
+//! explained worst are fitted on from their own poses (a start far off runs
+//! out of steps). One frame per
 //! [`PosesFromVideo::step`]; frames whose mask is empty keep their start and
 //! say so.
 
@@ -66,6 +68,12 @@ pub struct PosesFromVideoConfig {
     pub end_search_ratio: f64,
     /// The search of the last frame. Default: `--init auto`'s.
     pub end_search: FirstPoseSearchConfig,
+    /// Last, every frame still explained this many times worse than the median frame (its image loss) is
+    /// fitted on from its own pose, with the steps of a start again, and kept if it explains the frame
+    /// better: a frame started far off runs out of steps before it converges (40 steps of 0.01 rad decaying
+    /// tenfold move a pose about 9°, and a tumble turns 15–30° a frame; the demo drop's frame 11 ended 6.5°
+    /// off, its image loss twice the true pose's). With `hypotheses`. 0: never. Default 1.5 (the pass back's).
+    pub continue_ratio: f64,
 }
 
 impl Default for PosesFromVideoConfig {
@@ -88,6 +96,7 @@ impl Default for PosesFromVideoConfig {
             wide_step_scale: 3.0,
             end_search_ratio: 2.0,
             end_search: FirstPoseSearchConfig::default(),
+            continue_ratio: BACKWARD_LOSS_RATIO,
         }
     }
 }
@@ -135,6 +144,8 @@ pub enum StartFrom {
     Backward,
     /// The last frame searched afresh ([`PosesFromVideoConfig::end_search`]).
     Searched,
+    /// The frame's own fitted pose, fitted on ([`PosesFromVideoConfig::continue_ratio`]).
+    Continued,
 }
 
 impl StartFrom {
@@ -146,6 +157,7 @@ impl StartFrom {
             StartFrom::Sized => "sized",
             StartFrom::Backward => "backward",
             StartFrom::Searched => "searched",
+            StartFrom::Continued => "continued",
         }
     }
 }
@@ -231,6 +243,11 @@ pub struct PosesFromVideo<'a> {
     /// The sizing pass: the frames left whose fitted silhouette's area is off the mask's, last first, each
     /// with its pose slid to the mask's size.
     sizing: Vec<(usize, Pose<f64>)>,
+    /// The last pass is still to be planned (after the sizing pass).
+    continuing_pending: bool,
+    /// The last pass: the frames left that are still explained poorly, to be fitted on from their own pose,
+    /// last first ([`PosesFromVideoConfig::continue_ratio`]).
+    continuing: Vec<usize>,
     /// The pass back follows the searched last frame: every frame is revisited while the frames carried
     /// back win; this counts the ones in a row that did not (at [`CHAIN_MISSES`] the chain ends).
     chain: Option<usize>,
@@ -333,6 +350,8 @@ impl<'a> PosesFromVideo<'a> {
             end_pending: false,
             sizing_pending: false,
             sizing: Vec::new(),
+            continuing_pending: false,
+            continuing: Vec::new(),
             chain: None,
             occluders: vec![Vec::new(); frames.len()],
         })
@@ -370,6 +389,8 @@ impl<'a> PosesFromVideo<'a> {
             end_pending: false,
             sizing_pending: false,
             sizing: Vec::new(),
+            continuing_pending: false,
+            continuing: Vec::new(),
             chain: None,
             occluders: vec![Vec::new(); frames.len()],
         })
@@ -408,6 +429,8 @@ impl<'a> PosesFromVideo<'a> {
             && !self.end_pending
             && !self.sizing_pending
             && self.sizing.is_empty()
+            && !self.continuing_pending
+            && self.continuing.is_empty()
     }
 
     /// Steps left: frames to fit, then frames to revisit (a bound for progress bars).
@@ -418,36 +441,55 @@ impl<'a> PosesFromVideo<'a> {
         } else {
             self.backward.len()
         };
-        // The end check and the sizing pass (at most every frame) once the forward pass is done.
+        // The end check, the sizing pass and the last pass (at most every frame each) once the forward pass
+        // is done.
         let after = if self.cfg.hypotheses && !self.tracking && left > 0 {
-            1 + self.frames.len()
+            1 + 2 * self.frames.len()
         } else {
+            let planned = |pending: bool, left: usize| if pending { self.frames.len() } else { left };
             usize::from(self.end_pending)
-                + if self.sizing_pending {
-                    self.frames.len()
-                } else {
-                    self.sizing.len()
-                }
+                + planned(self.sizing_pending, self.sizing.len())
+                + planned(self.continuing_pending, self.continuing.len())
         };
         left + back + after
     }
 
-    /// The frames the pass back revisits, last first: fitted, with an image loss over
-    /// [`BACKWARD_LOSS_RATIO`] times the median fitted frame's (a bounce the forward starts missed).
-    fn frames_to_revisit(&self) -> Vec<usize> {
+    /// The fitted frames whose image loss is over `ratio` times the median fitted frame's, in order.
+    fn explained_worse_than(&self, ratio: f64) -> Vec<usize> {
         let mut losses: Vec<f64> = self.results.iter().filter(|r| r.fitted).map(|r| r.image.loss).collect();
         if losses.is_empty() {
             return Vec::new();
         }
         losses.sort_by(f64::total_cmp);
         let median = losses[losses.len() / 2];
-        let n = self.results.len();
-        (0..n.saturating_sub(1))
-            .filter(|&k| {
-                let r = &self.results[k];
-                r.fitted && self.results[k + 1].fitted && r.image.loss > BACKWARD_LOSS_RATIO * median
-            })
+        (0..self.results.len())
+            .filter(|&k| self.results[k].fitted && self.results[k].image.loss > ratio * median)
             .collect()
+    }
+
+    /// The frames the pass back revisits, last first: fitted, with an image loss over
+    /// [`BACKWARD_LOSS_RATIO`] times the median fitted frame's (a bounce the forward starts missed), and the
+    /// next frame fitted (the start is carried back from it).
+    fn frames_to_revisit(&self) -> Vec<usize> {
+        let n = self.results.len();
+        self.explained_worse_than(BACKWARD_LOSS_RATIO)
+            .into_iter()
+            .filter(|&k| k + 1 < n && self.results[k + 1].fitted)
+            .collect()
+    }
+
+    /// Frame `k` fitted on from its own pose (the last pass), its steps scaled by the body's pace over the
+    /// frames beside it; held where it was, on the sides its pose touches. Whether it explains the frame
+    /// better.
+    fn continue_fit(&mut self, k: usize) -> Result<bool, PosesFromVideoError> {
+        let r = &self.results[k];
+        let pose = r.pose;
+        let held = if r.in_contact { self.sides_at(&pose) } else { Vec::new() };
+        let fitted = |j: usize| self.results.get(j).filter(|r| r.fitted).map(|r| r.pose);
+        let before = k.checked_sub(1).and_then(fitted).map_or(0.0, |p| pace(&p, &pose));
+        let after = fitted(k + 1).map_or(0.0, |p| pace(&pose, &p));
+        let scale = self.step_scale(before.max(after));
+        self.replace_if_better(k, pose, scale, held, StartFrom::Continued, 0.0)
     }
 
     /// Frame `k` fitted again from the next two frames carried back; kept if it explains the image better.
@@ -809,15 +851,22 @@ impl<'a> PosesFromVideo<'a> {
                     if std::mem::take(&mut self.sizing_pending) {
                         self.sizing = (0..k).filter_map(|j| self.sized_start(j).map(|p| (j, p))).collect();
                     }
-                    match self.sizing.pop() {
-                        Some((j, start)) => {
-                            // Held where it was, on the sides its fitted pose touches.
-                            let held = if self.results[j].in_contact {
-                                self.sides_at(&self.results[j].pose)
-                            } else {
-                                Vec::new()
-                            };
-                            self.replace_if_better(j, start, 1.0, held, StartFrom::Sized, 0.0)?;
+                    if let Some((j, start)) = self.sizing.pop() {
+                        // Held where it was, on the sides its fitted pose touches.
+                        let held = if self.results[j].in_contact {
+                            self.sides_at(&self.results[j].pose)
+                        } else {
+                            Vec::new()
+                        };
+                        self.replace_if_better(j, start, 1.0, held, StartFrom::Sized, 0.0)?;
+                        return Ok(Some(&self.results[j]));
+                    }
+                    if std::mem::take(&mut self.continuing_pending) && self.cfg.continue_ratio > 0.0 {
+                        self.continuing = self.explained_worse_than(self.cfg.continue_ratio);
+                    }
+                    match self.continuing.pop() {
+                        Some(j) => {
+                            self.continue_fit(j)?;
                             Ok(Some(&self.results[j]))
                         }
                         None => Ok(None),
@@ -925,12 +974,13 @@ impl<'a> PosesFromVideo<'a> {
     }
 
     /// The forward pass's outcome for the next frame; after the last one (with `hypotheses`), the last
-    /// frame's check, the pass back and the sizing pass are due.
+    /// frame's check, the pass back, the sizing pass and the last pass are due.
     fn push(&mut self, result: FramePose) {
         self.results.push(result);
         if self.results.len() == self.frames.len() && self.cfg.hypotheses && !self.tracking {
             self.end_pending = true;
             self.sizing_pending = true;
+            self.continuing_pending = true;
         }
     }
 

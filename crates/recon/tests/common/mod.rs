@@ -86,16 +86,21 @@ pub fn world(v0: [f64; 3], contact: ContactParams) -> World {
 /// The scene pre-rendered through the camera, and each frame of `world`'s simulation rendered over it
 /// (mask: the body's opacity above ½).
 pub fn film(ball: &ObjectModel, world: &World) -> (Vec<ComposedRay>, Vec<FrameTarget>) {
+    let traj = world.simulate(&world.params());
+    let poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+    film_poses(ball, &poses)
+}
+
+/// The scene pre-rendered through the camera, and the body rendered over it at each of `poses`.
+pub fn film_poses(ball: &ObjectModel, poses: &[Pose<f64>]) -> (Vec<ComposedRay>, Vec<FrameTarget>) {
     let cam = camera();
     let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
     let mut composer = Composer::default();
     let behind = prerender_scene(&scene, &cam, &mut composer);
-    let traj = world.simulate(&world.params());
-    let frames = traj
-        .frames
+    let frames = poses
         .iter()
-        .map(|f| {
-            let layer = Layer::object(&ball.primary.field, &ball.primary.capture_from_body, &f[0].pose, 0);
+        .map(|pose| {
+            let layer = Layer::object(&ball.primary.field, &ball.primary.capture_from_body, pose, 0);
             let img = render_composed(&[layer], 1, Behind::Scene(&behind), &cam, &mut composer);
             FrameTarget {
                 camera: cam,
