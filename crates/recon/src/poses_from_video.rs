@@ -55,7 +55,7 @@ pub struct PosesFromVideoConfig {
     /// Starts that are not a trusted PA pose (from the previous frames, or PA's where it lost the body) take
     /// steps up to this many times larger, in proportion to how fast the body moved over the last frame
     /// (full at 15° or 15 mm): a tumbling body turns 15–30° a frame and its next pose is a rough guess,
-    /// while from 40 steps of 0.01 rad decaying tenfold a fit moves at most about 9°; a body at rest keeps
+    /// while from 40 steps of 0.01 rad decaying tenfold a fit moves at most about 9° (80: 18°); a body at rest keeps
     /// GA's small steps (with large ones its resting pose wandered by 5–10°). Default 3.
     pub wide_step_scale: f64,
     /// After the forward pass, where the last frame is explained this many times worse than the frames
@@ -70,9 +70,10 @@ pub struct PosesFromVideoConfig {
     pub end_search: FirstPoseSearchConfig,
     /// Last, every frame still explained this many times worse than the median frame (its image loss) is
     /// fitted on from its own pose, with the steps of a start again, and kept if it explains the frame
-    /// better: a frame started far off runs out of steps before it converges (40 steps of 0.01 rad decaying
-    /// tenfold move a pose about 9°, and a tumble turns 15–30° a frame; the demo drop's frame 11 ended 6.5°
-    /// off, its image loss twice the true pose's). With `hypotheses`. 0: never. Default 1.5 (the pass back's).
+    /// better: a frame started far off can run out of steps before it converges (80 steps of 0.01 rad
+    /// decaying tenfold move a pose about 18°, 40 about 9°, and a tumble turns 15–30° a frame; with `fit`'s
+    /// former 40 steps the demo drop's frame 11 ended 6.5° off, its image loss twice the true pose's). With
+    /// `hypotheses`. 0: never. Default 1.5 (the pass back's).
     pub continue_ratio: f64,
 }
 
@@ -422,7 +423,8 @@ impl<'a> PosesFromVideo<'a> {
         }
     }
 
-    /// Whether every frame is done (and, with `hypotheses`, the pass back over the poorly explained ones).
+    /// Whether every frame is done (and, with `hypotheses`, the end check, the pass back, the sizing pass and
+    /// the last pass).
     pub fn done(&self) -> bool {
         self.results.len() == self.frames.len()
             && self.backward.is_empty()
@@ -436,7 +438,8 @@ impl<'a> PosesFromVideo<'a> {
     /// Steps left: frames to fit, then frames to revisit (a bound for progress bars).
     pub fn steps_left(&self) -> usize {
         let left = self.frames.len() - self.results.len();
-        let back = if self.cfg.hypotheses && !self.tracking && left > 0 {
+        // Before the end check the pass back is not planned yet: at most every frame but the last.
+        let back = if self.cfg.hypotheses && !self.tracking && (left > 0 || self.end_pending) {
             self.frames.len().saturating_sub(1)
         } else {
             self.backward.len()
@@ -478,7 +481,7 @@ impl<'a> PosesFromVideo<'a> {
             .collect()
     }
 
-    /// Frame `k` fitted on from its own pose (the last pass), its steps scaled by the body's pace over the
+    /// Frame `k` fitted on from its own pose (the last pass), its steps scaled by the pace between it and the
     /// frames beside it; held where it was, on the sides its pose touches. Whether it explains the frame
     /// better.
     fn continue_fit(&mut self, k: usize) -> Result<bool, PosesFromVideoError> {
