@@ -485,9 +485,8 @@ impl<'a> PosesFromVideo<'a> {
     /// frames beside it; held where it was, on the sides its pose touches. Whether it explains the frame
     /// better.
     fn continue_fit(&mut self, k: usize) -> Result<bool, PosesFromVideoError> {
-        let r = &self.results[k];
-        let pose = r.pose;
-        let held = if r.in_contact { self.sides_at(&pose) } else { Vec::new() };
+        let pose = self.results[k].pose;
+        let held = self.sides_held_at(k);
         let fitted = |j: usize| self.results.get(j).filter(|r| r.fitted).map(|r| r.pose);
         let before = k.checked_sub(1).and_then(fitted).map_or(0.0, |p| pace(&p, &pose));
         let after = fitted(k + 1).map_or(0.0, |p| pace(&pose, &p));
@@ -673,6 +672,17 @@ impl<'a> PosesFromVideo<'a> {
         points_near_scene(&w.bodies[self.body], pose, &w.scene, f64::INFINITY)
     }
 
+    /// Where fitted frame `k`'s body was held on the scene: the sides its pose touches (the sizing and the
+    /// last pass refit it held where it was); none where it was not held.
+    fn sides_held_at(&self, k: usize) -> Vec<Vec3<f64>> {
+        let r = &self.results[k];
+        if r.in_contact {
+            self.sides_at(&r.pose)
+        } else {
+            Vec::new()
+        }
+    }
+
     /// The sides of the scene the body touches at `pose` ([`sides_touched`]).
     fn sides_at(&self, pose: &Pose<f64>) -> Vec<Vec3<f64>> {
         sides_touched(&self.points(pose), self.world.config.contact_threshold)
@@ -855,12 +865,7 @@ impl<'a> PosesFromVideo<'a> {
                         self.sizing = (0..k).filter_map(|j| self.sized_start(j).map(|p| (j, p))).collect();
                     }
                     if let Some((j, start)) = self.sizing.pop() {
-                        // Held where it was, on the sides its fitted pose touches.
-                        let held = if self.results[j].in_contact {
-                            self.sides_at(&self.results[j].pose)
-                        } else {
-                            Vec::new()
-                        };
+                        let held = self.sides_held_at(j);
                         self.replace_if_better(j, start, 1.0, held, StartFrom::Sized, 0.0)?;
                         return Ok(Some(&self.results[j]));
                     }
