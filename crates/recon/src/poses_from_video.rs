@@ -17,9 +17,10 @@
 //! searches the first, and the pass back then goes over every frame from there
 //! while the frames carried back explain them better. Last, the frames still
 //! explained worst are fitted on from their own poses (a start far off runs
-//! out of steps). One frame per
-//! [`PosesFromVideo::step`]; frames whose mask is empty keep their start and
-//! say so.
+//! out of steps). A frame after two in which the body stayed still keeps the
+//! last fitted pose where that pose explains it as well (a body at rest).
+//! One frame per [`PosesFromVideo::step`]; frames whose mask is empty keep
+//! their start and say so.
 
 use crate::contact_penalty::{contact_sides, faces, ContactPenaltyConfig, ContactTerm};
 use crate::first_pose_search::{search_first_pose, FirstPoseSearchConfig};
@@ -75,6 +76,12 @@ pub struct PosesFromVideoConfig {
     /// former 40 steps the demo drop's frame 11 ended 6.5° off, its image loss twice the true pose's). With
     /// `hypotheses`. 0: never. Default 1.5 (the pass back's).
     pub continue_ratio: f64,
+    /// A frame after two in which the body stayed still ([`crate::rest::is_still`]) keeps the last fitted
+    /// frame's pose, without fitting, where that pose explains it within [`STILL_LOSS_SLACK`] of how it
+    /// explained its own frame (its image loss over the window): a body at rest shows the same image
+    /// again, and fitting it anew (80 steps from each start) took most of GA's time in a video that ends
+    /// at rest (the tabletop drop: 34 of 48 frames). The start `still` in the results. Default true.
+    pub keep_still: bool,
 }
 
 impl Default for PosesFromVideoConfig {
@@ -98,6 +105,7 @@ impl Default for PosesFromVideoConfig {
             end_search_ratio: 2.0,
             end_search: FirstPoseSearchConfig::default(),
             continue_ratio: BACKWARD_LOSS_RATIO,
+            keep_still: true,
         }
     }
 }
@@ -147,6 +155,9 @@ pub enum StartFrom {
     Searched,
     /// The frame's own fitted pose, fitted on ([`PosesFromVideoConfig::continue_ratio`]).
     Continued,
+    /// Not fitted again: the body was still and the last fitted frame's pose explains this frame as well
+    /// ([`PosesFromVideoConfig::keep_still`]).
+    Still,
 }
 
 impl StartFrom {
@@ -159,6 +170,7 @@ impl StartFrom {
             StartFrom::Backward => "backward",
             StartFrom::Searched => "searched",
             StartFrom::Continued => "continued",
+            StartFrom::Still => "still",
         }
     }
 }
@@ -208,6 +220,12 @@ const PA_TRUSTED: (f64, f64) = (0.02, 0.26);
 const BACKWARD_LOSS_RATIO: f64 = 1.5;
 /// Another start replaces PA's only with a score this much lower (a share of PA's score).
 const SWITCH_MARGIN: f64 = 0.1;
+/// A still frame keeps the last fitted pose where that pose's image loss on it is within this share of the
+/// loss on its own frame ([`PosesFromVideoConfig::keep_still`]). The loss is steep in the pose: moved
+/// 0.1 px (0.25 mm), a 15-pixel block's rose by a quarter; two frames of a scene at rest differ by their
+/// noise only. So a kept frame's pose is within a few hundredths of a pixel of the one a fit would find
+/// there, finer than GA's own fits place the tabletop toy (0.04–0.15 px across the line of sight).
+pub const STILL_LOSS_SLACK: f64 = 0.05;
 /// A start (or, in the sizing pass, a fitted pose) whose silhouette's area is off the mask's by more than
 /// this share gets a sized twin ([`StartFrom::Sized`]): 3 % of the area is 1.5 % of the depth (6 mm for the
 /// tabletop toy at 0.41 m). A twin that is only the noise of a mask's border pixels or of a reconstructed
@@ -882,6 +900,10 @@ impl<'a> PosesFromVideo<'a> {
                 }
             };
         }
+        if let Some(kept) = self.kept_still(k)? {
+            self.push(kept);
+            return Ok(self.results.last());
+        }
         let starts = self.starts_of(k);
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add(k as u64),
@@ -979,6 +1001,47 @@ impl<'a> PosesFromVideo<'a> {
         };
         self.push(result);
         Ok(self.results.last())
+    }
+
+    /// Frame `k` at the last fitted frame's pose, not fitted, where the body stayed still over the two frames
+    /// before and that pose explains frame `k` as well as its own ([`PosesFromVideoConfig::keep_still`]).
+    fn kept_still(&self, k: usize) -> Result<Option<FramePose>, PosesFromVideoError> {
+        if !self.cfg.keep_still || k < 2 {
+            return Ok(None);
+        }
+        let (a, b) = (&self.results[k - 2], &self.results[k - 1]);
+        let eye = self.frames[k].camera.center();
+        let radius = self.world.bodies[self.body].bounding_radius;
+        if !(a.fitted && b.fitted && crate::rest::is_still(&a.pose, &b.pose, eye, radius)) {
+            return Ok(None);
+        }
+        // The frame the kept pose was fitted to (the frames kept since hold its pose).
+        let Some(anchor) = self.results[..k].iter().rev().find(|r| r.start != StartFrom::Still) else {
+            return Ok(None);
+        };
+        let mut at_anchor = match PoseFromImage::new(
+            self.cfg.pose.clone(),
+            self.object,
+            self.scene,
+            &self.frames[k],
+            anchor.pose,
+        ) {
+            Err(PoseFitError::EmptyMask) => return Ok(None),
+            Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
+            Ok(fit) => fit.with_occluders(self.occluders[k].clone()),
+        };
+        let image = at_anchor.evaluate();
+        if !(image.loss <= anchor.image.loss * (1.0 + STILL_LOSS_SLACK)) {
+            return Ok(None);
+        }
+        Ok(Some(FramePose {
+            pose: anchor.pose,
+            image,
+            contact_penalty: anchor.contact_penalty,
+            in_contact: anchor.in_contact,
+            fitted: true,
+            start: StartFrom::Still,
+        }))
     }
 
     /// The forward pass's outcome for the next frame; after the last one (with `hypotheses`), the last

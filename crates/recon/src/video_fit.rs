@@ -222,14 +222,39 @@ pub fn settle_along_ray(body: &RigidBody, scene: &Shape, eye: Vec3<f64>, pose: &
     Some(at(0.5 * (a + b)))
 }
 
-/// `pose` slid along the line of sight from the camera `eye` through its origin to the depth of `other`'s
-/// origin (the rotation kept): the image places a body across its line of sight `z / d` times more
-/// precisely than along it (its size changes by a fraction of a percent per millimetre), so where GA's pose
-/// and the simulation's disagree, GA's says where the body is across the line of sight and the
-/// simulation's, which follows gravity and the contacts, how far.
-pub fn at_depth_of(pose: &Pose<f64>, other: &Pose<f64>, eye: Vec3<f64>) -> Pose<f64> {
+/// `pose` slid along the line of sight from the camera `eye` through its origin by `share` of the way to the
+/// depth of `other`'s origin (0: `pose`, 1: at `other`'s depth; the rotation kept): the image places a body
+/// across its line of sight `z / d` times more precisely than along it (its size changes by a fraction of
+/// a percent per millimetre), so where GA's pose and the simulation's disagree, GA's says where the body is
+/// across the line of sight and the two depths are weighed by what each tells ([`depth_share`]).
+pub fn toward_depth_of(pose: &Pose<f64>, other: &Pose<f64>, eye: Vec3<f64>, share: f64) -> Pose<f64> {
     let dir = (pose.t - eye).normalize_or(Vec3::new(0.0, 0.0, -1.0));
-    Pose::new(pose.q, pose.t + dir * (other.t - pose.t).dot(dir))
+    Pose::new(pose.q, pose.t + dir * ((other.t - pose.t).dot(dir) * share))
+}
+
+/// How precisely a silhouette's edge is placed, in pixels: the image's and the reconstruction's surface
+/// together (a quarter pixel; the tabletop toy's fitted poses land within 0.05–0.2 px across the line of
+/// sight, and their depth within `z / d` times a quarter pixel or better at both of its scales).
+pub const EDGE_PRECISION_PX: f64 = 0.25;
+
+/// The share of the way from a pose fitted to one image to the simulation's depth that the two are best
+/// weighed at: each depth counts by the inverse of its variance. The fitted pose's depth is known to
+/// `z / d` times its precision across the line of sight (a body of apparent size `d f / z` pixels changes
+/// size by one edge precision over `z / d` of it), scaled by `loss_ratio` (the frame's image loss over the
+/// median frame's, at least 1: a frame the fit explains badly tells its depth worse); the simulation's to
+/// about how far it is from the fitted pose across the line of sight (`sim_across`, where the image says
+/// where the body is), at least one edge precision. `z`: the distance from the camera, `diameter`: the
+/// body's, `focal_px`: the camera's focal length in pixels.
+pub fn depth_share(z: f64, diameter: f64, focal_px: f64, loss_ratio: f64, sim_across: f64) -> f64 {
+    let edge = EDGE_PRECISION_PX * z / focal_px;
+    let sigma_fit = z / diameter.max(1e-9) * edge * loss_ratio.max(1.0);
+    let sigma_sim = sim_across.max(edge);
+    let (a, b) = (sigma_fit * sigma_fit, sigma_sim * sigma_sim);
+    if (a + b).is_finite() && a + b > 0.0 {
+        a / (a + b)
+    } else {
+        0.0
+    }
 }
 
 /// The launch `(v0, ω0)` (world frame) of poses one frame apart: least squares over `poses` of
@@ -294,11 +319,18 @@ pub fn total_loss(losses: &[ImageLoss]) -> f64 {
     losses.iter().map(|l| l.loss).sum()
 }
 
-/// [`ga_weights`] of GA's fitted frames as `PosesFromVideo` returns them.
-pub fn ga_weights_of(frames: &[crate::FramePose]) -> Vec<f64> {
+/// PGA's weight of each of GA's frames as `PosesFromVideo` returns them: [`ga_weights`] times
+/// [`crate::rest::rest_discount`] (`eye`: the camera's centre, `radius`: the body's bounding radius).
+pub fn ga_weights_of(frames: &[crate::FramePose], eye: Vec3<f64>, radius: f64) -> Vec<f64> {
     let losses: Vec<ImageLoss> = frames.iter().map(|r| r.image.clone()).collect();
     let fitted: Vec<bool> = frames.iter().map(|r| r.fitted).collect();
+    let poses: Vec<Pose<f64>> = frames.iter().map(|r| r.pose).collect();
+    let rest = crate::rest::rest_discount(&poses, &fitted, eye, radius);
     ga_weights(&losses, &fitted)
+        .into_iter()
+        .zip(rest)
+        .map(|(w, r)| w * r)
+        .collect()
 }
 
 /// PGA's weight of each GA pose: 0 where GA had no mask, else `min(1, median / residual)` of the image
@@ -370,17 +402,41 @@ mod tests {
     }
 
     #[test]
-    fn a_pose_slid_to_another_depth_stays_on_its_line_of_sight() {
+    fn a_pose_slid_toward_another_depth_stays_on_its_line_of_sight() {
         let eye = Vec3::new(0.0, -0.5, 0.4);
         let ga = Pose::new(Quat::exp(Vec3::new(0.1, 0.2, 0.3)), Vec3::new(0.05, 0.02, 0.03));
         let sim = Pose::new(Quat::identity(), Vec3::new(0.04, 0.05, 0.01));
-        let slid = at_depth_of(&ga, &sim, eye);
         let unit = |v: Vec3<f64>| v * (1.0 / v.norm());
         let dir = unit(ga.t - eye);
-        assert!(dir.cross(unit(slid.t - eye)).norm() < 1e-12, "on GA's line of sight");
-        assert!((slid.t - sim.t).dot(dir).abs() < 1e-12, "at the simulation's depth");
-        assert_eq!(slid.q.to_array_re(), ga.q.to_array_re());
-        assert!((at_depth_of(&ga, &ga, eye).t - ga.t).norm() < 1e-15);
+        for share in [1.0, 0.25] {
+            let slid = toward_depth_of(&ga, &sim, eye, share);
+            assert!(dir.cross(unit(slid.t - eye)).norm() < 1e-12, "on GA's line of sight");
+            let left = (sim.t - slid.t).dot(dir);
+            assert!(
+                (left - (1.0 - share) * (sim.t - ga.t).dot(dir)).abs() < 1e-12,
+                "{share} of the way"
+            );
+            assert_eq!(slid.q.to_array_re(), ga.q.to_array_re());
+        }
+        assert!((toward_depth_of(&ga, &sim, eye, 0.0).t - ga.t).norm() < 1e-15);
+    }
+
+    #[test]
+    fn depths_are_weighed_by_what_each_tells() {
+        // A 76 mm body 0.4 m off, f = 290 px: an edge is placed to 0.34 mm, the depth to 1.8 mm.
+        let (z, d, f) = (0.4, 0.076, 290.0);
+        let half = depth_share(z, d, f, 1.0, z / d * 0.25 * z / f);
+        assert!((half - 0.5).abs() < 1e-12, "{half}");
+        // A simulation that follows the body across to a millimetre is trusted with its depth mostly...
+        let close = depth_share(z, d, f, 1.0, 0.001);
+        assert!(close > 0.7, "{close}");
+        // ...one 10 mm off hardly; a frame the fit explains three times worse than the median trusts its own
+        // depth less; twice the resolution, more.
+        assert!(depth_share(z, d, f, 1.0, 0.01) < 0.05);
+        assert!(depth_share(z, d, f, 3.0, 0.01) > 2.0 * depth_share(z, d, f, 1.0, 0.01));
+        assert!(depth_share(z, d, 2.0 * f, 1.0, 0.001) < close);
+        // A simulation on top of the fitted pose: the floor of one edge precision, not a division by zero.
+        assert!(depth_share(z, d, f, 1.0, 0.0) > 0.9);
     }
 
     #[test]

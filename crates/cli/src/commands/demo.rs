@@ -403,7 +403,7 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
         md,
         "## Fits against the truth\n\n| video | position mm (mean / worst) | rotation ° (mean / worst) | \
          ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) and its range | friction (true) and its range | \
-         poses reported: simulated / GA's at the simulation's depth / GA's |\n\
+         poses reported: simulated / GA's at a weighed depth / GA's |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     )?;
     let mut mesh_line = None;
@@ -443,7 +443,7 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
             f(&par["friction_true"]),
             super::report::range_text(par.get("friction_range")),
             reported("simulated"),
-            reported("ga_at_simulated_depth"),
+            reported("ga_at_weighed_depth"),
             reported("ga"),
         )?;
         if mesh_line.is_none() {
@@ -511,7 +511,7 @@ mod tests {
                     "parameters": {"toy": {"v0_error_percent": 3.0, "restitution": 0.48,
                         "restitution_true": 0.5, "friction": 0.26, "friction_true": 0.25}},
                     "meshes": {"toy": {"chamfer_mean_mm": 0.9, "chamfer_p95_mm": 2.0, "volume_iou": 0.93}},
-                    "frames": [{"fit_pose": "simulated"}, {"fit_pose": "ga_at_simulated_depth"},
+                    "frames": [{"fit_pose": "simulated"}, {"fit_pose": "ga_at_weighed_depth"},
                         {"fit_pose": "ga"}, {"fit_pose": "simulated"}]
                 });
                 let dir = PathBuf::from(&argv[2]);

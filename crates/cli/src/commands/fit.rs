@@ -10,7 +10,7 @@ use super::objects::parse_objects;
 use super::render_trajectory::{beside, read_mask, reference_frame, to8};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use geom::{Pose, Quat, Vec3};
+use geom::{Camera, Pose, Quat, Vec3};
 use neus::checkpoint::load_field;
 use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
 use neus::ObjectModel;
@@ -1163,10 +1163,11 @@ fn pga_config(job: &Job) -> PhysicsFitConfig {
     }
 }
 
-/// GA's poses as PGA observes them: weighed by GA's residuals, each frame's depth counting least where GA
-/// did not hold the body on the scene.
+/// GA's poses as PGA observes them: weighed by GA's residuals and rests, each frame's depth counting least
+/// where GA did not hold the body on the scene.
 fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> recon::Observed {
-    let weights = ga_weights_of(ga);
+    let eye = job.frames[0].camera.center();
+    let weights = ga_weights_of(ga, eye, job.world.bodies[0].bounding_radius);
     let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
     recon::Observed {
         start: start_contact,
@@ -1250,10 +1251,10 @@ pub(super) fn simulation_misses(simulated: &ImageLoss, ga: &FramePose) -> bool {
 pub(super) enum ReportedPose {
     /// The simulation's (Eq. 11): it explains the frame.
     Simulated,
-    /// GA's pose slid along its line of sight to the simulation's depth (`recon::video_fit::at_depth_of`):
-    /// the simulation misses the frame (a turn the simulator cannot make) but follows the body across the
-    /// line of sight there, and its depth, with GA's pose across the line of sight, explains the frame.
-    GaAtSimulatedDepth,
+    /// GA's pose slid along its line of sight toward the simulation's depth, GA's and the simulation's depth
+    /// weighed by what each tells ([`recon::video_fit::depth_share`]): the simulation misses the frame (a
+    /// turn the simulator cannot make), and the weighed pose explains it.
+    GaAtWeighedDepth,
     /// GA's own pose: neither of the above explains the frame.
     Ga,
 }
@@ -1262,55 +1263,62 @@ impl ReportedPose {
     pub(super) fn name(self) -> &'static str {
         match self {
             ReportedPose::Simulated => "simulated",
-            ReportedPose::GaAtSimulatedDepth => "ga_at_simulated_depth",
+            ReportedPose::GaAtWeighedDepth => "ga_at_weighed_depth",
             ReportedPose::Ga => "ga",
         }
     }
 }
 
-/// The simulation's depth stands in for GA's only where, in the frame and the frames beside it, the
-/// simulated pose is within this share of the body's bounding radius of GA's across the line of sight (5 mm
-/// for the tabletop toy): there it follows the body where the image measures it precisely, and its depth
-/// can be trusted more than a silhouette's size. Where it lost the body (the drop Rapier made: 8–15 mm
-/// across over its first landing), its depth is as wrong as the rest: slid to it, those frames went from
-/// 1–3 mm to 7–11 mm off.
-const SIMULATED_DEPTH_FOLLOWS: f64 = 0.125;
-
 /// The pose each frame reports, and which: the simulated one wherever it explains the frame; where it
-/// clearly misses it ([`simulation_misses`]), GA's pose at the simulation's depth where the simulation
-/// follows the body ([`SIMULATED_DEPTH_FOLLOWS`] of `radius`, the body's bounding radius) and the slid
-/// pose explains the frame, else GA's own. One view tells a body's depth least: GA's poses wander along the
-/// line of sight by millimetres where the image cannot tell (the demo's drop: its worst frame 6.8 mm off
-/// along it, 0.5 mm across; the slide at the wall 14 mm), and the simulation, which follows gravity and the
-/// contacts, is off by less there even in frames whose turn it misses. `score` gives the image terms of
+/// clearly misses it ([`simulation_misses`]), GA's pose at a depth between its own and the simulation's
+/// where that pose explains the frame, else GA's own. One view tells a body's depth least: GA's poses
+/// wander along the line of sight where the image cannot tell (the demo's drop at 160×120: 1.7 mm on
+/// average, 7.5 at worst, against 0.1–0.2 mm across), while the simulation, which follows gravity and the
+/// contacts, is off by about as much along it as it is off GA's pose across it, even in frames whose turn
+/// it misses. The two depths are weighed by those errors ([`recon::video_fit::depth_share`]: GA's
+/// from the body's apparent size in `camera`'s pixels and the frame's loss against the median frame's,
+/// the simulation's from how far it is from GA across the line of sight in the frame and the frames
+/// beside it). A switch to the simulation's depth wherever it followed the body across the line of
+/// sight was right at 160×120 and wrong at 320×240, where GA's depth is the better one (the drop: 0.9 mm
+/// against the simulation's 1.6). `radius`: the body's bounding radius. `score` gives the image terms of
 /// poses, one per frame (the frames not asked about are scored at the simulated pose and ignored).
 pub(super) fn reported_poses<E>(
     simulated: &[Pose<f64>],
     simulated_losses: &[ImageLoss],
     ga: &[FramePose],
-    eye: Vec3<f64>,
+    camera: &Camera<f64>,
     radius: f64,
     score: impl Fn(&[Pose<f64>]) -> std::result::Result<Vec<ImageLoss>, E>,
 ) -> std::result::Result<(Vec<Pose<f64>>, Vec<ReportedPose>), E> {
     let n = simulated.len();
-    // GA's poses at the simulation's depth; what is left between them and the simulated poses is how far
-    // the simulation is from GA across the line of sight (frames GA did not fit: nothing).
-    let slid: Vec<Pose<f64>> = (0..n)
-        .map(|k| recon::video_fit::at_depth_of(&ga[k].pose, &simulated[k], eye))
-        .collect();
+    let eye = camera.center();
+    // How far the simulation is from GA across the line of sight (frames GA did not fit: nothing).
     let across: Vec<f64> = (0..n)
         .map(|k| {
             if ga[k].fitted {
-                (simulated[k].t - slid[k].t).norm()
+                let slid = recon::video_fit::toward_depth_of(&ga[k].pose, &simulated[k], eye, 1.0);
+                (simulated[k].t - slid.t).norm()
             } else {
                 0.0
             }
         })
         .collect();
-    let follows = |k: usize| {
-        across[k.saturating_sub(1)..(k + 2).min(n)]
+    let mut fitted_losses: Vec<f64> = ga.iter().filter(|g| g.fitted).map(|g| g.image.loss).collect();
+    fitted_losses.sort_by(f64::total_cmp);
+    let median_loss = fitted_losses.get(fitted_losses.len() / 2).copied().unwrap_or(0.0);
+    let weighed = |k: usize| {
+        let z = (ga[k].pose.t - eye).norm();
+        let loss_ratio = if median_loss > 0.0 {
+            ga[k].image.loss / median_loss
+        } else {
+            1.0
+        };
+        let sim_across = across[k.saturating_sub(1)..(k + 2).min(n)]
             .iter()
-            .all(|&a| a <= SIMULATED_DEPTH_FOLLOWS * radius)
+            .cloned()
+            .fold(0.0, f64::max);
+        let share = recon::video_fit::depth_share(z, 2.0 * radius, camera.k.fx, loss_ratio, sim_across);
+        recon::video_fit::toward_depth_of(&ga[k].pose, &simulated[k], eye, share)
     };
     let missed: Vec<bool> = simulated_losses
         .iter()
@@ -1319,22 +1327,19 @@ pub(super) fn reported_poses<E>(
         .collect();
     let mut poses = simulated.to_vec();
     let mut source = vec![ReportedPose::Simulated; n];
-    if !(0..n).any(|k| missed[k] && follows(k)) {
-        for k in (0..n).filter(|&k| missed[k]) {
-            (poses[k], source[k]) = (ga[k].pose, ReportedPose::Ga);
-        }
+    if !missed.iter().any(|&m| m) {
         return Ok((poses, source));
     }
     // Scored where they may be reported; the other frames at the simulated pose, not looked at.
     let candidates: Vec<Pose<f64>> = (0..n)
-        .map(|k| if missed[k] && follows(k) { slid[k] } else { simulated[k] })
+        .map(|k| if missed[k] { weighed(k) } else { simulated[k] })
         .collect();
-    let slid_losses = score(&candidates)?;
+    let weighed_losses = score(&candidates)?;
     for k in (0..n).filter(|&k| missed[k]) {
-        (poses[k], source[k]) = if !follows(k) || simulation_misses(&slid_losses[k], &ga[k]) {
+        (poses[k], source[k]) = if simulation_misses(&weighed_losses[k], &ga[k]) {
             (ga[k].pose, ReportedPose::Ga)
         } else {
-            (slid[k], ReportedPose::GaAtSimulatedDepth)
+            (candidates[k], ReportedPose::GaAtWeighedDepth)
         };
     }
     Ok((poses, source))
@@ -1362,14 +1367,13 @@ fn finish(
     // (motion the simulator cannot make), GA's pose is reported instead; both stay in pga.json and ga.json.
     let (reported, source) = match ga {
         Some(ga) => {
-            let eye = job.frames[0].camera.center();
             let at_depth =
                 |poses: &[Pose<f64>]| evaluate_poses(&job.object, &job.scene_pre, &job.frames, poses, &[], &weights);
             reported_poses(
                 &sim_poses,
                 &sim_losses,
                 ga,
-                eye,
+                &job.frames[0].camera,
                 world.bodies[0].bounding_radius,
                 at_depth,
             )?
@@ -1457,7 +1461,7 @@ fn finish(
     println!(
         "fitted {n} frames in {:.1} s: v0 {:?} m/s, omega0 {:?} rad/s, restitution {:.3}, friction {:.3}; \
          PSNR {:.2} dB, IoU mean {:.3} worst {:.3}; {} frames reported from GA (the simulation misses them), \
-         {} of them at the simulation's depth; wrote {}",
+         {} of them at a depth weighed with the simulation's; wrote {}",
         t_start.elapsed().as_secs_f64(),
         s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
         s.omega.to_array().map(|x| (x * 1e3).round() / 1e3),
@@ -1469,7 +1473,7 @@ fn finish(
         source.iter().filter(|s| **s != "simulated").count(),
         source
             .iter()
-            .filter(|s| **s == ReportedPose::GaAtSimulatedDepth.name())
+            .filter(|s| **s == ReportedPose::GaAtWeighedDepth.name())
             .count(),
         job.out.join("trajectory.json").display()
     );
@@ -1557,22 +1561,28 @@ mod tests {
     }
 
     #[test]
-    fn a_missed_frame_reports_ga_at_the_simulated_depth_only_where_the_simulation_follows_the_body() {
-        // The camera at the origin looks along +y at a body 0.4 m off (bounding radius 4 cm: 5 mm across).
-        let eye = Vec3::new(0.0, 0.0, 0.0);
-        let radius = 0.04;
-        let ga: Vec<FramePose> = (0..6)
-            .map(|k| ga_at(Vec3::new(0.01 * k as f64, 0.4, 0.0), 0.02))
+    fn a_missed_frame_reports_ga_at_a_depth_weighed_by_what_ga_and_the_simulation_tell() {
+        // The camera at the origin looks along +z (f = 290 px) at a body 0.4 m off (bounding radius 38 mm):
+        // an edge is placed to 0.34 mm, GA's depth to 1.8 mm.
+        let camera = Camera {
+            k: geom::Intrinsics::centred(290.0, 320, 240),
+            world_to_cam: Pose::identity(),
+            width: 320,
+            height: 240,
+        };
+        let radius = 0.038;
+        let ga: Vec<FramePose> = (0..7)
+            .map(|k| ga_at(Vec3::new(0.01 * k as f64, 0.0, 0.4), if k == 3 { 0.03 } else { 0.02 }))
             .collect();
-        // The simulation: 10 mm deeper than GA in frames 0–2 and 1 mm across, lost by 8 mm across from frame 4.
-        let simulated: Vec<Pose<f64>> = (0..6)
+        // The simulation: 10 mm deeper than GA everywhere; 1 mm across it in frames 0–3, 10 mm from frame 5.
+        let simulated: Vec<Pose<f64>> = (0..7)
             .map(|k| {
-                let across = if k >= 4 { 0.008 } else { 0.001 };
-                Pose::new(Quat::identity(), ga[k].pose.t + Vec3::new(0.0, 0.01, across))
+                let across = if k >= 5 { 0.01 } else { 0.001 };
+                Pose::new(Quat::identity(), ga[k].pose.t + Vec3::new(0.0, across, 0.01))
             })
             .collect();
         // It explains frame 0 (its own loss within 1.5 times GA's) and misses the others.
-        let simulated_losses: Vec<ImageLoss> = (0..6).map(|k| terms(if k == 0 { 0.025 } else { 0.05 })).collect();
+        let simulated_losses: Vec<ImageLoss> = (0..7).map(|k| terms(if k == 0 { 0.025 } else { 0.05 })).collect();
         let scored = std::cell::Cell::new(0);
         let score = |poses: &[Pose<f64>]| -> Result<Vec<ImageLoss>> {
             scored.set(scored.get() + 1);
@@ -1581,16 +1591,39 @@ mod tests {
                 .map(|k| terms(if k == 2 { 0.05 } else { 0.021 }))
                 .collect())
         };
-        let (poses, source) = reported_poses(&simulated, &simulated_losses, &ga, eye, radius, score).unwrap();
+        let (poses, source) = reported_poses(&simulated, &simulated_losses, &ga, &camera, radius, score).unwrap();
         assert_eq!(scored.get(), 1);
         use ReportedPose::*;
-        // Frame 3 is beside the lost frame 4; frames 4 and 5 are lost.
-        assert_eq!(source, vec![Simulated, GaAtSimulatedDepth, Ga, Ga, Ga, Ga]);
+        assert_eq!(
+            source,
+            vec![
+                Simulated,
+                GaAtWeighedDepth,
+                Ga,
+                GaAtWeighedDepth,
+                GaAtWeighedDepth,
+                GaAtWeighedDepth,
+                GaAtWeighedDepth
+            ]
+        );
         assert_eq!(poses[0].t.to_array(), simulated[0].t.to_array());
         assert_eq!(poses[2].t.to_array(), ga[2].pose.t.to_array());
-        // Frame 1: on GA's line of sight, at the simulation's depth.
-        let dir = ga[1].pose.t * (1.0 / ga[1].pose.t.norm());
-        assert!(dir.cross(poses[1].t * (1.0 / poses[1].t.norm())).norm() < 1e-12);
-        assert!((poses[1].t - simulated[1].t).dot(dir).abs() < 1e-12);
+        // Every weighed pose on GA's line of sight, the share of the way to the simulation's depth told by
+        // what each depth tells: most of it where the simulation follows across to 1 mm, more in frame 3
+        // (GA explains it 1.5 times worse than the median frame: its depth counts less), little where the
+        // simulation is 10 mm off across (frame 4 is beside frame 5).
+        let share = |k: usize| {
+            let dir = ga[k].pose.t * (1.0 / ga[k].pose.t.norm());
+            assert!(
+                dir.cross(poses[k].t * (1.0 / poses[k].t.norm())).norm() < 1e-12,
+                "frame {k}"
+            );
+            (poses[k].t - ga[k].pose.t).dot(dir) / (simulated[k].t - ga[k].pose.t).dot(dir)
+        };
+        assert!(share(1) > 0.7 && share(1) < 0.8, "{}", share(1));
+        assert!(share(3) > share(1) + 0.05, "{} {}", share(3), share(1));
+        for k in 4..7 {
+            assert!(share(k) < 0.05, "frame {k}: {}", share(k));
+        }
     }
 }

@@ -744,11 +744,16 @@ fn pga_config(m: &Multi) -> PhysicsFitConfig {
     }
 }
 
-/// GA's poses as PGA observes them: weighed by GA's residuals, each body's depth counting least where GA did
-/// not hold it on the scene, as in the one-body fit.
+/// GA's poses as PGA observes them: weighed by GA's residuals and rests, each body's depth counting least
+/// where GA did not hold it on the scene, as in the one-body fit.
 fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
     let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
-    let weights: Vec<Vec<f64>> = ga.iter().map(|rs| ga_weights_of(rs)).collect();
+    let eye = m.bodies[0].frames[0].camera.center();
+    let weights: Vec<Vec<f64>> = ga
+        .iter()
+        .zip(&m.world.bodies)
+        .map(|(rs, body)| ga_weights_of(rs, eye, body.bounding_radius))
+        .collect();
     recon::ObservedBodies {
         eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
         depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),
@@ -836,7 +841,7 @@ fn finish(
     let nb = m.bodies.len();
     let traj = world.simulate(&world.params());
     let sim_poses = body_poses(&traj, nb);
-    let eye = m.bodies[0].frames[0].camera.center();
+    let camera = m.bodies[0].frames[0].camera;
     let mut reported = Vec::with_capacity(nb);
     let mut source = Vec::with_capacity(nb);
     for (b, body) in m.bodies.iter().enumerate() {
@@ -853,7 +858,7 @@ fn finish(
             )
         };
         let radius = world.bodies[b].bounding_radius;
-        let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], eye, radius, score)?;
+        let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], &camera, radius, score)?;
         reported.push(poses);
         source.push(from.iter().map(|s| s.name()).collect::<Vec<_>>());
     }
@@ -938,14 +943,14 @@ fn finish(
         let s = &world.initial[b];
         let ious: Vec<f64> = rows[b].iter().filter_map(|r| r["iou"].as_f64()).collect();
         summary.push(format!(
-            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA ({} at the simulation's depth)",
+            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA ({} at a weighed depth)",
             body.name,
             s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
             ious.iter().cloned().fold(f64::INFINITY, f64::min),
             source[b].iter().filter(|s| **s != "simulated").count(),
             source[b]
                 .iter()
-                .filter(|s| **s == ReportedPose::GaAtSimulatedDepth.name())
+                .filter(|s| **s == ReportedPose::GaAtWeighedDepth.name())
                 .count()
         ));
     }
