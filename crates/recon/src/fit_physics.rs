@@ -826,6 +826,8 @@ pub struct MultiStart {
     /// Which start won (0: the world's own contact values, then `starts` in order).
     pub winner: usize,
     pub starts: Vec<StartResult>,
+    /// Each start's fitted world, in the order of `starts`.
+    pub worlds: Vec<World>,
     /// The winner's steps.
     pub history: Vec<FitStats>,
 }
@@ -876,6 +878,7 @@ pub fn fit_multi_start_bodies(
         .collect();
     let mut best: Option<(PhysicsFit, Vec<FitStats>, usize)> = None;
     let mut results = Vec::new();
+    let mut worlds = Vec::new();
     for (i, &(restitution, friction)) in all.iter().enumerate() {
         let mut w = world.clone();
         let c = sim::ContactParams { restitution, friction };
@@ -903,6 +906,7 @@ pub fn fit_multi_start_bodies(
             fitted_friction: ended.friction,
         };
         on_start(i, &r);
+        worlds.push(end);
         if best.as_ref().is_none_or(|(b, _, _)| r.loss < b.full_loss()) {
             best = Some((fit, history, i));
         }
@@ -913,6 +917,7 @@ pub fn fit_multi_start_bodies(
         best,
         winner,
         starts: results,
+        worlds,
         history,
     })
 }
