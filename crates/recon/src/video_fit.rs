@@ -48,7 +48,8 @@ pub struct VideoFitConfig {
     /// as the arc it moves the body's surface, as PA and GA weigh turns (at the paper's λ_q = 1 a ball's
     /// spin, which its silhouette does not show, outweighed every centimetre of its path).
     pub pga: PhysicsFitConfig,
-    /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins). Default true.
+    /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins; `fit` lets the images
+    /// choose among the starts within a tenth of it). Default true.
     pub pga_multi_start: bool,
     /// The ranges of the fitted contact values that the motion cannot tell apart ([`crate::value_ranges`]),
     /// the initial poses held at their fitted values (`steps = 0`: none).
