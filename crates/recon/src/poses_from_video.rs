@@ -137,6 +137,14 @@ pub struct FramePose {
     pub start: StartFrom,
 }
 
+/// The median image loss of the `(loss, fitted)` frames that were fitted (the upper one of an even count);
+/// `None` without any.
+pub fn median_fitted_loss(frames: impl Iterator<Item = (f64, bool)>) -> Option<f64> {
+    let mut losses: Vec<f64> = frames.filter(|&(_, fitted)| fitted).map(|(l, _)| l).collect();
+    losses.sort_by(f64::total_cmp);
+    losses.get(losses.len() / 2).copied()
+}
+
 /// Where a frame's pose fit started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -477,12 +485,9 @@ impl<'a> PosesFromVideo<'a> {
 
     /// The fitted frames whose image loss is over `ratio` times the median fitted frame's, in order.
     fn explained_worse_than(&self, ratio: f64) -> Vec<usize> {
-        let mut losses: Vec<f64> = self.results.iter().filter(|r| r.fitted).map(|r| r.image.loss).collect();
-        if losses.is_empty() {
+        let Some(median) = median_fitted_loss(self.results.iter().map(|r| (r.image.loss, r.fitted))) else {
             return Vec::new();
-        }
-        losses.sort_by(f64::total_cmp);
-        let median = losses[losses.len() / 2];
+        };
         (0..self.results.len())
             .filter(|&k| self.results[k].fitted && self.results[k].image.loss > ratio * median)
             .collect()

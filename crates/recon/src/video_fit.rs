@@ -337,17 +337,11 @@ pub fn ga_weights_of(frames: &[crate::FramePose], eye: Vec3<f64>, radius: f64) -
 /// PGA's weight of each GA pose: 0 where GA had no mask, else `min(1, median / residual)` of the image
 /// losses, so frames GA could not explain (occlusion, blur, a wrong basin) count less than the rest.
 pub fn ga_weights(losses: &[ImageLoss], fitted: &[bool]) -> Vec<f64> {
-    let mut used: Vec<f64> = losses
-        .iter()
-        .zip(fitted)
-        .filter(|(_, &f)| f)
-        .map(|(l, _)| l.loss)
-        .collect();
-    if used.is_empty() {
+    let pairs = losses.iter().zip(fitted).map(|(l, &f)| (l.loss, f));
+    let Some(median) = crate::poses_from_video::median_fitted_loss(pairs) else {
         return vec![0.0; losses.len()];
-    }
-    used.sort_by(f64::total_cmp);
-    let median = used[used.len() / 2].max(1e-12);
+    };
+    let median = median.max(1e-12);
     losses
         .iter()
         .zip(fitted)

@@ -1119,7 +1119,7 @@ fn stage_pga(
         }
         // The starts that ended within PGA_TIE of the best fit GA's poses alike: the images choose among them.
         let pga_losses: Vec<f64> = fit.starts.iter().map(|r| r.loss).collect();
-        let mut scored: Vec<Option<(Vec<ImageLoss>, f64)>> = vec![None; pga_losses.len()];
+        let mut scored: Vec<Option<Vec<ImageLoss>>> = vec![None; pga_losses.len()];
         let winner = among_ties(&pga_losses, PGA_TIE, |i| -> Result<f64> {
             let w = &fit.worlds[i];
             let traj = w.simulate(&w.params());
@@ -1130,10 +1130,11 @@ fn stage_pga(
                 json!({"stage": "pga", "round": round, "start": i, "tied_image_loss": total,
                 "v0": w.initial[0].v.to_array(), "omega0": w.initial[0].omega.to_array()}),
             )?;
-            scored[i] = Some((losses, total));
+            scored[i] = Some(losses);
             Ok(total)
         })?;
-        let (sim_losses, total) = scored[winner].take().expect("the winner was scored");
+        let sim_losses = scored[winner].take().expect("the winner was scored");
+        let total = total_loss(&sim_losses);
         let world = fit.worlds[winner].clone();
         report_stage(&format!("PGA round {}", round + 1), &world, &sim_losses);
         job.log(
@@ -1343,9 +1344,8 @@ pub(super) fn reported_poses<E>(
             }
         })
         .collect();
-    let mut fitted_losses: Vec<f64> = ga.iter().filter(|g| g.fitted).map(|g| g.image.loss).collect();
-    fitted_losses.sort_by(f64::total_cmp);
-    let median_loss = fitted_losses.get(fitted_losses.len() / 2).copied().unwrap_or(0.0);
+    let median_loss =
+        recon::poses_from_video::median_fitted_loss(ga.iter().map(|g| (g.image.loss, g.fitted))).unwrap_or(0.0);
     let weighed = |k: usize| {
         let z = (ga[k].pose.t - eye).norm();
         let loss_ratio = if median_loss > 0.0 {
