@@ -5,8 +5,9 @@
 //! are skipped on a rerun; a stage stopped half way resumes (training from its checkpoint, `fit` from its
 //! stage files).
 
+use super::synth::{PhysicsArg, ScaleArg};
 use anyhow::{anyhow, Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -17,22 +18,52 @@ use std::time::Instant;
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:
   pganeus demo
-  pganeus demo --quick --out out/demo-quick")]
+  pganeus demo --quick --out out/demo-quick
+  pganeus demo --preset backdrop --physics rapier
+  pganeus demo --preset two-body")]
 pub struct DemoArgs {
     /// Short training and a light fit on the first 12 frames: the whole chain in about 3 minutes (a smoke
     /// run; its figures are far from the method's).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "scale")]
     pub quick: bool,
     /// The folder for everything: data/, runs/, merged/, scene.sdf, fits/, report.md, demo.json.
-    /// Default: out/demo (out/demo-quick with --quick).
+    /// Default: out/demo, with the preset, `rapier`, `large` and `quick` added when given
+    /// (out/demo-quick, out/demo-backdrop-rapier, ...).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Redo every stage, even those that finished.
     #[arg(long)]
     pub force: bool,
+    /// The synthetic scene (`synth --preset`): tabletop (a toy slides into a wall and drops), backdrop (the
+    /// same motion with another light, board, obstacles and a backdrop) or two-body (a toy hits a block: the
+    /// several-body fit).
+    #[arg(long, default_value = "tabletop")]
+    pub preset: String,
+    /// What moves the bodies in the videos (`synth --physics`): the project's simulator (the preset's
+    /// default) or Rapier, an engine the project did not write (then motion is compared, not parameters).
+    #[arg(long, value_enum)]
+    pub physics: Option<PhysicsArg>,
+    /// small: 160×120, 30 frames (about 13 minutes for the tabletop); large: 320×240, 48 frames, longer
+    /// training (about an hour).
+    #[arg(long, value_enum, default_value = "small")]
+    pub scale: ScaleArg,
 }
 
-/// How the demo's sizes differ between `--quick` and the default.
+/// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
+/// of 2026-11-27 grown by GA's 80 steps a frame and shrunk by its still frames since, the large tabletop of
+/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` in CI. A fit is per body
+/// in the video.
+struct Expected {
+    synth: f64,
+    scene: f64,
+    object: f64,
+    merge: f64,
+    bake: f64,
+    fit_per_body: f64,
+    eval: f64,
+}
+
+/// How the demo's sizes differ between `--quick`, the default and `--scale large`.
 struct Plan {
     scale: &'static str,
     scene_steps: usize,
@@ -46,6 +77,7 @@ struct Plan {
     scene_config: Option<&'static str>,
     /// `merge --field-res` (none: merge's default).
     merge_field_res: Option<usize>,
+    expected: Expected,
 }
 
 const QUICK: Plan = Plan {
@@ -59,6 +91,15 @@ const QUICK: Plan = Plan {
         "# demo --quick: half the rays per step, coarser stereo points\nbatch_rays = 1024\n\n[stereo]\nstride = 2\nhypotheses = 64\n",
     ),
     merge_field_res: Some(128),
+    expected: Expected {
+        synth: 8.0,
+        scene: 35.0,
+        object: 20.0,
+        merge: 12.0,
+        bake: 3.0,
+        fit_per_body: 40.0,
+        eval: 2.0,
+    },
 };
 
 const FULL: Plan = Plan {
@@ -70,6 +111,35 @@ const FULL: Plan = Plan {
     fit_config: None,
     scene_config: None,
     merge_field_res: None,
+    expected: Expected {
+        synth: 10.0,
+        scene: 275.0,
+        object: 55.0,
+        merge: 15.0,
+        bake: 5.0,
+        fit_per_body: 200.0,
+        eval: 3.0,
+    },
+};
+
+const LARGE: Plan = Plan {
+    scale: "large",
+    scene_steps: 1500,
+    object_steps: 1500,
+    bake_res: 256,
+    frames: None,
+    fit_config: None,
+    scene_config: None,
+    merge_field_res: None,
+    expected: Expected {
+        synth: 170.0,
+        scene: 1130.0,
+        object: 460.0,
+        merge: 55.0,
+        bake: 10.0,
+        fit_per_body: 550.0,
+        eval: 5.0,
+    },
 };
 
 /// A light fit: fewer steps and pixels in every stage, one GA⇄PGA round, no multi-start.
@@ -100,9 +170,50 @@ iterations = 70
 rays_per_step = 256
 "#;
 
-/// One stage: a name, the subcommand's arguments, and its expected share of the time (seconds on two
-/// cores, measured alone: the full demo of 2026-11-27, its fits with the value ranges, each fit's GA share
-/// (a third to two fifths) grown by its 80 steps a frame since; `--quick` in CI; only for the ETA).
+/// What the demo runs on: the preset's scene, made by which engine, at which size.
+struct Scene {
+    preset: String,
+    physics: Option<PhysicsArg>,
+    desc: synth::SynthScene,
+}
+
+impl Scene {
+    fn new(a: &DemoArgs) -> Result<Scene> {
+        Ok(Scene {
+            preset: a.preset.clone(),
+            physics: a.physics,
+            desc: super::synth::named_preset(&a.preset, super::synth::scale(a.scale))?,
+        })
+    }
+
+    /// The engine named on the command line (none: the preset's own).
+    fn physics_name(&self) -> Option<String> {
+        self.physics
+            .and_then(|p| p.to_possible_value())
+            .map(|v| v.get_name().to_string())
+    }
+}
+
+/// The default output folder: out/demo, with what differs from the default demo added.
+fn default_out(a: &DemoArgs) -> PathBuf {
+    let mut name = String::from("demo");
+    if a.preset != "tabletop" {
+        name += &format!("-{}", a.preset);
+    }
+    if matches!(a.physics, Some(PhysicsArg::Rapier)) {
+        name += "-rapier";
+    }
+    if matches!(a.scale, ScaleArg::Large) {
+        name += "-large";
+    }
+    if a.quick {
+        name += "-quick";
+    }
+    PathBuf::from("out").join(name)
+}
+
+/// One stage: a name, the subcommand's arguments, and its expected share of the time (seconds on two cores,
+/// only for the ETA).
 struct Stage {
     name: String,
     argv: Vec<String>,
@@ -125,73 +236,79 @@ fn s(p: &Path) -> String {
     p.display().to_string()
 }
 
-/// The stages in order, their arguments written out as a user would type them.
-fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
+/// The stages in order, their arguments written out as a user would type them: synth, the scene's training,
+/// each body's two static captures and their merge, the bake, then each video's fit and eval, the report.
+fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
     let data = out.join("data");
     let runs = out.join("runs");
-    let merged = out.join("merged").join("toy");
+    let merged = |body: &str| out.join("merged").join(body);
     let grid = out.join("scene.sdf");
+    let x = &plan.expected;
     let mut v = Vec::new();
-    let mut add = |name: &str, expected_s: f64, args: &[String]| {
+    let mut add = |name: &str, expected_s: f64, args: Vec<String>| {
         v.push(Stage {
             name: name.to_string(),
-            argv: args.to_vec(),
+            argv: args,
             expected_s,
         })
     };
-    let q = |quick_s: f64, full_s: f64| if quick { quick_s } else { full_s };
-    add(
-        "synth",
-        q(8.0, 10.0),
-        &[
-            "synth".into(),
-            "--preset".into(),
-            "tabletop".into(),
-            "--scale".into(),
-            plan.scale.into(),
-            "--out".into(),
-            s(&data),
-            "--contact-sheet".into(),
-        ],
-    );
-    for (name, capture, steps, expected) in [
-        ("train scene", "background", plan.scene_steps, q(35.0, 275.0)),
-        ("train toy_a", "toy_a", plan.object_steps, q(20.0, 55.0)),
-        ("train toy_b", "toy_b", plan.object_steps, q(20.0, 55.0)),
-    ] {
-        let run = if capture == "background" { "scene" } else { capture };
+    let mut synth_args: Vec<String> = vec![
+        "synth".into(),
+        "--preset".into(),
+        scene.preset.clone(),
+        "--scale".into(),
+        plan.scale.into(),
+        "--out".into(),
+        s(&data),
+        "--contact-sheet".into(),
+    ];
+    if let Some(p) = scene.physics_name() {
+        synth_args.extend(["--physics".into(), p]);
+    }
+    add("synth", x.synth, synth_args);
+    let mut train = vec![("background".to_string(), "scene".to_string(), plan.scene_steps, x.scene)];
+    for body in &scene.desc.bodies {
+        for side in ["a", "b"] {
+            let capture = format!("{}_{side}", body.name);
+            train.push((capture.clone(), capture, plan.object_steps, x.object));
+        }
+    }
+    for (capture, run, steps, expected) in train {
         let mut args: Vec<String> = vec![
             "train".into(),
-            s(&data.join(capture)),
+            s(&data.join(&capture)),
             "--out".into(),
-            s(&runs.join(run)),
+            s(&runs.join(&run)),
             "--iterations".into(),
             steps.to_string(),
         ];
         if capture == "background" && plan.scene_config.is_some() {
             args.extend(["--config".into(), s(&out.join("train_scene.toml"))]);
         }
-        add(name, expected, &args);
+        add(&format!("train {run}"), expected, args);
     }
-    let mut args: Vec<String> = vec![
-        "merge".into(),
-        s(&runs.join("toy_a")),
-        s(&runs.join("toy_b")),
-        "--out".into(),
-        s(&merged),
-        "--capture-a".into(),
-        s(&data.join("toy_a")),
-        "--capture-b".into(),
-        s(&data.join("toy_b")),
-    ];
-    if let Some(r) = plan.merge_field_res {
-        args.extend(["--field-res".into(), r.to_string()]);
+    for body in &scene.desc.bodies {
+        let (a, b) = (format!("{}_a", body.name), format!("{}_b", body.name));
+        let mut args: Vec<String> = vec![
+            "merge".into(),
+            s(&runs.join(&a)),
+            s(&runs.join(&b)),
+            "--out".into(),
+            s(&merged(&body.name)),
+            "--capture-a".into(),
+            s(&data.join(&a)),
+            "--capture-b".into(),
+            s(&data.join(&b)),
+        ];
+        if let Some(r) = plan.merge_field_res {
+            args.extend(["--field-res".into(), r.to_string()]);
+        }
+        add(&format!("merge {}", body.name), x.merge, args);
     }
-    add("merge", q(12.0, 15.0), &args);
     add(
         "bake",
-        q(3.0, 5.0),
-        &[
+        x.bake,
+        vec![
             "bake".into(),
             s(&runs.join("scene")),
             "--out".into(),
@@ -200,54 +317,58 @@ fn stages(plan: &Plan, out: &Path, quick: bool) -> Vec<Stage> {
             plan.bake_res.to_string(),
         ],
     );
-    for video in ["slide", "drop"] {
-        let fit_dir = out.join("fits").join(video);
+    for video in &scene.desc.videos {
+        let fit_dir = out.join("fits").join(&video.name);
         let mut args: Vec<String> = vec![
             "fit".into(),
-            s(&data.join(video)),
+            s(&data.join(&video.name)),
             "--scene".into(),
             s(&runs.join("scene")),
             "--scene-grid".into(),
             s(&grid),
-            "--object".into(),
-            format!("toy={}", s(&merged)),
-            "--init".into(),
-            "auto".into(),
-            "--out".into(),
-            s(&fit_dir),
         ];
+        for body in &video.bodies {
+            args.extend(["--object".into(), format!("{}={}", body.name, s(&merged(&body.name)))]);
+        }
+        args.extend(["--init".into(), "auto".into(), "--out".into(), s(&fit_dir)]);
         if let Some(n) = plan.frames {
             args.extend(["--frames".into(), n.to_string()]);
         }
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
         }
-        add(&format!("fit {video}"), q(40.0, 200.0), &args);
         add(
-            &format!("eval {video}"),
-            q(2.0, 3.0),
-            &[
+            &format!("fit {}", video.name),
+            x.fit_per_body * video.bodies.len() as f64,
+            args,
+        );
+        add(
+            &format!("eval {}", video.name),
+            x.eval,
+            vec![
                 "eval".into(),
                 s(&fit_dir),
                 "--truth".into(),
                 s(&data.join("truth.json")),
                 "--video".into(),
-                video.into(),
+                video.name.clone(),
             ],
         );
     }
-    add("report", q(2.0, 3.0), &["report".into(), s(out)]);
+    add("report", x.eval, vec!["report".into(), s(out)]);
     v
 }
 
 /// Runs the demo; `dispatch` runs one subcommand from its arguments (as `pganeus ARGS...` would).
 pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()> {
     let t0 = Instant::now();
-    let plan = if a.quick { &QUICK } else { &FULL };
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(if a.quick { "out/demo-quick" } else { "out/demo" }));
+    let plan = match (a.quick, a.scale) {
+        (true, _) => &QUICK,
+        (false, ScaleArg::Small) => &FULL,
+        (false, ScaleArg::Large) => &LARGE,
+    };
+    let scene = Scene::new(&a)?;
+    let out = a.out.clone().unwrap_or_else(|| default_out(&a));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let record_path = out.join("demo.json");
     let mut record: Record = if a.force || !record_path.exists() {
@@ -267,13 +388,14 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
     if let Some(cfg) = plan.scene_config {
         pganeus_io::write_atomic(&out.join("train_scene.toml"), cfg.as_bytes())?;
     }
-    let all = stages(plan, &out, a.quick);
+    let all = stages(plan, &scene, &out);
     let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
     // Expected seconds of the stages done or skipped, and of those run here (with the time they took).
     let (mut expected_done, mut expected_run, mut spent) = (0.0, 0.0, 0.0);
     println!(
-        "demo{}: {} stages into {} (about {} on two cores)",
+        "demo{} of the {} scene: {} stages into {} (about {} on two cores)",
         if a.quick { " --quick" } else { "" },
+        scene.preset,
         all.len(),
         out.display(),
         minutes(total_expected)
@@ -322,7 +444,7 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
         );
         pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
     }
-    let report = write_report(&out, plan, a.quick, &all, &record)?;
+    let report = write_report(&out, plan, &scene, a.quick, &all, &record)?;
     println!(
         "demo finished in {} (this run); report: {}",
         minutes(t0.elapsed().as_secs_f64()),
@@ -370,16 +492,30 @@ fn read_json(p: &Path) -> Result<Value> {
 
 /// `report.md`: what ran, how long, and how the fits compare with the truth (from each fit's eval.json),
 /// with the pictures each stage wrote.
-fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Record) -> Result<PathBuf> {
+fn write_report(
+    out: &Path,
+    plan: &Plan,
+    scene: &Scene,
+    quick: bool,
+    all: &[Stage],
+    record: &Record,
+) -> Result<PathBuf> {
     let mut md = String::new();
+    let bodies: Vec<&str> = scene.desc.bodies.iter().map(|b| b.name.as_str()).collect();
     writeln!(
         md,
-        "# pganeus demo{}\n\nThe whole method on the synthetic tabletop scene (`synth --preset tabletop --scale {}`): \
-         the scene trained for {} steps, the toy in two poses for {} steps each, merged, the scene baked at {}³, \
-         then `fit` from `--init auto` on each video{} and `eval` against the truth.\n",
+        "# pganeus demo{}\n\nThe whole method on a synthetic scene (`synth --preset {} --scale {}{}`): \
+         the scene trained for {} steps, each body ({}) in two poses for {} steps each, merged, the scene baked \
+         at {}³, then `fit` from `--init auto` on each video{} and `eval` against the truth.\n",
         if quick { " --quick" } else { "" },
+        scene.preset,
         plan.scale,
+        scene
+            .physics_name()
+            .map(|p| format!(" --physics {p}"))
+            .unwrap_or_default(),
         plan.scene_steps,
+        bodies.join(", "),
         plan.object_steps,
         plan.bake_res,
         plan.frames
@@ -393,6 +529,13 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
              the method's accuracy (run `pganeus demo` for that).\n"
         )?;
     }
+    if matches!(scene.physics, Some(PhysicsArg::Rapier)) {
+        writeln!(
+            md,
+            "Rapier made the videos' motion: the truth has no restitution or friction of the project's \
+             model to compare with, so the motion is what counts.\n"
+        )?;
+    }
     writeln!(
         md,
         "The full report, with the fits' motion from a novel view and the charts, is \
@@ -401,72 +544,100 @@ fn write_report(out: &Path, plan: &Plan, quick: bool, all: &[Stage], record: &Re
     writeln!(md, "![inputs](data/contact_sheet.png)\n")?;
     writeln!(
         md,
-        "## Fits against the truth\n\n| video | position mm (mean / worst) | rotation ° (mean / worst) | \
+        "## Fits against the truth\n\n| video | body | position mm (mean / worst) | rotation ° (mean / worst) | \
          ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) and its range | friction (true) and its range | \
          poses reported: simulated / GA's at a weighed depth / GA's |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     )?;
-    let mut mesh_line = None;
-    for video in ["slide", "drop"] {
-        let p = out.join("fits").join(video).join("eval.json");
+    let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:.2}"));
+    let mut mesh_lines = BTreeMap::new();
+    let mut pair_lines = Vec::new();
+    for video in &scene.desc.videos {
+        let p = out.join("fits").join(&video.name).join("eval.json");
         let e = read_json(&p)?;
-        let body = e["summary"]
+        let summary = e["summary"]
             .as_object()
-            .and_then(|m| m.values().next())
+            .filter(|m| !m.is_empty())
             .ok_or_else(|| anyhow!("{}: no body in the summary", p.display()))?;
-        let par = e["parameters"]
-            .as_object()
-            .and_then(|m| m.values().next())
-            .cloned()
-            .unwrap_or(Value::Null);
-        let f = |v: &Value| v.as_f64().map_or("–".to_string(), |x| format!("{x:.2}"));
-        // Which pose each frame reports (`fit`'s choice, in eval's rows).
-        let reported = |source: &str| {
-            e["frames"]
-                .as_array()
-                .map_or(0, |rows| rows.iter().filter(|r| r["fit_pose"] == source).count())
-        };
-        writeln!(
-            md,
-            "| {video} | {} / {} | {} / {} | {} | {} | {} % | {} ({}){} | {} ({}){} | {} / {} / {} |",
-            f(&body["position_mm"]["mean"]),
-            f(&body["position_mm"]["worst"]),
-            f(&body["rotation_deg"]["mean"]),
-            f(&body["rotation_deg"]["worst"]),
-            f(&body["add_s_mm"]["mean"]),
-            f(&body["silhouette_iou"]["worst"]),
-            f(&par["v0_error_percent"]),
-            f(&par["restitution"]),
-            f(&par["restitution_true"]),
-            super::report::range_text(par.get("restitution_range")),
-            f(&par["friction"]),
-            f(&par["friction_true"]),
-            super::report::range_text(par.get("friction_range")),
-            reported("simulated"),
-            reported("ga_at_weighed_depth"),
-            reported("ga"),
-        )?;
-        if mesh_line.is_none() {
-            if let Some(m) = e["meshes"].as_object().and_then(|m| m.values().next()) {
-                mesh_line = Some(format!(
-                    "The merged toy against the true mesh: Chamfer mean {} mm (95th percentile {} mm), volume IoU {}.",
+        for (body, sum) in summary {
+            let par = &e["parameters"][body];
+            // Which pose each frame reports (`fit`'s choice, in eval's rows).
+            let reported = |source: &str| {
+                e["frames"].as_array().map_or(0, |rows| {
+                    rows.iter()
+                        .filter(|r| r["fit_pose"] == source && r["body"].as_str().is_none_or(|b| b == body))
+                        .count()
+                })
+            };
+            let v0 = match par["v0_error_percent"].as_f64() {
+                Some(pc) => format!("{pc:.2} %"),
+                None => "at rest".into(),
+            };
+            writeln!(
+                md,
+                "| {} | {body} | {} / {} | {} / {} | {} | {} | {v0} | {} ({}){} | {} ({}){} | {} / {} / {} |",
+                video.name,
+                f(&sum["position_mm"]["mean"]),
+                f(&sum["position_mm"]["worst"]),
+                f(&sum["rotation_deg"]["mean"]),
+                f(&sum["rotation_deg"]["worst"]),
+                f(&sum["add_s_mm"]["mean"]),
+                f(&sum["silhouette_iou"]["worst"]),
+                f(&par["restitution"]),
+                f(&par["restitution_true"]),
+                super::report::range_text(par.get("restitution_range")),
+                f(&par["friction"]),
+                f(&par["friction_true"]),
+                super::report::range_text(par.get("friction_range")),
+                reported("simulated"),
+                reported("ga_at_weighed_depth"),
+                reported("ga"),
+            )?;
+        }
+        for pair in e["pairs"].as_array().into_iter().flatten() {
+            pair_lines.push(format!(
+                "| {} | {} and {} | {} ({}){} | {} ({}){} |",
+                video.name,
+                pair["bodies"][0].as_str().unwrap_or("?"),
+                pair["bodies"][1].as_str().unwrap_or("?"),
+                f(&pair["restitution"]),
+                f(&pair["restitution_true"]),
+                super::report::range_text(pair.get("restitution_range")),
+                f(&pair["friction"]),
+                f(&pair["friction_true"]),
+                super::report::range_text(pair.get("friction_range")),
+            ));
+        }
+        for (body, m) in e["meshes"].as_object().into_iter().flatten() {
+            mesh_lines.entry(body.clone()).or_insert_with(|| {
+                format!(
+                    "The merged {body} against the true mesh: Chamfer mean {} mm (95th percentile {} mm), volume IoU {}.",
                     f(&m["chamfer_mean_mm"]),
                     f(&m["chamfer_p95_mm"]),
                     f(&m["volume_iou"])
-                ));
-            }
+                )
+            });
         }
     }
     writeln!(md)?;
-    if let Some(l) = mesh_line {
-        writeln!(md, "{l}\n")?;
-    }
-    for video in ["slide", "drop"] {
+    if !pair_lines.is_empty() {
         writeln!(
             md,
-            "## {video}\n\nInput (left) and the fit rendered in the reconstructed scene (right): \
-             [animation](fits/{video}/animation.png), per-frame errors in `fits/{video}/eval.csv`.\n\n\
-             ![{video}](fits/{video}/strip.png)\n"
+            "Between the bodies:\n\n| video | pair | restitution (true) and its range | friction (true) and its range |\n\
+             | --- | --- | --- | --- |\n{}\n",
+            pair_lines.join("\n")
+        )?;
+    }
+    for l in mesh_lines.values() {
+        writeln!(md, "{l}\n")?;
+    }
+    for video in &scene.desc.videos {
+        let v = &video.name;
+        writeln!(
+            md,
+            "## {v}\n\nInput (left) and the fit rendered in the reconstructed scene (right): \
+             [animation](fits/{v}/animation.png), per-frame errors in `fits/{v}/eval.csv`.\n\n\
+             ![{v}](fits/{v}/strip.png)\n"
         )?;
     }
     writeln!(md, "## Stages\n\n| stage | seconds | command |\n| --- | --- | --- |")?;
@@ -527,6 +698,9 @@ mod tests {
             quick: true,
             out: Some(out.to_path_buf()),
             force,
+            preset: "tabletop".into(),
+            physics: None,
+            scale: ScaleArg::Small,
         }
     }
 
@@ -557,11 +731,14 @@ mod tests {
         let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
         assert!(
             report.contains(
-                "| slide | 1.00 / 2.00 | 0.50 / 1.50 | 0.70 | 0.95 | 3.00 % | 0.48 (0.50) | 0.26 (0.25) | 2 / 1 / 1 |"
+                "| slide | toy | 1.00 / 2.00 | 0.50 / 1.50 | 0.70 | 0.95 | 3.00 % | 0.48 (0.50) | 0.26 (0.25) | 2 / 1 / 1 |"
             ),
             "{report}"
         );
-        assert!(report.contains("Chamfer mean 0.90 mm"), "{report}");
+        assert!(
+            report.contains("The merged toy against the true mesh: Chamfer mean 0.90 mm"),
+            "{report}"
+        );
         // Nothing left to do.
         let calls = RefCell::new(Vec::new());
         run(args(&dir, false), &fake(&calls, None)).unwrap();
@@ -583,7 +760,7 @@ mod tests {
         // stale, so the next run does them (and only them).
         let mut record: Record =
             serde_json::from_str(&std::fs::read_to_string(dir.join("demo.json")).unwrap()).unwrap();
-        record.done.get_mut("merge").unwrap().argv.push("--old".into());
+        record.done.get_mut("merge toy").unwrap().argv.push("--old".into());
         std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let calls = RefCell::new(Vec::new());
         assert!(run(args(&dir, false), &fake(&calls, Some(&drop_fit))).is_err());
@@ -594,6 +771,82 @@ mod tests {
         let calls = RefCell::new(Vec::new());
         run(args(&dir, true), &fake(&calls, None)).unwrap();
         assert_eq!(calls.borrow().len(), 11);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_two_body_preset_trains_merges_and_fits_every_body_and_reports_the_pair() {
+        let dir = testkit::scratch_dir("cli", "demo_two_body");
+        let mut a = args(&dir, false);
+        a.preset = "two-body".into();
+        a.physics = Some(PhysicsArg::Rapier);
+        let scene = Scene::new(&a).unwrap();
+        let all = stages(&QUICK, &scene, &dir);
+        let names: Vec<&str> = all.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "synth",
+                "train scene",
+                "train toy_a",
+                "train toy_b",
+                "train block_a",
+                "train block_b",
+                "merge toy",
+                "merge block",
+                "bake",
+                "fit collide",
+                "eval collide",
+                "report"
+            ]
+        );
+        assert!(all[0].argv.ends_with(&["--physics".to_string(), "rapier".to_string()]));
+        let fit = &all[9].argv;
+        assert_eq!(fit.iter().filter(|x| *x == "--object").count(), 2, "{fit:?}");
+        assert!(
+            fit.iter().any(|x| x.starts_with("toy=") && x.ends_with("toy")),
+            "{fit:?}"
+        );
+        assert!(
+            fit.iter().any(|x| x.starts_with("block=") && x.ends_with("block")),
+            "{fit:?}"
+        );
+        // Two bodies in the fit: expected twice a one-body fit's time.
+        assert_eq!(all[9].expected_s, 2.0 * QUICK.expected.fit_per_body);
+        assert_eq!(default_out(&a), PathBuf::from("out/demo-two-body-rapier-quick"));
+        let e = serde_json::json!({
+            "summary": {
+                "block": {"position_mm": {"mean": 0.4, "worst": 0.9}, "rotation_deg": {"mean": 0.1, "worst": 0.3}},
+                "toy": {"position_mm": {"mean": 1.0, "worst": 2.0}, "rotation_deg": {"mean": 0.5, "worst": 1.5}}},
+            "parameters": {"toy": {"v0_error_percent": 3.0}, "block": {}},
+            "pairs": [{"bodies": ["block", "toy"], "restitution": 0.66, "restitution_true": 0.7,
+                "friction": 0.2, "friction_true": 0.15}],
+            "frames": [{"body": "toy", "fit_pose": "simulated"}, {"body": "block", "fit_pose": "ga"},
+                {"body": "block", "fit_pose": "ga"}]
+        });
+        let fit_dir = dir.join("fits").join("collide");
+        std::fs::create_dir_all(&fit_dir).unwrap();
+        std::fs::write(fit_dir.join("eval.json"), e.to_string()).unwrap();
+        let report =
+            std::fs::read_to_string(write_report(&dir, &QUICK, &scene, true, &all, &Record::default()).unwrap())
+                .unwrap();
+        assert!(
+            report.contains("`synth --preset two-body --scale small --physics rapier`"),
+            "{report}"
+        );
+        assert!(
+            report.contains("| collide | block | 0.40 / 0.90 | 0.10 / 0.30 | – | – | at rest |"),
+            "{report}"
+        );
+        assert!(report.contains("| collide | toy | 1.00 / 2.00 |"), "{report}");
+        assert!(
+            report.contains("| 1 / 0 / 0 |") && report.contains("| 0 / 0 / 2 |"),
+            "{report}"
+        );
+        assert!(
+            report.contains("| collide | block and toy | 0.66 (0.70) | 0.20 (0.15) |"),
+            "{report}"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -3,13 +3,13 @@ use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use synth::{preset, Scale, SynthScene, PRESETS};
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum PhysicsArg {
     Pganeus,
     Rapier,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ScaleArg {
     Small,
     Large,
@@ -47,14 +47,14 @@ pub struct SynthArgs {
     pub print_preset: Option<String>,
 }
 
-fn scale(a: ScaleArg) -> Scale {
+pub(super) fn scale(a: ScaleArg) -> Scale {
     match a {
         ScaleArg::Small => Scale::Small,
         ScaleArg::Large => Scale::Large,
     }
 }
 
-fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
+pub(super) fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
     preset(name, s).ok_or_else(|| anyhow!("unknown preset \"{name}\" (presets: {})", PRESETS.join(", ")))
 }
 
