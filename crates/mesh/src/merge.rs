@@ -521,6 +521,11 @@ type ColourGap<'a> = dyn Fn(&Pose<f64>) -> Option<f64> + 'a;
 /// An alignment whose ICP residual is within this factor of the tightest one fits as well.
 const TIGHT_AS: f64 = 1.25;
 
+/// Hypotheses of the automatic start refined in full: a box on a square footprint (the two-body scene's
+/// block) goes onto itself eight ways, and its four upright ones fit before any turned-over one, so with
+/// four it was never turned over and both guessed undersides stayed (merged 50 mm tall instead of 40).
+const HYPOTHESES_REFINED: usize = 8;
+
 /// Rigid alignment of A's samples onto B's.
 ///
 /// Each start is refined twice: trimmed ICP (robust to the parts' different
@@ -528,8 +533,8 @@ const TIGHT_AS: f64 = 1.25;
 /// since trimming alone can let a shape slide along a weakly held direction
 /// (a box's walls) and drop the pairs that would object, while keeping every
 /// pair lets wrong guesses pull. Of the two, the one under which more of A
-/// lands on B (of what it puts where B saw) wins. Without a given start, the four best distinct hypotheses
-/// of the automatic start are refined (a symmetric object has several good ones); of those that make about as much of A land on B
+/// lands on B (of what it puts where B saw) wins. Without a given start, the [`HYPOTHESES_REFINED`] best
+/// distinct hypotheses of the automatic start are refined (a symmetric object has several good ones); of those that make about as much of A land on B
 /// (within 5 %) or fit as tightly (ICP residual within [`TIGHT_AS`] of the tightest), the one that moves most of A's hidden side (on its board)
 /// up into B's view wins: the second pose is there to show what the first hid.
 /// A box turned over about x or about y shows as much: with both parts'
@@ -583,7 +588,7 @@ fn align(
             };
             let scored: Vec<(IcpResult, f64, f64)> = hypotheses
                 .iter()
-                .take(4)
+                .take(HYPOTHESES_REFINED)
                 .map(|h| {
                     let r = refine(h.transform);
                     (r, lands(&r), shown(&r))
