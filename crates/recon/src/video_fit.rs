@@ -49,7 +49,7 @@ pub struct VideoFitConfig {
     /// spin, which its silhouette does not show, outweighed every centimetre of its path).
     pub pga: PhysicsFitConfig,
     /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins; `fit` lets the images
-    /// choose among the starts within a tenth of it). Default true.
+    /// overrule it among the starts within a tenth of it, where they tell them apart by a tenth too). Default true.
     pub pga_multi_start: bool,
     /// The ranges of the fitted contact values that the motion cannot tell apart ([`crate::value_ranges`]),
     /// the initial poses held at their fitted values (`steps = 0`: none).

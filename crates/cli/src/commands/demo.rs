@@ -122,15 +122,10 @@ const FULL: Plan = Plan {
     },
 };
 
+/// The default's training and fit at 320×240, the objects trained as long as the scene.
 const LARGE: Plan = Plan {
     scale: "large",
-    scene_steps: 1500,
     object_steps: 1500,
-    bake_res: 256,
-    frames: None,
-    fit_config: None,
-    scene_config: None,
-    merge_field_res: None,
     expected: Expected {
         synth: 170.0,
         scene: 1130.0,
@@ -140,6 +135,7 @@ const LARGE: Plan = Plan {
         fit_per_body: 550.0,
         eval: 5.0,
     },
+    ..FULL
 };
 
 /// A light fit: fewer steps and pixels in every stage, one GA⇄PGA round, no multi-start.
@@ -814,6 +810,13 @@ mod tests {
         // Two bodies in the fit: expected twice a one-body fit's time.
         assert_eq!(all[9].expected_s, 2.0 * QUICK.expected.fit_per_body);
         assert_eq!(default_out(&a), PathBuf::from("out/demo-two-body-rapier-quick"));
+        // At 320×240 the objects train as long as the scene; the rest is the default's.
+        let large = stages(&LARGE, &scene, &dir);
+        assert!(large[0].argv.windows(2).any(|w| w == ["--scale", "large"]));
+        for s in &large[1..6] {
+            assert!(s.argv.windows(2).any(|w| w == ["--iterations", "1500"]), "{:?}", s.argv);
+        }
+        assert!(large[8].argv.windows(2).any(|w| w == ["--res", "256"]));
         let e = serde_json::json!({
             "summary": {
                 "block": {"position_mm": {"mean": 0.4, "worst": 0.9}, "rotation_deg": {"mean": 0.1, "worst": 0.3}},
