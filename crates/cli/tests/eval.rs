@@ -132,11 +132,14 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     }
     let csv = std::fs::read_to_string(d.join("deeper/eval.csv")).unwrap();
     assert!(
-        csv.lines().next().unwrap().ends_with(",along_sight_mm,across_sight_mm"),
+        csv.lines()
+            .next()
+            .unwrap()
+            .ends_with(",along_sight_mm,across_sight_mm,rotation_sym_deg"),
         "{csv}"
     );
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
-    assert_eq!(row.len(), 12, "{csv}");
+    assert_eq!(row.len(), 13, "{csv}");
     let cell = |i: usize| row[i].parse::<f64>().unwrap();
     assert!((cell(10) - 3.0).abs() < 2e-3 && (cell(11) - 1.0).abs() < 2e-3, "{csv}");
 
@@ -152,6 +155,24 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     let s = &r["summary"]["toy"];
     for k in ["position_mm", "rotation_deg", "add_mm"] {
         assert!(s[k]["worst"].as_f64().unwrap() < 1e-3, "{k}: {s}");
+    }
+
+    // The toy (a rounded brick) turned half a turn about its long axis shows the same surface: 180° as is,
+    // none up to its four symmetries, and a further 3° as 3°.
+    let half = Pose::new(Quat::exp(Vec3::new(std::f64::consts::PI, 0.0, 0.0)), Vec3::zero());
+    let tilt = Pose::new(Quat::exp(Vec3::new(0.0, 3f64.to_radians(), 0.0)), Vec3::zero());
+    for (name, turn, expected) in [("turned", half, 0.0), ("turned_tilted", half.compose(&tilt), 3.0)] {
+        let mut turned = fit.clone();
+        for p in turned["bodies"][0]["poses"].as_array_mut().unwrap() {
+            *p = put(&pose(p).compose(&turn));
+        }
+        let r = eval(&turned, &d.join(name), &truth_path);
+        let s = &r["summary"]["toy"];
+        assert_eq!(s["symmetries"], 4, "{s}");
+        assert!(s["rotation_deg"]["worst"].as_f64().unwrap() > 170.0, "{s}");
+        let sym = s["rotation_sym_deg"]["worst"].as_f64().unwrap();
+        assert!((sym - expected).abs() < 0.3, "{name}: {s}");
+        assert!(s["position_mm"]["worst"].as_f64().unwrap() < 1e-3, "{s}");
     }
 
     // Against a truth whose body starts at rest (as a block a toy hits does), the launch error has no

@@ -23,6 +23,7 @@ pub mod merge;
 mod mesh_metrics;
 pub mod pose_metrics;
 mod sample_sdf_grid;
+pub mod symmetry;
 pub mod visibility;
 mod zero_level_points;
 
@@ -36,4 +37,5 @@ pub use merge::{
 pub use mesh_metrics::{chamfer, normal_consistency, volume_iou, ChamferStats};
 pub use pose_metrics::{PoseErrors, SurfacePoints};
 pub use sample_sdf_grid::sample_sdf_grid;
+pub use symmetry::proper_symmetries;
 pub use zero_level_points::{values_and_gradients, zero_level_points, BatchSdf};

@@ -540,7 +540,7 @@ fn write_report(
     writeln!(md, "![inputs](data/contact_sheet.png)\n")?;
     writeln!(
         md,
-        "## Fits against the truth\n\n| video | body | position mm (mean / worst) | rotation ° (mean / worst) | \
+        "## Fits against the truth\n\n| video | body | position mm (mean / worst) | rotation ° (mean / worst; up to the shape's symmetries) | \
          ADD-S mm (mean) | silhouette IoU (worst) | v0 error | restitution (true) and its range | friction (true) and its range | \
          poses reported: simulated / GA's at a weighed depth / GA's |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
@@ -571,12 +571,11 @@ fn write_report(
             };
             writeln!(
                 md,
-                "| {} | {body} | {} / {} | {} / {} | {} | {} | {v0} | {} ({}){} | {} ({}){} | {} / {} / {} |",
+                "| {} | {body} | {} / {} | {} | {} | {} | {v0} | {} ({}){} | {} ({}){} | {} / {} / {} |",
                 video.name,
                 f(&sum["position_mm"]["mean"]),
                 f(&sum["position_mm"]["worst"]),
-                f(&sum["rotation_deg"]["mean"]),
-                f(&sum["rotation_deg"]["worst"]),
+                super::report::rotation_text(sum),
                 f(&sum["add_s_mm"]["mean"]),
                 f(&sum["silhouette_iou"]["worst"]),
                 f(&par["restitution"]),

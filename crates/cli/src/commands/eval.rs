@@ -103,7 +103,8 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         };
         let from_truth = r.to_truth.inverse();
         let n = entry.poses.len().min(truth.poses.len());
-        let (mut pos, mut rot, mut add, mut adds, mut ious) = (vec![], vec![], vec![], vec![], vec![]);
+        let (mut pos, mut rot, mut rot_sym, mut add, mut adds, mut ious) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
         let (mut along, mut across) = (vec![], vec![]);
         let (mut fitted, mut true_) = (vec![], vec![]);
         let eye = camera.map(|c| c.center());
@@ -117,6 +118,7 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             let iou = camera.map(|c| coverage_iou(&silhouette(c, &r.mesh, &est), &silhouette(c, &r.mesh, &tru)));
             let mut row = json!({"body": entry.name, "frame": k,
                 "position_mm": num(e.position, 1e3, 3), "rotation_deg": num(e.rotation.to_degrees(), 1.0, 3),
+                "rotation_sym_deg": num(e.rotation_up_to_symmetry.to_degrees(), 1.0, 3),
                 "add_mm": num(e.add, 1e3, 3), "add_s_mm": num(e.add_s, 1e3, 3)});
             if let Some(i) = iou {
                 row["silhouette_iou"] = num(i, 1.0, 4);
@@ -141,6 +143,7 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             rows.push(row);
             pos.push(e.position * 1e3);
             rot.push(e.rotation.to_degrees());
+            rot_sym.push(e.rotation_up_to_symmetry.to_degrees());
             add.push(e.add * 1e3);
             adds.push(e.add_s * 1e3);
         }
@@ -150,6 +153,7 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             json!({"mean": num(v.iter().sum::<f64>() / v.len().max(1) as f64, 1.0, 3), "worst": num(worst, 1.0, 3), "worst_frame": at})
         };
         let mut s = json!({"frames": n, "position_mm": stat(&pos), "rotation_deg": stat(&rot),
+            "rotation_sym_deg": stat(&rot_sym), "symmetries": r.points.symmetries(),
             "add_mm": stat(&add), "add_s_mm": stat(&adds)});
         if !along.is_empty() {
             s["along_sight_mm"] = stat(&along);
@@ -447,7 +451,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let out = a.out.clone().unwrap_or_else(|| dir.join("eval.json"));
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
-        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose,along_sight_mm,across_sight_mm\n");
+        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose,along_sight_mm,across_sight_mm,rotation_sym_deg\n");
     for r in report["frames"].as_array().into_iter().flatten() {
         let f = |k: &str| match &r[k] {
             Value::Null => String::new(),
@@ -456,7 +460,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         };
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
             f("body"),
             f("frame"),
             f("position_mm"),
@@ -468,7 +472,8 @@ pub fn run(a: EvalArgs) -> Result<()> {
             f("fit_psnr"),
             f("fit_pose"),
             f("along_sight_mm"),
-            f("across_sight_mm")
+            f("across_sight_mm"),
+            f("rotation_sym_deg")
         )?;
     }
     pganeus_io::write_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
@@ -488,6 +493,12 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 .map(|i| format!("; silhouette IoU mean {} worst {}", i["mean"], i["worst"]))
                 .unwrap_or_default()
         );
+        if s["symmetries"].as_u64().is_some_and(|k| k > 1) {
+            println!(
+                "{body}: the shape has {} proper symmetries (the identity counted); up to them, rotation ° mean {} worst {} (frame {})",
+                s["symmetries"], s["rotation_sym_deg"]["mean"], s["rotation_sym_deg"]["worst"], s["rotation_sym_deg"]["worst_frame"]
+            );
+        }
         if let (Some(a), Some(x)) = (s.get("along_sight_mm"), s.get("across_sight_mm")) {
             println!(
                 "{body}: position along the camera's line of sight (absolute) mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",

@@ -367,6 +367,27 @@ pub(super) fn range_text(range: Option<&Value>) -> String {
     }
 }
 
+/// A body's rotation error, mean / worst, from an eval summary: up to the shape's symmetries where it has
+/// any, followed by the error as is where the fit chose a twin the shape cannot tell apart (a texture
+/// might).
+pub(super) fn rotation_text(summary: &Value) -> String {
+    let pair = |k: &str| {
+        let s = &summary[k];
+        (f64_at(s, "mean"), f64_at(s, "worst"))
+    };
+    let text = |(m, w): (Option<f64>, Option<f64>)| format!("{} / {}", fmt(m, 2), fmt(w, 2));
+    let raw = pair("rotation_deg");
+    let sym = pair("rotation_sym_deg");
+    let symmetric = summary["symmetries"].as_u64().is_some_and(|k| k > 1) && sym.1.is_some();
+    if !symmetric {
+        return text(raw);
+    }
+    match (raw.1, sym.1) {
+        (Some(r), Some(s)) if r - s > 0.01 => format!("{} (as is {})", text(sym), text(raw)),
+        _ => text(sym),
+    }
+}
+
 fn parameter_table(page: &mut Page, traj: &Trajectory, eval: Option<&Value>) {
     let mut rows = Vec::new();
     for b in &traj.bodies {
@@ -433,7 +454,7 @@ fn error_table(page: &mut Page, e: &Value) {
                     fmt(f64_at(&s["along_sight_mm"], "mean"), 2),
                     fmt(f64_at(&s["across_sight_mm"], "mean"), 2)
                 ),
-                pair("rotation_deg"),
+                rotation_text(s),
                 fmt(f64_at(&s["add_s_mm"], "mean"), 2),
                 pair("silhouette_iou"),
             ]);
@@ -453,7 +474,7 @@ fn error_table(page: &mut Page, e: &Value) {
             "body",
             "position mm (mean / worst)",
             "along (absolute) / across the line of sight mm (mean)",
-            "rotation ° (mean / worst)",
+            "rotation ° (mean / worst; up to the shape's symmetries)",
             "ADD-S mm (mean)",
             "silhouette IoU (mean / worst)",
         ],
@@ -844,6 +865,27 @@ fn truth_ghosts(traj: &Trajectory, eval: Option<&Value>, bases: &[&Path]) -> Res
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn a_rotation_is_shown_up_to_symmetry_and_as_is_where_they_differ() {
+        let raw = json!({"mean": 89.7, "worst": 90.67});
+        let sym = json!({"mean": 1.2, "worst": 2.0});
+        // No symmetry (or an eval from before symmetries were counted): the angle as is.
+        assert_eq!(rotation_text(&json!({"rotation_deg": raw})), "89.70 / 90.67");
+        assert_eq!(
+            rotation_text(&json!({"rotation_deg": raw, "rotation_sym_deg": sym, "symmetries": 1})),
+            "89.70 / 90.67"
+        );
+        assert_eq!(
+            rotation_text(&json!({"rotation_deg": raw, "rotation_sym_deg": sym, "symmetries": 8})),
+            "1.20 / 2.00 (as is 89.70 / 90.67)"
+        );
+        // The fit kept the shape's own orientation: one figure.
+        assert_eq!(
+            rotation_text(&json!({"rotation_deg": sym, "rotation_sym_deg": sym, "symmetries": 8})),
+            "1.20 / 2.00"
+        );
+    }
 
     /// A trajectory file of bodies `a` and `b`, each moving along x by `step[body]` a frame.
     fn file(d: &Path, name: &str, step: [f64; 2]) -> Trajectory {
