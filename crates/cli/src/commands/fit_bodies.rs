@@ -857,8 +857,11 @@ fn finish(
                 &m.cfg.ga.pose.weights,
             )
         };
-        let radius = world.bodies[b].bounding_radius;
-        let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], &camera, radius, score)?;
+        let body_shape = (
+            world.bodies[b].bounding_radius,
+            world.bodies[b].contact_points.as_slice(),
+        );
+        let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], &camera, body_shape, score)?;
         reported.push(poses);
         source.push(from.iter().map(|s| s.name()).collect::<Vec<_>>());
     }
