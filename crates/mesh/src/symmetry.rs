@@ -5,7 +5,9 @@
 //! square face shows the same surface, and a rotation error should be able to
 //! say so. Found by aligning the surface to itself from every pairing of its
 //! principal axes ([`icp_hypotheses`]) and keeping the alignments that fit as
-//! well as two samples of the same surface fit each other.
+//! well as two samples of the same surface fit each other. A body of
+//! revolution (a ball, a can) has infinitely many: at most 60 are kept, so its
+//! rotation error up to them is an upper bound (ADD-S is the measure for it).
 
 use crate::icp::{icp, icp_hypotheses, IcpConfig, IcpTarget};
 use geom::{rotation_distance, Pose, TriMesh, Vec3};
