@@ -150,9 +150,9 @@ mod tests {
         assert!(e.add > 0.015 && e.add_s < 0.002, "{e:?}");
         // Up to the cube's symmetries the quarter turn is none (to the 0.1° the symmetries are found to from
         // samples), and a further small turn is itself.
-        assert!(pts.symmetries() == 24 && e.rotation_up_to_symmetry < 5e-3, "{e:?}");
+        assert!(pts.symmetries() == 24 && e.rotation_up_to_symmetry < 3e-3, "{e:?}");
         let off = Pose::new(turned.q * Quat::exp(Vec3::new(0.05, 0.0, 0.0)), truth.t);
         let e = pts.errors(&off, &truth);
-        assert!((e.rotation_up_to_symmetry - 0.05).abs() < 5e-3, "{e:?}");
+        assert!((e.rotation_up_to_symmetry - 0.05).abs() < 3e-3, "{e:?}");
     }
 }
