@@ -176,10 +176,7 @@ fn main() {
             b.t = [r(x, 1000.0), 0.0, r(0.03 + 0.375 * x + 0.03 + lift, 1000.0)];
             b.v = [r(rng.range(-0.4, 0.0), 100.0), 0.0, 0.0];
             b.omega = [rng.range(-1.0, 1.0), spin, rng.range(-1.0, 1.0)].map(|v| r(v, 10.0));
-            let label = format!(
-                "{i:>2} q {:?} t {:?} v {:?} omega {:?}",
-                b.q, b.t, b.v, b.omega
-            );
+            let label = format!("{i:>2} q {:?} t {:?} v {:?} omega {:?}", b.q, b.t, b.v, b.omega);
             println!("{label}: {}", self_consistency(&s));
         }
         return;
