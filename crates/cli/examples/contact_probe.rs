@@ -5,6 +5,7 @@
 //! cargo run --release --example contact_probe -- self       # each scene: Rapier at 2x..16x its substeps, ours
 //! cargo run --release --example contact_probe -- search 300 # random spinning drops onto the ramp (default 40)
 //! cargo run --release --example contact_probe -- tumble 100 # the toy set down spinning on the ramp's slope
+//! cargo run --release --example contact_probe -- lasting    # touching two frames apart: did it touch between?
 //! cargo run --release --example contact_probe -- ramp-drop  # one scene: per-frame errors under our knobs
 //! cargo run --release --example contact_probe -- preset:tabletop  # a preset's videos, the same spreads
 //! cargo run --release --example contact_probe -- pga:tabletop  # PGA on the true poses, 50 % off, each model
@@ -156,6 +157,10 @@ fn main() {
         }
         return;
     }
+    if name == "lasting" {
+        lasting_contacts();
+        return;
+    }
     if name == "tumble" {
         // Tumbles that need not be knife-edge: the toy lying on the slope's face a few centimetres above it,
         // rolled downhill about the slope's cross axis (a die thrown down a slope), its start varied a little.
@@ -296,6 +301,76 @@ fn pga_on_true_poses(preset: &str) {
                     multi.winner,
                     t0.elapsed().as_secs_f64()
                 );
+            }
+        }
+    }
+}
+
+/// Over the truth of every preset's videos (both scales, both engines) and the contact scenes: each frame
+/// whose frames before and after touch the same side of the scene, how the parts of the body touching
+/// there compare, and whether the body touched in the frame between.
+fn lasting_contacts() {
+    let threshold = 0.005;
+    let mut scenes: Vec<(String, synth::SynthScene)> = Vec::new();
+    for preset in ["tabletop", "backdrop", "two-body"] {
+        for (scale, sn) in [(synth::Scale::Small, "small"), (synth::Scale::Large, "large")] {
+            for physics in [Physics::Pganeus, Physics::Rapier] {
+                let mut s = synth::preset(preset, scale).unwrap();
+                s.physics = physics;
+                scenes.push((format!("{preset}/{sn}/{physics:?}"), s));
+            }
+        }
+    }
+    for s in contact_scenes() {
+        let mut r = s.clone();
+        r.physics = Physics::Rapier;
+        scenes.push((s.name.clone(), r));
+    }
+    for (label, scene) in scenes {
+        for (vi, (world, traj)) in simulate_videos(&scene, Path::new(".")).unwrap().into_iter().enumerate() {
+            for (b, body) in world.bodies.iter().enumerate() {
+                let near = |k: usize| {
+                    let pose = traj.frames[k][b].pose;
+                    let pts = sim::points_near_scene(body, &pose, &world.scene, threshold);
+                    let within = pts.first().map_or(0.0, |p| p.distance + 0.002).min(threshold);
+                    pts.into_iter().filter(|p| p.distance <= within).collect::<Vec<_>>()
+                };
+                for k in 1..traj.frames.len() - 1 {
+                    let (a, c) = (near(k - 1), near(k + 1));
+                    if a.is_empty() || c.is_empty() {
+                        continue;
+                    }
+                    // Pairs facing the same side: the body-frame chord and the world distance.
+                    let mut best_chord = f64::INFINITY;
+                    let mut best_slack = f64::INFINITY;
+                    for p in &a {
+                        for q in &c {
+                            if !recon::contact_penalty::faces(p.gradient, q.gradient) {
+                                continue;
+                            }
+                            let chord = (body.contact_points[p.index] - body.contact_points[q.index]).norm();
+                            let world_d = (p.world - q.world).norm();
+                            best_chord = best_chord.min(chord);
+                            best_slack = best_slack.min(chord - world_d);
+                        }
+                    }
+                    if !best_chord.is_finite() {
+                        continue;
+                    }
+                    let between = traj.frames[k][b].pose;
+                    let gap = recon::video_fit::clearance(body, &world.scene, &between);
+                    let turn = geom::rotation_distance(traj.frames[k - 1][b].pose.q, traj.frames[k + 1][b].pose.q);
+                    println!(
+                        "{label} {} {} frame {k}: chord {:.1} mm, chord - travel {:.1} mm, turned {:.0}°, gap between {:.1} mm{}",
+                        scene.videos[vi].name,
+                        body.name,
+                        best_chord * 1e3,
+                        best_slack * 1e3,
+                        turn.to_degrees(),
+                        gap * 1e3,
+                        if gap > threshold { "  <- off" } else { "" }
+                    );
+                }
             }
         }
     }
