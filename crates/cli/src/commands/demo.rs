@@ -22,7 +22,7 @@ use std::time::Instant;
   pganeus demo --preset backdrop --physics rapier
   pganeus demo --preset two-body")]
 pub struct DemoArgs {
-    /// Short training and a light fit on the first 12 frames: the whole chain in about 3 minutes (a smoke
+    /// Short training and a light fit on the first 12 frames: the whole chain in about 5 minutes (a smoke
     /// run; its figures are far from the method's).
     #[arg(long, conflicts_with = "scale")]
     pub quick: bool,
