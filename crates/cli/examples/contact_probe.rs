@@ -165,9 +165,16 @@ fn main() {
         // Tumbles that need not be knife-edge: the toy lying on the slope's face a few centimetres above it,
         // rolled downhill about the slope's cross axis (a die thrown down a slope), its start varied a little.
         let base = contact_scenes().into_iter().find(|s| s.name == "ramp-drop").unwrap();
+        // The ramp rises towards +x over its length `2 hx` by its height `2 hz` (sim's `Wedge`), placed at `t`.
+        let ramp = &base.obstacles[0];
+        let synth::desc::ShapeDesc::Wedge { half: [hx, _, hz] } = ramp.shape else {
+            panic!("the ramp-drop scene's obstacle is its ramp");
+        };
+        let rise = hz / hx;
+        let surface_z = |x: f64| ramp.t[2] + rise * (x - ramp.t[0]);
         let mut rng = geom::SplitMix64::new(7);
         let n: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(40);
-        let slope = (0.06f64 / 0.16).atan();
+        let slope = rise.atan();
         for i in 0..n {
             let mut s = base.clone();
             let r = |v: f64, k: f64| (v * k).round() / k;
@@ -178,7 +185,8 @@ fn main() {
             let spin = rng.range(-14.0, -4.0);
             let b = &mut s.videos[0].bodies[0];
             b.q = [q.w, q.x, q.y, q.z].map(|v| r(v, 100.0));
-            b.t = [r(x, 1000.0), 0.0, r(0.03 + 0.375 * x + 0.03 + lift, 1000.0)];
+            // The toy's centre 3 cm over the slope (its half-height and a margin), lifted by `lift`.
+            b.t = [r(x, 1000.0), 0.0, r(surface_z(x) + 0.03 + lift, 1000.0)];
             b.v = [r(rng.range(-0.4, 0.0), 100.0), 0.0, 0.0];
             b.omega = [rng.range(-1.0, 1.0), spin, rng.range(-1.0, 1.0)].map(|v| r(v, 10.0));
             let label = format!("{i:>2} q {:?} t {:?} v {:?} omega {:?}", b.q, b.t, b.v, b.omega);
@@ -310,7 +318,6 @@ fn pga_on_true_poses(preset: &str) {
 /// whose frames before and after touch the same side of the scene, how the parts of the body touching
 /// there compare, and whether the body touched in the frame between.
 fn lasting_contacts() {
-    let threshold = 0.005;
     let mut scenes: Vec<(String, synth::SynthScene)> = Vec::new();
     for preset in ["tabletop", "backdrop", "two-body"] {
         for (scale, sn) in [(synth::Scale::Small, "small"), (synth::Scale::Large, "large")] {
@@ -328,23 +335,32 @@ fn lasting_contacts() {
     }
     for (label, scene) in scenes {
         for (vi, (world, traj)) in simulate_videos(&scene, Path::new(".")).unwrap().into_iter().enumerate() {
+            let threshold = world.config.contact_threshold;
             for (b, body) in world.bodies.iter().enumerate() {
-                let near = |k: usize| {
-                    let pose = traj.frames[k][b].pose;
-                    let pts = sim::points_near_scene(body, &pose, &world.scene, threshold);
-                    let within = pts.first().map_or(0.0, |p| p.distance + 0.002).min(threshold);
-                    pts.into_iter().filter(|p| p.distance <= within).collect::<Vec<_>>()
-                };
+                // Each frame's touching points, as GA's `sides_touched` takes them: within the contact
+                // threshold and within `TOUCHING` of the lowest.
+                let near: Vec<Vec<sim::NearPoint<f64>>> = traj
+                    .frames
+                    .iter()
+                    .map(|f| {
+                        let pts = sim::points_near_scene(body, &f[b].pose, &world.scene, threshold);
+                        let within = pts
+                            .first()
+                            .map_or(0.0, |p| p.distance + recon::video_fit::TOUCHING)
+                            .min(threshold);
+                        pts.into_iter().filter(|p| p.distance <= within).collect()
+                    })
+                    .collect();
                 for k in 1..traj.frames.len() - 1 {
-                    let (a, c) = (near(k - 1), near(k + 1));
+                    let (a, c) = (&near[k - 1], &near[k + 1]);
                     if a.is_empty() || c.is_empty() {
                         continue;
                     }
                     // Pairs facing the same side: the body-frame chord and the world distance.
                     let mut best_chord = f64::INFINITY;
                     let mut best_slack = f64::INFINITY;
-                    for p in &a {
-                        for q in &c {
+                    for p in a {
+                        for q in c {
                             if !recon::contact_penalty::faces(p.gradient, q.gradient) {
                                 continue;
                             }
