@@ -29,14 +29,16 @@ pub(crate) fn exp_neg(x: f32) -> f32 {
     const MAGIC: f32 = 12_582_912.0;
     let x = x.max(-40.0);
     let t = x * LOG2E + MAGIC;
-    let n_int = t.to_bits() as i32 - MAGIC.to_bits() as i32;
+    // Wrapping integer arithmetic: with overflow checks (the test profile's) a checked add would branch and keep
+    // the loops that call this from vectorising (half of GA's test time went here).
+    let n_int = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
     let n = t - MAGIC;
     let r = (x - n * LN2_HI) - n * LN2_LO;
     let p = 1.0
         + r * (1.0
             + r * (0.5
                 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
-    p * f32::from_bits(((n_int + 127) << 23) as u32)
+    p * f32::from_bits((n_int.wrapping_add(127) << 23) as u32)
 }
 
 /// `ln(1 + e)` for `e ∈ [0, 1]`: `2 artanh(u)`, `u = e/(2 + e) ∈ [0, 1/3]`, series to `u^15` (truncation

@@ -268,6 +268,26 @@ pub fn gemm(
 /// `deriv` untouched (the backward pass skips the multiply). Softplus and sigmoid use the branch-free,
 /// libm-free forms of `activation.rs` (relative error ~1e-7) so that the loops vectorise.
 pub fn activate(act: crate::Activation, x: &mut [f32], deriv: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        unsafe { activate_avx2(act, x, deriv) };
+        return;
+    }
+    activate_portable(act, x, deriv);
+}
+
+/// [`activate`] compiled for AVX2: eight lanes instead of SSE's four. The same operations in the same order (no
+/// FMA contraction), so the results are bit for bit those of [`activate_portable`]. The softplus is a quarter of a
+/// pose fit's time (`bench_field`'s MLP figures).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn activate_avx2(act: crate::Activation, x: &mut [f32], deriv: &mut [f32]) {
+    activate_portable(act, x, deriv);
+}
+
+#[inline(always)]
+fn activate_portable(act: crate::Activation, x: &mut [f32], deriv: &mut [f32]) {
     use crate::activation::{sigmoid_fast, softplus_fast};
     match act {
         crate::Activation::None => {}
@@ -808,5 +828,31 @@ pub mod reference {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Activation;
+
+    /// The AVX2 build of the activations gives the portable build's bits: the same operations, wider lanes.
+    #[test]
+    fn every_build_of_the_activations_gives_the_same_bits() {
+        let z: Vec<f32> = (-20_000..=20_000).map(|i| i as f32 * 3e-4).collect();
+        for act in [
+            Activation::Softplus { beta: 100.0 },
+            Activation::Sigmoid,
+            Activation::Relu,
+        ] {
+            let (mut v, mut d) = (z.clone(), vec![0.0f32; z.len()]);
+            activate(act, &mut v, &mut d);
+            let (mut pv, mut pd) = (z.clone(), vec![0.0f32; z.len()]);
+            activate_portable(act, &mut pv, &mut pd);
+            for i in 0..z.len() {
+                assert_eq!(v[i].to_bits(), pv[i].to_bits(), "{act:?} value at z = {}", z[i]);
+                assert_eq!(d[i].to_bits(), pd[i].to_bits(), "{act:?} derivative at z = {}", z[i]);
+            }
+        }
     }
 }

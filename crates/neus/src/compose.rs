@@ -150,6 +150,53 @@ struct Merged {
     sample: u32,
 }
 
+/// Composers given back by [`PooledComposer`]s, their buffers kept.
+static COMPOSER_POOL: std::sync::Mutex<Vec<Composer>> = std::sync::Mutex::new(Vec::new());
+/// At most this many composers wait in the pool (as many as fits alive at once: a frame's starts side by side).
+const COMPOSER_POOL_SIZE: usize = 4;
+
+/// A [`Composer`] lent from a process-wide pool and given back when dropped. For short-lived users such as one
+/// frame's pose fit: GA fits every frame from several starts for a few dozen steps each, and a new composer
+/// allocates and page-faults its buffers afresh (hundreds of MB at 256 rays of a few hundred samples), which
+/// took a quarter of GA's time.
+pub struct PooledComposer(Option<Composer>);
+
+impl PooledComposer {
+    /// One from the pool, or a new one if it is empty.
+    pub fn take() -> Self {
+        let pooled = COMPOSER_POOL.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        Self(Some(pooled.unwrap_or_default()))
+    }
+}
+
+impl Default for PooledComposer {
+    fn default() -> Self {
+        Self::take()
+    }
+}
+
+impl std::ops::Deref for PooledComposer {
+    type Target = Composer;
+    fn deref(&self) -> &Composer {
+        self.0.as_ref().expect("held until dropped")
+    }
+}
+
+impl std::ops::DerefMut for PooledComposer {
+    fn deref_mut(&mut self) -> &mut Composer {
+        self.0.as_mut().expect("held until dropped")
+    }
+}
+
+impl Drop for PooledComposer {
+    fn drop(&mut self) {
+        let mut pool = COMPOSER_POOL.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < COMPOSER_POOL_SIZE {
+            pool.extend(self.0.take());
+        }
+    }
+}
+
 /// The composed renderer's state: after [`Composer::forward`], the outputs, and what
 /// [`Composer::backward`] needs. Reuse one across chunks and frames: its buffers are kept.
 #[derive(Default)]

@@ -451,13 +451,18 @@ impl<'a> PreparedFrame<'a> {
             return total;
         };
         let pixels = self.pixels(window, 0, &mut SplitMix64::new(0));
-        for chunk in pixels.chunks(4096) {
+        // Chunks as large as a fit's steps: the composer's buffers grow to the largest batch it renders (a
+        // window of 4,096 rays took 1 GB), and they are kept for the fit's steps.
+        for chunk in pixels.chunks(EVALUATE_CHUNK) {
             let (l, _) = self.loss(composer, object, scene, pose, chunk, weights, false);
             total.add(&l);
         }
         total
     }
 }
+
+/// Rays per chunk of [`PreparedFrame::evaluate`].
+const EVALUATE_CHUNK: usize = 512;
 
 /// Added to a pixel's summed channels before dividing: a dark pixel's chromaticity is mostly noise.
 const CHROMATICITY_FLOOR: f64 = 0.05;

@@ -8,7 +8,7 @@
 use crate::contact_penalty::ContactTerm;
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
 use geom::{Pose, Quat, SplitMix64, Vec3};
-use neus::compose::{ComposedRay, Composer};
+use neus::compose::{ComposedRay, PooledComposer};
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
 
@@ -93,7 +93,7 @@ pub struct PoseFromImage<'a> {
     pub pose: Pose<f64>,
     adam: PoseAdam,
     iteration: usize,
-    composer: Composer,
+    composer: PooledComposer,
     rng: SplitMix64,
     contact: Option<ContactTerm<'a>>,
 }
@@ -120,7 +120,7 @@ impl<'a> PoseFromImage<'a> {
             pose: start,
             adam: PoseAdam::new(),
             iteration: 0,
-            composer: Composer::default(),
+            composer: PooledComposer::take(),
             rng,
             contact: None,
         })
