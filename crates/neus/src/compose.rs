@@ -28,6 +28,10 @@ use crate::ray_rounds::RayRounds;
 use crate::render_view::RenderSettings;
 use crate::volume::{composite_alpha_backward, section_alpha_backward};
 use geom::{Camera, Pose, Vec3};
+use rayon::prelude::*;
+
+/// Rays per task of the parallel march.
+const MARCH_CHUNK: usize = 32;
 
 /// One field placed in the world for a render.
 pub struct Layer<'a> {
@@ -261,18 +265,29 @@ impl Composer {
                 let (ou, du) = layer.ray_to_unit(*o, *d);
                 st.origins.push(ou);
                 st.dirs.push(du);
-                if layer.meets_unit(ou, du) {
-                    sample_ray(
-                        &layer.field.occupancy,
-                        ou,
-                        du,
-                        march,
-                        0.5,
-                        &mut st.all_t,
-                        &mut st.all_dt,
-                    );
-                }
-                st.all_offsets.push(st.all_t.len());
+            }
+            // Rays marched in parallel chunks, joined in ray order (the same samples as one after another):
+            // on one thread the march was a tenth of a pose fit's time, while the other core waited.
+            let marched: Vec<(Vec<usize>, Vec<f32>, Vec<f32>)> = st
+                .origins
+                .par_chunks(MARCH_CHUNK)
+                .zip(st.dirs.par_chunks(MARCH_CHUNK))
+                .map(|(os, ds)| {
+                    let (mut ends, mut t, mut dt) = (Vec::with_capacity(os.len()), Vec::new(), Vec::new());
+                    for (&ou, &du) in os.iter().zip(ds) {
+                        if layer.meets_unit(ou, du) {
+                            sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut t, &mut dt);
+                        }
+                        ends.push(t.len());
+                    }
+                    (ends, t, dt)
+                })
+                .collect();
+            for (ends, t, dt) in marched {
+                let base = st.all_t.len();
+                st.all_offsets.extend(ends.iter().map(|e| base + e));
+                st.all_t.extend_from_slice(&t);
+                st.all_dt.extend_from_slice(&dt);
             }
             let f = &layer.field.field;
             st.inv_s = f.inv_s();

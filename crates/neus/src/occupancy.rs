@@ -37,7 +37,9 @@ impl OccupancyGrid {
         let mut idx = 0usize;
         let mut mul = 1usize;
         for &c in &p {
-            let g = ((c + 1.0) * 0.5 * r).floor();
+            // In [0, r) the cast truncates as `floor` would, and x ∈ [0, r) ⇔ ⌊x⌋ ∈ [0, r) for an integer r:
+            // without SSE4.1 `floor` is a libm call, a tenth of a pose fit's time.
+            let g = (c + 1.0) * 0.5 * r;
             if !(0.0..r).contains(&g) {
                 return false;
             }
