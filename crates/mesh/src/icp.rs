@@ -78,15 +78,20 @@ pub fn icp(source: &[V], target: &IcpTarget, init: Pose<f64>, cfg: &IcpConfig, i
     let mut pairs: Vec<(f64, usize, usize)> = Vec::with_capacity(source.len());
     let mut last = (f64::INFINITY, f64::INFINITY);
     let mut done = 0;
+    // Each source point's nearest target point of the iteration before: the search starts from it.
+    let mut hints = vec![usize::MAX; source.len()];
     for it in 0..iterations {
         done = it + 1;
         pairs.clear();
-        pairs.par_extend(
-            source
-                .par_iter()
-                .enumerate()
-                .filter_map(|(i, p)| target.tree.nearest(pose.transform_point(*p)).map(|(j, d2)| (d2, i, j))),
-        );
+        pairs.par_extend(source.par_iter().zip(&hints).enumerate().filter_map(|(i, (p, &hint))| {
+            target
+                .tree
+                .nearest_from(pose.transform_point(*p), hint)
+                .map(|(j, d2)| (d2, i, j))
+        }));
+        for &(_, i, j) in &pairs {
+            hints[i] = j;
+        }
         let keep = ((pairs.len() as f64 * cfg.keep_fraction).ceil() as usize).clamp(1.min(pairs.len()), pairs.len());
         if keep < pairs.len() {
             pairs.select_nth_unstable_by(keep - 1, |a, b| a.0.total_cmp(&b.0));
