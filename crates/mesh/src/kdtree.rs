@@ -71,9 +71,7 @@ impl KdTree {
             return self.nearest(q);
         };
         let q = q.to_array();
-        let p = self.nodes[at as usize].p;
-        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-        let mut best = (at as usize, d2);
+        let mut best = (at as usize, dist2(self.nodes[at as usize].p, q));
         self.search(q, 0, self.nodes.len(), &mut best);
         Some((self.nodes[best.0].index as usize, best.1))
     }
@@ -86,7 +84,7 @@ impl KdTree {
         let mid = (lo + hi) / 2;
         let node = &self.nodes[mid];
         let p = node.p;
-        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+        let d2 = dist2(p, q);
         if d2 < best.1 {
             *best = (mid, d2);
         }
@@ -105,6 +103,11 @@ impl KdTree {
             self.search(q, far.0, far.1, best);
         }
     }
+}
+
+/// Squared distance, summed in the order of `Vec3::norm_sq`.
+fn dist2(p: [f64; 3], q: [f64; 3]) -> f64 {
+    (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2])
 }
 
 fn build(points: &[V], order: &mut [u32], axis: &mut [u8], lo: usize, hi: usize) {

@@ -410,6 +410,19 @@ impl Composer {
     /// gradients with respect to the last [`Self::forward`]'s outputs are `grads` (one per ray). `layers`
     /// must be the forward's.
     pub fn backward(&mut self, layers: &[Layer<'_>], grads: &[RayGradient]) -> Vec<[f64; 6]> {
+        self.backward_of(layers, grads, |_| true)
+    }
+
+    /// [`Self::backward`] for the objects `wanted` says yes to; the others' entries are zero. Bodies drawn
+    /// only to hide what they stand in front of (another body fitted in a frame) are not traced back
+    /// through their fields: that is as much work as their forward pass, and nothing uses it.
+    pub fn backward_of(
+        &mut self,
+        layers: &[Layer<'_>],
+        grads: &[RayGradient],
+        wanted: impl Fn(usize) -> bool,
+    ) -> Vec<[f64; 6]> {
+        let traced = |layer: &Layer<'_>| layer.object.is_some_and(&wanted);
         let n = self.out.len();
         assert_eq!(grads.len(), n, "Composer::backward: one gradient per ray");
         for st in &mut self.layers {
@@ -452,8 +465,8 @@ impl Composer {
                 &mut self.d_alpha,
             );
             for (j, m) in merged.iter().enumerate() {
-                if layers[m.layer as usize].object.is_none() {
-                    continue; // the scene is fixed
+                if !traced(&layers[m.layer as usize]) {
+                    continue; // the scene is fixed, and so are bodies not wanted
                 }
                 let st = &mut self.layers[m.layer as usize];
                 let s = m.sample as usize;
@@ -468,7 +481,9 @@ impl Composer {
         // Through each object's field to its samples' points and directions, then to its pose.
         let mut out = vec![[0.0f64; 6]; self.objects];
         for (layer, st) in layers.iter().zip(&mut self.layers) {
-            let Some(obj) = layer.object else { continue };
+            let Some(obj) = layer.object.filter(|_| traced(layer)) else {
+                continue;
+            };
             let m = st.eval.t.len();
             if m == 0 {
                 continue;

@@ -487,3 +487,42 @@ fn pose_gradients_of_the_fast_path_match_central_differences() {
     let (r, cam, pose) = sunk_rig();
     check_pose_gradients(&r, &r.object, &r.capture_from_body, &cam, pose, true);
 }
+
+/// Two bodies, one in front of the other: the gradient of one alone (`backward_of`) is, bit for bit, its
+/// entry of the full backward, and the body not wanted gets zero.
+#[test]
+fn the_gradient_of_one_body_alone_is_its_entry_of_all() {
+    let r = rig();
+    let cam = camera(Vec3::new(0.25, -0.2, 0.15), Vec3::new(0.0, 0.0, 0.03), 24, 18);
+    let (o, d) = rays(&cam);
+    let near = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.03, -0.02, 0.0));
+    let far = Pose::new(Quat::exp(Vec3::new(0.2, 0.0, -0.3)), Vec3::new(-0.02, 0.02, 0.0));
+    let layers = vec![
+        Layer::object(&r.object, &r.capture_from_body, &near, 0),
+        Layer::object(&r.object, &r.capture_from_body, &far, 1),
+    ];
+    let mut rng = SplitMix64::new(5);
+    let grads: Vec<RayGradient> = (0..o.len())
+        .map(|_| RayGradient {
+            rgb: [0; 3].map(|_| rng.range(-1.0, 1.0) as f32),
+            depth: rng.range(-1.0, 1.0) as f32,
+            object_opacity: vec![rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32],
+        })
+        .collect();
+    let mut c = Composer::default();
+    c.forward(&layers, 2, Behind::Colour([0.2; 3]), &o, &d);
+    let both: Vec<f64> = (0..o.len())
+        .map(|i| c.object_opacity[2 * i].min(c.object_opacity[2 * i + 1]) as f64)
+        .collect();
+    assert!(both.iter().any(|&a| a > 0.01), "the bodies overlap in the view");
+    let all = c.backward(&layers, &grads);
+    assert!(
+        all.iter().all(|g| g.iter().any(|&x| x != 0.0)),
+        "both bodies have a gradient: {all:?}"
+    );
+    for wanted in 0..2 {
+        let one = c.backward_of(&layers, &grads, |object| object == wanted);
+        assert_eq!(one[wanted], all[wanted], "body {wanted}");
+        assert_eq!(one[1 - wanted], [0.0; 6], "the body not wanted");
+    }
+}

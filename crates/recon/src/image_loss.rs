@@ -430,7 +430,8 @@ impl<'a> PreparedFrame<'a> {
             + weights.silhouette * out.silhouette
             + weights.pull * out.pull;
         let g = if grad {
-            composer.backward(&layers, &grads)[0]
+            // The fitted body's gradient alone: the others stand still here.
+            composer.backward_of(&layers, &grads, |object| object == 0)[0]
         } else {
             [0.0; 6]
         };
