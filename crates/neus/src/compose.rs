@@ -136,6 +136,8 @@ struct LayerState {
     all_offsets: Vec<usize>,
     all_t: Vec<f32>,
     all_dt: Vec<f32>,
+    /// One per chunk of the parallel march, kept so that a march allocates nothing once warm.
+    march: Vec<MarchChunk>,
     /// The samples evaluated (`offsets`, `t`, `dt`, `alpha`, …: per ray, front to back).
     eval: RayRounds,
     inv_s: f32,
@@ -144,6 +146,14 @@ struct LayerState {
     d_rgb: Vec<[f32; 3]>,
     d_point: Vec<[f32; 3]>,
     d_dir: Vec<[f32; 3]>,
+}
+
+/// What the march gives for one chunk of rays: where each ray's samples end, and the samples.
+#[derive(Default)]
+struct MarchChunk {
+    ends: Vec<usize>,
+    t: Vec<f32>,
+    dt: Vec<f32>,
 }
 
 /// A sample in a ray's merged depth order.
@@ -170,12 +180,6 @@ impl PooledComposer {
     pub fn take() -> Self {
         let pooled = COMPOSER_POOL.lock().unwrap_or_else(|e| e.into_inner()).pop();
         Self(Some(pooled.unwrap_or_default()))
-    }
-}
-
-impl Default for PooledComposer {
-    fn default() -> Self {
-        Self::take()
     }
 }
 
@@ -268,26 +272,30 @@ impl Composer {
             }
             // Rays marched in parallel chunks, joined in ray order (the same samples as one after another):
             // on one thread the march was a tenth of a pose fit's time, while the other core waited.
-            let marched: Vec<(Vec<usize>, Vec<f32>, Vec<f32>)> = st
-                .origins
-                .par_chunks(MARCH_CHUNK)
+            let chunks = st.origins.len().div_ceil(MARCH_CHUNK);
+            if st.march.len() < chunks {
+                st.march.resize_with(chunks, MarchChunk::default);
+            }
+            st.march[..chunks]
+                .par_iter_mut()
+                .zip(st.origins.par_chunks(MARCH_CHUNK))
                 .zip(st.dirs.par_chunks(MARCH_CHUNK))
-                .map(|(os, ds)| {
-                    let (mut ends, mut t, mut dt) = (Vec::with_capacity(os.len()), Vec::new(), Vec::new());
+                .for_each(|((chunk, os), ds)| {
+                    chunk.ends.clear();
+                    chunk.t.clear();
+                    chunk.dt.clear();
                     for (&ou, &du) in os.iter().zip(ds) {
                         if layer.meets_unit(ou, du) {
-                            sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut t, &mut dt);
+                            sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut chunk.t, &mut chunk.dt);
                         }
-                        ends.push(t.len());
+                        chunk.ends.push(chunk.t.len());
                     }
-                    (ends, t, dt)
-                })
-                .collect();
-            for (ends, t, dt) in marched {
+                });
+            for chunk in &st.march[..chunks] {
                 let base = st.all_t.len();
-                st.all_offsets.extend(ends.iter().map(|e| base + e));
-                st.all_t.extend_from_slice(&t);
-                st.all_dt.extend_from_slice(&dt);
+                st.all_offsets.extend(chunk.ends.iter().map(|e| base + e));
+                st.all_t.extend_from_slice(&chunk.t);
+                st.all_dt.extend_from_slice(&chunk.dt);
             }
             let f = &layer.field.field;
             st.inv_s = f.inv_s();
