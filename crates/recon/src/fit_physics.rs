@@ -11,6 +11,7 @@
 use crate::least_squares::{lm_step, Bounds, Linearization};
 use crate::unknowns::Unknowns;
 use geom::{Pose, Quat, Vec3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sim::{simulate_with_gradients, World};
 
@@ -876,36 +877,65 @@ pub fn fit_multi_start_bodies(
     let all: Vec<(f64, f64)> = std::iter::once((own.restitution, own.friction))
         .chain(starts.iter().copied())
         .collect();
+    let fit_from =
+        |&(restitution, friction): &(f64, f64)| -> Result<(PhysicsFit, Vec<FitStats>, StartResult, World), FitError> {
+            let mut w = world.clone();
+            let c = sim::ContactParams { restitution, friction };
+            match on {
+                StartsOn::Scene => {
+                    for o in &observed {
+                        w.scene_contact[o.body] = c;
+                    }
+                }
+                StartsOn::Pair(p) => w.pair_contact[p] = c,
+            }
+            let mut fit = PhysicsFit::new_bodies(cfg.clone(), w, observed.clone())?;
+            let history = fit.run();
+            let end = fit.fitted_world();
+            let ended = match on {
+                StartsOn::Scene => end.scene_contact[observed.first().map_or(0, |o| o.body)],
+                StartsOn::Pair(p) => end.pair_contact[p],
+            };
+            let r = StartResult {
+                restitution,
+                friction,
+                loss: fit.full_loss(),
+                iterations: history.len(),
+                fitted_restitution: ended.restitution,
+                fitted_friction: ended.friction,
+            };
+            Ok((fit, history, r, end))
+        };
+    // The starts side by side (each is one thread's work: a simulation with up to 16 derivatives is one
+    // dual-number pass), told to `on_start` as they end; the winner is the one a loop over them in order
+    // would keep (the first of the lowest loss), so the result does not depend on which ends first.
+    let (ended_tx, ended_rx) = std::sync::mpsc::channel::<(usize, StartResult)>();
+    let ended = std::thread::scope(|s| {
+        let all = &all;
+        let fit_from = &fit_from;
+        let worker = s.spawn(move || {
+            all.par_iter()
+                .enumerate()
+                .map(|(i, start)| {
+                    let out = fit_from(start);
+                    if let Ok((_, _, r, _)) = &out {
+                        // The receiver lives until every start has ended.
+                        let _ = ended_tx.send((i, r.clone()));
+                    }
+                    out
+                })
+                .collect::<Vec<_>>()
+        });
+        for (i, r) in ended_rx {
+            on_start(i, &r);
+        }
+        worker.join().unwrap_or_else(|e| std::panic::resume_unwind(e))
+    });
     let mut best: Option<(PhysicsFit, Vec<FitStats>, usize)> = None;
     let mut results = Vec::new();
     let mut worlds = Vec::new();
-    for (i, &(restitution, friction)) in all.iter().enumerate() {
-        let mut w = world.clone();
-        let c = sim::ContactParams { restitution, friction };
-        match on {
-            StartsOn::Scene => {
-                for o in &observed {
-                    w.scene_contact[o.body] = c;
-                }
-            }
-            StartsOn::Pair(p) => w.pair_contact[p] = c,
-        }
-        let mut fit = PhysicsFit::new_bodies(cfg.clone(), w, observed.clone())?;
-        let history = fit.run();
-        let end = fit.fitted_world();
-        let ended = match on {
-            StartsOn::Scene => end.scene_contact[observed.first().map_or(0, |o| o.body)],
-            StartsOn::Pair(p) => end.pair_contact[p],
-        };
-        let r = StartResult {
-            restitution,
-            friction,
-            loss: fit.full_loss(),
-            iterations: history.len(),
-            fitted_restitution: ended.restitution,
-            fitted_friction: ended.friction,
-        };
-        on_start(i, &r);
+    for (i, out) in ended.into_iter().enumerate() {
+        let (fit, history, r, end) = out?;
         worlds.push(end);
         if best.as_ref().is_none_or(|(b, _, _)| r.loss < b.full_loss()) {
             best = Some((fit, history, i));

@@ -2,7 +2,7 @@
 //! from a pose sequence the simulator made itself, starting 50 % off; and
 //! from poses seen by one camera (their depth noisy), weighing depth least.
 use geom::{Pose, Vec3};
-use recon::{PhysicsFit, PhysicsFitConfig};
+use recon::{fit_multi_start, PhysicsFit, PhysicsFitConfig};
 use sim::sdf::{Cuboid, Plane, Shape};
 use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
 
@@ -216,4 +216,56 @@ fn poses_seen_from_one_camera_count_their_depth_least() {
         mean * 1e3,
         mean_flat * 1e3
     );
+}
+
+/// The starts run side by side: each is told once, ends where it would alone, and the winner is the first
+/// start of the lowest loss (what a loop over the starts in order keeps).
+#[test]
+fn a_multi_start_tells_every_start_and_keeps_the_first_of_the_lowest_loss() {
+    let observed = poses_of(&tabletop(TOSS_V0, TOSS_OMEGA0, TOSS_CONTACT));
+    let guess = ContactParams {
+        restitution: 0.25,
+        friction: 0.45,
+    };
+    let start = tabletop([1.2, 0.05, 0.45], [0.0, 0.0, 1.5], guess);
+    let cfg = PhysicsFitConfig {
+        iterations: 10,
+        ..PhysicsFitConfig::default()
+    };
+    let starts = [(0.15, 0.1), (0.75, 0.7), (0.45, 0.35)];
+    let mut told = Vec::new();
+    let multi = fit_multi_start(
+        cfg.clone(),
+        start.clone(),
+        0,
+        observed.clone(),
+        None,
+        &starts,
+        &mut |i, r| told.push((i, r.clone())),
+    )
+    .unwrap();
+    told.sort_by_key(|(i, _)| *i);
+    assert_eq!(told.iter().map(|(i, _)| *i).collect::<Vec<_>>(), [0, 1, 2, 3]);
+    let all: Vec<(f64, f64)> = std::iter::once((guess.restitution, guess.friction))
+        .chain(starts)
+        .collect();
+    for (i, r) in multi.starts.iter().enumerate() {
+        assert_eq!((r.restitution, r.friction), all[i], "start {i}");
+        assert_eq!(told[i].1.loss, r.loss, "start {i}: told another loss");
+        let c = multi.worlds[i].scene_contact[0];
+        assert_eq!((c.restitution, c.friction), (r.fitted_restitution, r.fitted_friction));
+        // Alone, the same start ends at the same loss, bit for bit.
+        let mut w = start.clone();
+        w.scene_contact[0] = ContactParams {
+            restitution: all[i].0,
+            friction: all[i].1,
+        };
+        let mut alone = PhysicsFit::new(cfg.clone(), w, 0, observed.clone(), None).unwrap();
+        alone.run();
+        assert_eq!(alone.full_loss(), r.loss, "start {i} alone");
+    }
+    let lowest = multi.starts.iter().map(|r| r.loss).fold(f64::INFINITY, f64::min);
+    let first_lowest = multi.starts.iter().position(|r| r.loss == lowest).unwrap();
+    assert_eq!(multi.winner, first_lowest);
+    assert_eq!(multi.best.full_loss(), lowest);
 }
