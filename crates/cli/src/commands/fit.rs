@@ -332,16 +332,8 @@ pub fn run(a: FitArgs) -> Result<()> {
         bail!("--density must be positive, got {}", a.density);
     }
     // Every input is read and checked before anything is written.
-    let (frames, video_fps) = read_video(&a.video, &name, true, a.frames)?;
-    let fps = match (a.fps, video_fps) {
-        (Some(f), _) if f.is_finite() && f > 0.0 => f,
-        (Some(f), _) => bail!("--fps must be positive, got {f}"),
-        (None, Some(f)) => f,
-        (None, None) => bail!(
-            "{}: capture.json gives no fps: add it there or pass --fps",
-            a.video.display()
-        ),
-    };
+    let (frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames)?;
+    let fps = video_fps(&a, fps_of_capture)?;
     let object = ObjectModel::load(&object_dir).map_err(|e| anyhow!("--object {name}: {e}"))?;
     let guess = if a.init.as_os_str() == "auto" {
         None
@@ -352,32 +344,8 @@ pub fn run(a: FitArgs) -> Result<()> {
     if let Some(guess) = &guess {
         check_guess_in_view(&cam, guess, &name, &a.init)?;
     }
-    let scene_field =
-        load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
-    if scene_field.config.kind != neus::CaptureSubject::Scene {
-        tracing::warn!(
-            "--scene {}: trained as an object capture, not a scene",
-            a.scene.display()
-        );
-    }
-    let grid = match &a.scene_grid {
-        Some(p) => Some(SdfGrid::load(p).map_err(|e| anyhow!("--scene-grid: {e}"))?),
-        None => None,
-    };
-    let body = RigidBody::from_mesh(
-        &name,
-        &object.mesh,
-        MassSpec::Density(a.density),
-        ContactSampling::default(),
-        None,
-    )
-    .map_err(|e| anyhow!("--object {name}: {}: its mesh: {e}", object_dir.display()))?;
-    if body.mesh_offset.norm() > 1e-5 {
-        bail!(
-            "--object {name}: the mesh's centre of mass is {:?} from the body origin",
-            body.mesh_offset.to_array()
-        );
-    }
+    let (scene_field, grid) = load_scene(&a)?;
+    let body = rigid_body(&name, &object, &object_dir, a.density)?;
     let record = FitRecord {
         inputs: RecordInputs {
             video: a.video.clone(),
@@ -396,30 +364,8 @@ pub fn run(a: FitArgs) -> Result<()> {
         return Ok(());
     }
     let grid = scene_grid(grid, &scene_field, &a)?;
-    let sim_cfg = SimConfig {
-        fps,
-        frames: frames.len(),
-        ..cfg.sim.clone()
-    };
-    let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
-    world.add_body(
-        body,
-        // A placeholder: every stage starts from the first pose.
-        BodyState::new([0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]),
-        cfg.start_contact,
-        cfg.start_contact,
-    );
-    world
-        .validate()
-        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
-
-    let t = Instant::now();
-    let mut composer = Composer::default();
-    let scene_pre = prerender_scene(&scene_field, &cam, &mut composer);
-    tracing::info!(
-        "the scene rendered through the video's camera in {:.1} s",
-        t.elapsed().as_secs_f64()
-    );
+    let world = fit_world(grid, fps, frames.len(), &cfg, vec![body])?;
+    let scene_pre = scene_through(&scene_field, &cam);
     let log = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -495,6 +441,91 @@ pub fn run(a: FitArgs) -> Result<()> {
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(rounds));
     finish(&mut job, &final_world, Some(&final_ga), &ranges, &timings, t_start)
+}
+
+/// The video's frame rate: `--fps` when given, else its `capture.json`'s.
+pub(super) fn video_fps(a: &FitArgs, from_capture: Option<f64>) -> Result<f64> {
+    match (a.fps, from_capture) {
+        (Some(f), _) if f.is_finite() && f > 0.0 => Ok(f),
+        (Some(f), _) => bail!("--fps must be positive, got {f}"),
+        (None, Some(f)) => Ok(f),
+        (None, None) => bail!(
+            "{}: capture.json gives no fps: add it there or pass --fps",
+            a.video.display()
+        ),
+    }
+}
+
+/// `--scene`'s field (a warning when it was trained as an object) and `--scene-grid` when given.
+pub(super) fn load_scene(a: &FitArgs) -> Result<(neus::checkpoint::LoadedField, Option<SdfGrid>)> {
+    let field = load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
+    if field.config.kind != neus::CaptureSubject::Scene {
+        tracing::warn!(
+            "--scene {}: trained as an object capture, not a scene",
+            a.scene.display()
+        );
+    }
+    let grid = match &a.scene_grid {
+        Some(p) => Some(SdfGrid::load(p).map_err(|e| anyhow!("--scene-grid: {e}"))?),
+        None => None,
+    };
+    Ok((field, grid))
+}
+
+/// The rigid body of `--object name=dir`, its density `--density`'s; its mesh must have its centre of mass
+/// at the body's origin (as `merge` and `train` write it).
+pub(super) fn rigid_body(name: &str, object: &ObjectModel, dir: &Path, density: f64) -> Result<RigidBody> {
+    let body = RigidBody::from_mesh(
+        name,
+        &object.mesh,
+        MassSpec::Density(density),
+        ContactSampling::default(),
+        None,
+    )
+    .map_err(|e| anyhow!("--object {name}: {}: its mesh: {e}", dir.display()))?;
+    if body.mesh_offset.norm() > 1e-5 {
+        bail!(
+            "--object {name}: the mesh's centre of mass is {:?} from the body origin",
+            body.mesh_offset.to_array()
+        );
+    }
+    Ok(body)
+}
+
+/// The world the stages simulate: the scene's grid and `bodies` at placeholder states (every stage starts
+/// from the first poses), the settings' `[sim]` at the video's rate and length.
+pub(super) fn fit_world(
+    grid: SdfGrid,
+    fps: f64,
+    frames: usize,
+    cfg: &VideoFitConfig,
+    bodies: Vec<RigidBody>,
+) -> Result<World> {
+    let sim_cfg = SimConfig {
+        fps,
+        frames,
+        ..cfg.sim.clone()
+    };
+    let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
+    for body in bodies {
+        let placeholder = BodyState::new([0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+        world.add_body(body, placeholder, cfg.start_contact, cfg.start_contact);
+    }
+    world
+        .validate()
+        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
+    Ok(world)
+}
+
+/// The scene through the video's fixed camera, once: what every render of the fit composes its bodies over.
+pub(super) fn scene_through(scene: &neus::checkpoint::LoadedField, cam: &Camera<f64>) -> Vec<ComposedRay> {
+    let t = Instant::now();
+    let pre = prerender_scene(scene, cam, &mut Composer::default());
+    tracing::info!(
+        "the scene rendered through the video's camera in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    pre
 }
 
 /// The output folder: a new one (or, with `--force`, one emptied of stage results), or the same fit resumed;

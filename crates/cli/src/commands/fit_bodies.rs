@@ -24,18 +24,16 @@
 //! image loss has nothing to say about the pair; the paper's own multi-body
 //! schedule starts from the tracked poses too.
 
-use super::checkpoint_of;
 use super::fit::{
-    check_guess_in_view, exposure_at, frame_poses, ga_row, metric_rows, object_entry, open_output, pose_of,
-    read_guesses, read_video, report_ranges, reported_poses, scene_grid, search_first_pose_of, strip, write_ranges,
-    FitArgs, FitRecord, RecordInputs, ReportedPose, Stage,
+    check_guess_in_view, exposure_at, fit_world, frame_poses, ga_row, load_scene, metric_rows, object_entry,
+    open_output, pose_of, read_guesses, read_video, report_ranges, reported_poses, rigid_body, scene_grid,
+    scene_through, search_first_pose_of, strip, write_ranges, FitArgs, FitRecord, RecordInputs, ReportedPose, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
 use anyhow::{anyhow, bail, Context, Result};
 use geom::{Pose, Vec3};
-use neus::checkpoint::load_field;
-use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
+use neus::compose::{render_composed, Behind, ComposedRay, Composer, Layer};
 use neus::ObjectModel;
 use pganeus_io::Image;
 use recon::image_loss::Occluder;
@@ -45,8 +43,7 @@ use recon::{
     PosesFromVideo, ValueRange, VideoFitConfig, CONTACT_STARTS,
 };
 use serde_json::{json, Map, Value};
-use sim::sdf::SdfGrid;
-use sim::{BodyState, ContactSampling, MassSpec, RigidBody, SimConfig, World};
+use sim::{BodyState, World};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -111,15 +108,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         bodies.push(Body { name, object, frames });
     }
     let n = bodies[0].frames.len();
-    let fps = match (a.fps, video_fps) {
-        (Some(f), _) if f.is_finite() && f > 0.0 => f,
-        (Some(f), _) => bail!("--fps must be positive, got {f}"),
-        (None, Some(f)) => f,
-        (None, None) => bail!(
-            "{}: capture.json gives no fps: add it there or pass --fps",
-            a.video.display()
-        ),
-    };
+    let fps = super::fit::video_fps(&a, video_fps)?;
     let guesses: Vec<Option<Pose<f64>>> = if a.init.as_os_str() == "auto" {
         vec![None; bodies.len()]
     } else {
@@ -132,31 +121,12 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
             check_guess_in_view(&cam, g, &b.name, &a.init)?;
         }
     }
-    let scene_field =
-        load_field(&checkpoint_of(&a.scene)).map_err(|e| anyhow!("--scene {}: {e}", a.scene.display()))?;
-    let grid = match &a.scene_grid {
-        Some(p) => Some(SdfGrid::load(p).map_err(|e| anyhow!("--scene-grid: {e}"))?),
-        None => None,
-    };
-    let mut rigid = Vec::new();
-    for (b, (_, dir)) in bodies.iter().zip(&objects) {
-        let body = RigidBody::from_mesh(
-            &b.name,
-            &b.object.mesh,
-            MassSpec::Density(a.density),
-            ContactSampling::default(),
-            None,
-        )
-        .map_err(|e| anyhow!("--object {}: {}: its mesh: {e}", b.name, dir.display()))?;
-        if body.mesh_offset.norm() > 1e-5 {
-            bail!(
-                "--object {}: the mesh's centre of mass is {:?} from the body origin",
-                b.name,
-                body.mesh_offset.to_array()
-            );
-        }
-        rigid.push(body);
-    }
+    let (scene_field, grid) = load_scene(&a)?;
+    let rigid = bodies
+        .iter()
+        .zip(&objects)
+        .map(|(b, (_, dir))| rigid_body(&b.name, &b.object, dir, a.density))
+        .collect::<Result<Vec<_>>>()?;
     let record = FitRecord {
         inputs: RecordInputs {
             video: a.video.clone(),
@@ -178,26 +148,8 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         return Ok(());
     }
     let grid = scene_grid(grid, &scene_field, &a)?;
-    let sim_cfg = SimConfig {
-        fps,
-        frames: n,
-        ..cfg.sim.clone()
-    };
-    let mut world = World::new(sim_cfg, sim::sdf::Shape::Grid(Arc::new(grid)));
-    for body in rigid {
-        // Placeholders: every stage starts from the first poses.
-        let rest = BodyState::new([0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
-        world.add_body(body, rest, cfg.start_contact, cfg.start_contact);
-    }
-    world
-        .validate()
-        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
-    let t = Instant::now();
-    let scene_pre = prerender_scene(&scene_field, &cam, &mut Composer::default());
-    tracing::info!(
-        "the scene rendered through the video's camera in {:.1} s",
-        t.elapsed().as_secs_f64()
-    );
+    let world = fit_world(grid, fps, n, &cfg, rigid)?;
+    let scene_pre = scene_through(&scene_field, &cam);
     let log_path = a.out.join("log.jsonl");
     let mut log = Log {
         file: std::fs::OpenOptions::new()
