@@ -127,6 +127,74 @@ pub struct RayGradient {
     pub object_opacity: Vec<f32>,
 }
 
+/// Samples of fields rendered earlier and held fixed, per ray: bodies drawn where they stand while another is
+/// fitted. [`Composer::forward_over`] merges them with its layers' samples in depth order exactly as if their
+/// layers were rendered again: a field's NeuS opacities along a ray come from its own samples only.
+#[derive(Clone, Debug, Default)]
+pub struct FixedSamples {
+    /// Ray `i`'s samples are `offsets[i]..offsets[i + 1]`, front to back.
+    offsets: Vec<usize>,
+    /// Metres along the ray.
+    t: Vec<f32>,
+    alpha: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
+    /// The object each sample belongs to.
+    object: Vec<u32>,
+}
+
+impl FixedSamples {
+    /// No rays.
+    pub fn clear(&mut self) {
+        self.offsets.clear();
+        self.offsets.push(0);
+        self.t.clear();
+        self.alpha.clear();
+        self.rgb.clear();
+        self.object.clear();
+    }
+
+    /// How many rays.
+    pub fn rays(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// How many samples, over every ray.
+    pub fn samples(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Appends ray `i` of `other`.
+    pub fn push_ray_of(&mut self, other: &FixedSamples, i: usize) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        let r = other.offsets[i]..other.offsets[i + 1];
+        self.t.extend_from_slice(&other.t[r.clone()]);
+        self.alpha.extend_from_slice(&other.alpha[r.clone()]);
+        self.rgb.extend_from_slice(&other.rgb[r.clone()]);
+        self.object.extend_from_slice(&other.object[r]);
+        self.offsets.push(self.t.len());
+    }
+}
+
+/// A merged sample's opacity, colour and object: of a layer's samples or of the fixed ones.
+fn merged_sample(
+    fixed: &FixedSamples,
+    states: &[LayerState],
+    layers: &[Layer<'_>],
+    m: &Merged,
+) -> (f32, [f32; 3], Option<usize>) {
+    let s = m.sample as usize;
+    if m.layer == FIXED {
+        return (fixed.alpha[s], fixed.rgb[s], Some(fixed.object[s] as usize));
+    }
+    let e = &states[m.layer as usize].eval;
+    (e.alpha[s], e.rgb[s], layers[m.layer as usize].object)
+}
+
+/// [`Merged::layer`] of a fixed sample ([`FixedSamples`]): its `sample` indexes the composer's copy of them.
+const FIXED: u32 = u32::MAX;
+
 /// A layer's samples and the buffers of its passes.
 #[derive(Default)]
 struct LayerState {
@@ -228,6 +296,8 @@ pub struct Composer {
     alpha: Vec<f32>,
     d_alpha: Vec<f32>,
     bg: BackgroundScratch,
+    /// The last forward's fixed samples (empty: none).
+    fixed: FixedSamples,
 }
 
 impl Composer {
@@ -242,7 +312,27 @@ impl Composer {
         origins: &[Vec3<f64>],
         dirs: &[Vec3<f64>],
     ) {
+        self.forward_over(layers, objects, behind, origins, dirs, None);
+    }
+
+    /// [`Self::forward`] with `fixed` samples (one entry per ray) merged in: what other fields, not traced
+    /// here, put along the same rays ([`FixedSamples`]). Their objects' opacities are outputs as the layers'
+    /// are; the backward pass stops at them.
+    pub fn forward_over(
+        &mut self,
+        layers: &[Layer<'_>],
+        objects: usize,
+        behind: Behind<'_>,
+        origins: &[Vec3<f64>],
+        dirs: &[Vec3<f64>],
+        fixed: Option<&FixedSamples>,
+    ) {
         let n = origins.len();
+        self.fixed.clear();
+        if let Some(f) = fixed {
+            assert_eq!(f.rays(), n, "Composer::forward_over: one fixed entry per ray");
+            self.fixed.clone_from(f);
+        }
         let scene_layer = layers.iter().position(|l| l.object.is_none());
         if let Behind::Scene(s) = behind {
             assert!(
@@ -356,6 +446,20 @@ impl Composer {
                     });
                 }
             }
+            // After the layers' samples, in their own depth order: the stable sort then breaks ties as it
+            // would have with their layers after these.
+            if self.fixed.rays() == n {
+                for s in self.fixed.offsets[i]..self.fixed.offsets[i + 1] {
+                    if self.fixed.t[s] > cut {
+                        continue;
+                    }
+                    self.merged.push(Merged {
+                        t: self.fixed.t[s],
+                        layer: FIXED,
+                        sample: s as u32,
+                    });
+                }
+            }
             self.merged[start..].sort_by(|a, b| a.t.total_cmp(&b.t));
             self.merged_offsets.push(self.merged.len());
         }
@@ -371,17 +475,15 @@ impl Composer {
             let mut trans = 1.0f64;
             let mut surface = f32::INFINITY;
             for m in &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]] {
-                let st = &self.layers[m.layer as usize];
-                let s = m.sample as usize;
-                let a = st.eval.alpha[s] as f64;
+                let (a, c, obj) = self.sample_of(layers, m);
+                let a = a as f64;
                 let w = trans * a;
-                let c = st.eval.rgb[s];
                 for k in 0..3 {
                     rgb[k] += w * c[k] as f64;
                 }
                 depth += w * m.t as f64;
                 opacity += w;
-                if let Some(obj) = layers[m.layer as usize].object {
+                if let Some(obj) = obj {
                     per_object[obj] += w;
                 }
                 trans *= 1.0 - a;
@@ -407,6 +509,29 @@ impl Composer {
                 surface,
             });
         }
+    }
+
+    /// A merged sample's opacity, colour and object.
+    fn sample_of(&self, layers: &[Layer<'_>], m: &Merged) -> (f32, [f32; 3], Option<usize>) {
+        merged_sample(&self.fixed, &self.layers, layers, m)
+    }
+
+    /// Every sample of the last forward, per ray in depth order, as [`FixedSamples`] (those behind a
+    /// pre-rendered scene's surface left out): the fields of this render held fixed for later ones.
+    pub fn samples_as_fixed(&self, layers: &[Layer<'_>]) -> FixedSamples {
+        let mut out = FixedSamples::default();
+        out.clear();
+        for i in 0..self.out.len() {
+            for m in &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]] {
+                let (a, c, obj) = self.sample_of(layers, m);
+                out.t.push(m.t);
+                out.alpha.push(a);
+                out.rgb.push(c);
+                out.object.push(obj.map_or(u32::MAX, |o| o as u32));
+            }
+            out.offsets.push(out.t.len());
+        }
+        out
     }
 
     /// How many samples the last [`Self::forward`] evaluated, over all layers.
@@ -446,23 +571,17 @@ impl Composer {
         for (i, g) in grads.iter().enumerate() {
             let merged = &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]];
             let k = merged.len();
+            let (fixed, states) = (&self.fixed, &self.layers);
             self.alpha.clear();
-            self.alpha.extend(
-                merged
-                    .iter()
-                    .map(|m| self.layers[m.layer as usize].eval.alpha[m.sample as usize]),
-            );
+            self.alpha
+                .extend(merged.iter().map(|m| merged_sample(fixed, states, layers, m).0));
             self.trans.resize(k, 0.0);
             self.d_alpha.resize(k, 0.0);
-            let layers_st = &self.layers;
             let dot = |c: [f32; 3]| c[0] * g.rgb[0] + c[1] * g.rgb[1] + c[2] * g.rgb[2];
             let v = |j: usize| {
-                let m = merged[j];
-                let c = layers_st[m.layer as usize].eval.rgb[m.sample as usize];
-                let op = layers[m.layer as usize]
-                    .object
-                    .and_then(|o| g.object_opacity.get(o).copied())
-                    .unwrap_or(0.0);
+                let m = &merged[j];
+                let (_, c, obj) = merged_sample(fixed, states, layers, m);
+                let op = obj.and_then(|o| g.object_opacity.get(o).copied()).unwrap_or(0.0);
                 dot(c) + m.t * g.depth + op
             };
             composite_alpha_backward(
@@ -473,7 +592,7 @@ impl Composer {
                 &mut self.d_alpha,
             );
             for (j, m) in merged.iter().enumerate() {
-                if !traced(&layers[m.layer as usize]) {
+                if m.layer == FIXED || !traced(&layers[m.layer as usize]) {
                     continue; // the scene is fixed, and so are bodies not wanted
                 }
                 let st = &mut self.layers[m.layer as usize];

@@ -5,7 +5,9 @@
 
 use geom::{Camera, Intrinsics, Pose, Quat, SplitMix64, Vec3};
 use neus::checkpoint::LoadedField;
-use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer, RayGradient};
+use neus::compose::{
+    prerender_scene, render_composed, Behind, ComposedRay, Composer, FixedSamples, Layer, RayGradient,
+};
 use neus::occupancy::OccupancyGrid;
 use neus::render_view::{render_view, RenderSettings};
 use neus::FieldInit;
@@ -525,4 +527,51 @@ fn the_gradient_of_one_body_alone_is_its_entry_of_all() {
         assert_eq!(one[wanted], all[wanted], "body {wanted}");
         assert_eq!(one[1 - wanted], [0.0; 6], "the body not wanted");
     }
+}
+
+/// A body held fixed (its samples drawn once, [`FixedSamples`]) renders, bit for bit, as its layer drawn
+/// again: colour, depth, opacity, both bodies' opacities and the other body's pose gradient, over a
+/// pre-rendered scene that hides part of both.
+#[test]
+fn a_body_held_fixed_renders_as_its_layer_drawn_again() {
+    let (r, cam, _) = sunk_rig();
+    let (o, d) = rays(&cam);
+    let pre = prerender_scene(&r.scene, &cam, &mut Composer::default());
+    let near = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.03, -0.02, -0.01));
+    let far = Pose::new(Quat::exp(Vec3::new(0.2, 0.0, -0.3)), Vec3::new(-0.01, 0.02, 0.0));
+    let layers = vec![
+        Layer::object(&r.object, &r.capture_from_body, &near, 0),
+        Layer::object(&r.object, &r.capture_from_body, &far, 1),
+    ];
+    let mut rng = SplitMix64::new(9);
+    let grads: Vec<RayGradient> = (0..o.len())
+        .map(|_| RayGradient {
+            rgb: [0; 3].map(|_| rng.range(-1.0, 1.0) as f32),
+            depth: rng.range(-1.0, 1.0) as f32,
+            object_opacity: vec![rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32],
+        })
+        .collect();
+    let mut both = Composer::default();
+    both.forward(&layers, 2, Behind::Scene(&pre), &o, &d);
+    let want = both.backward_of(&layers, &grads, |object| object == 0)[0];
+    // The far body alone, its samples kept; then the near one over them.
+    let mut c = Composer::default();
+    c.forward(&layers[1..], 2, Behind::Colour([0.0; 3]), &o, &d);
+    let fixed = c.samples_as_fixed(&layers[1..]);
+    assert!(fixed.samples() > 0, "the far body is in view");
+    // Through a cache: the rays copied one by one, as a frame's fit assembles them.
+    let mut copied = FixedSamples::default();
+    for i in 0..fixed.rays() {
+        copied.push_ray_of(&fixed, i);
+    }
+    c.forward_over(&layers[..1], 2, Behind::Scene(&pre), &o, &d, Some(&copied));
+    assert_eq!(c.out, both.out);
+    assert_eq!(c.object_opacity, both.object_opacity);
+    assert!(
+        (0..o.len()).any(|i| both.object_opacity[2 * i] > 0.01 && both.object_opacity[2 * i + 1] > 0.01),
+        "the bodies overlap in the view"
+    );
+    let got = c.backward_of(&layers[..1], &grads, |object| object == 0)[0];
+    assert_eq!(got, want);
+    assert!(got.iter().any(|&x| x != 0.0));
 }

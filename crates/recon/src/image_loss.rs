@@ -30,9 +30,10 @@
 
 use crate::exposure_gain::ExposureGain;
 use geom::{silhouette, Camera, Pose, SplitMix64, TriMesh, Vec3};
-use neus::compose::{Behind, ComposedRay, Composer, Layer, RayGradient};
+use neus::compose::{Behind, ComposedRay, Composer, FixedSamples, Layer, RayGradient};
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
 
 /// One frame of a fixed camera: its image and one body's mask.
 pub struct FrameTarget {
@@ -232,7 +233,12 @@ pub struct Occluder<'a> {
 /// A frame ready for the loss: its mask's distance transform and box, and the other bodies in it.
 pub struct PreparedFrame<'a> {
     pub frame: &'a FrameTarget,
-    pub occluders: Vec<Occluder<'a>>,
+    occluders: Vec<Occluder<'a>>,
+    /// What the other bodies put along each pixel's ray, rendered the first time the pixel is: they stand
+    /// still while this body is fitted, and a fit draws the same pixels of its window again and again (80
+    /// steps of 1,024 of a few thousand), so drawing them once per pixel gives the same images for a
+    /// fraction of the work.
+    occluded: Mutex<OccluderSamples>,
     /// Pixels from the mask (Euclidean, by a two-pass chamfer transform).
     mask_distance: Vec<f32>,
     /// `[x0, y0, x1, y1]` of the mask, or `None` when it is empty (the body is out of view or hidden).
@@ -265,9 +271,70 @@ impl<'a> PreparedFrame<'a> {
         Ok(Self {
             frame,
             occluders: Vec::new(),
+            occluded: Mutex::default(),
             mask_distance: distance_to_mask(&frame.mask, w, h),
             mask_box: bounding_box(&frame.mask, w),
         })
+    }
+
+    /// The other bodies of the frame, drawn where they stand.
+    pub fn set_occluders(&mut self, occluders: Vec<Occluder<'a>>) {
+        self.occluders = occluders;
+        *self.occluded.get_mut().unwrap_or_else(|e| e.into_inner()) = OccluderSamples::default();
+    }
+
+    /// The other bodies of the frame.
+    pub fn occluders(&self) -> &[Occluder<'a>] {
+        &self.occluders
+    }
+
+    /// The other bodies' samples along the rays of `pixels` (`origins`, `dirs`), from the cache; the pixels
+    /// not drawn yet are drawn first (through `composer`).
+    fn occluder_samples(
+        &self,
+        composer: &mut Composer,
+        pixels: &[usize],
+        origins: &[Vec3<f64>],
+        dirs: &[Vec3<f64>],
+        weights: &ImageLossWeights,
+    ) -> FixedSamples {
+        let mut cache = self.occluded.lock().unwrap_or_else(|e| e.into_inner());
+        let n = self.frame.rgb.len();
+        if cache.slot.len() != n || cache.ray_steps != weights.ray_steps {
+            *cache = OccluderSamples {
+                ray_steps: weights.ray_steps,
+                slot: vec![u32::MAX; n],
+                samples: FixedSamples::default(),
+            };
+        }
+        let mut missing: Vec<usize> = (0..pixels.len())
+            .filter(|&j| cache.slot[pixels[j]] == u32::MAX)
+            .collect();
+        missing.sort_by_key(|&j| pixels[j]);
+        missing.dedup_by_key(|j| pixels[*j]);
+        if !missing.is_empty() {
+            let cam = &self.frame.camera;
+            let layers: Vec<Layer> = self
+                .occluders
+                .iter()
+                .enumerate()
+                .map(|(i, o)| body_layer(o.object, &o.pose, 1 + i, cam, weights))
+                .collect();
+            let o: Vec<Vec3<f64>> = missing.iter().map(|&j| origins[j]).collect();
+            let d: Vec<Vec3<f64>> = missing.iter().map(|&j| dirs[j]).collect();
+            composer.forward(&layers, 1 + layers.len(), Behind::Colour([0.0; 3]), &o, &d);
+            let drawn = composer.samples_as_fixed(&layers);
+            for (r, &j) in missing.iter().enumerate() {
+                cache.slot[pixels[j]] = cache.samples.rays() as u32;
+                cache.samples.push_ray_of(&drawn, r);
+            }
+        }
+        let mut out = FixedSamples::default();
+        out.clear();
+        for &p in pixels {
+            out.push_ray_of(&cache.samples, cache.slot[p] as usize);
+        }
+        out
     }
 
     /// Whether the mask shows the body at all.
@@ -338,21 +405,9 @@ impl<'a> PreparedFrame<'a> {
     ) -> (ImageLoss, [f64; 6]) {
         let cam = &self.frame.camera;
         let w = cam.width as usize;
-        // The fitted body is object 0; the others follow it.
-        let placed = std::iter::once((object, *pose)).chain(self.occluders.iter().map(|o| (o.object, o.pose)));
-        let layers: Vec<Layer> = placed
-            .enumerate()
-            .map(|(i, (object, pose))| {
-                let of = object.route(&pose, cam);
-                let mut layer = Layer::object(&of.field, &of.capture_from_body, &pose, i);
-                let trained = &of.field.config;
-                let scaled = |n: usize| ((n as f64 * weights.ray_steps).round() as usize).max(1);
-                layer.settings.steps_per_ray = scaled(trained.steps_per_ray);
-                layer.settings.max_samples_per_ray = scaled(trained.max_samples_per_ray);
-                layer
-            })
-            .collect();
-        let objects = layers.len();
+        // The fitted body is object 0; the others follow it, drawn from the cache.
+        let layers = [body_layer(object, pose, 0, cam, weights)];
+        let objects = 1 + self.occluders.len();
         let (mut o, mut d, mut under) = (Vec::new(), Vec::new(), Vec::new());
         for &p in pixels {
             let r = cam.ray((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
@@ -360,7 +415,8 @@ impl<'a> PreparedFrame<'a> {
             d.push(r.dir);
             under.push(scene[p].clone());
         }
-        composer.forward(&layers, objects, Behind::Scene(&under), &o, &d);
+        let others = (!self.occluders.is_empty()).then(|| self.occluder_samples(composer, pixels, &o, &d, weights));
+        composer.forward_over(&layers, objects, Behind::Scene(&under), &o, &d, others.as_ref());
         let n = pixels.len().max(1) as f64;
         let mut out = ImageLoss {
             pixels: pixels.len(),
@@ -460,6 +516,34 @@ impl<'a> PreparedFrame<'a> {
         }
         total
     }
+}
+
+/// The other bodies' samples per pixel of a frame ([`PreparedFrame::occluded`]).
+#[derive(Default)]
+struct OccluderSamples {
+    /// The ray steps they were drawn with ([`ImageLossWeights::ray_steps`]).
+    ray_steps: f64,
+    /// Per pixel: its ray in `samples`, or `u32::MAX` while it is not drawn yet.
+    slot: Vec<u32>,
+    samples: FixedSamples,
+}
+
+/// Body `index` at `pose` as the loss draws it: through the capture that saw it best from `cam`, with the ray
+/// steps `weights` ask for.
+fn body_layer<'b>(
+    object: &'b ObjectModel,
+    pose: &Pose<f64>,
+    index: usize,
+    cam: &Camera<f64>,
+    weights: &ImageLossWeights,
+) -> Layer<'b> {
+    let of = object.route(pose, cam);
+    let mut layer = Layer::object(&of.field, &of.capture_from_body, pose, index);
+    let trained = &of.field.config;
+    let scaled = |n: usize| ((n as f64 * weights.ray_steps).round() as usize).max(1);
+    layer.settings.steps_per_ray = scaled(trained.steps_per_ray);
+    layer.settings.max_samples_per_ray = scaled(trained.max_samples_per_ray);
+    layer
 }
 
 /// Rays per chunk of [`PreparedFrame::evaluate`].

@@ -128,7 +128,7 @@ impl<'a> PoseFromImage<'a> {
 
     /// The other bodies of the frame, drawn where they stand (several bodies in the video).
     pub fn with_occluders(mut self, occluders: Vec<Occluder<'a>>) -> Self {
-        self.frame.occluders = occluders;
+        self.frame.set_occluders(occluders);
         self
     }
 

@@ -302,10 +302,12 @@ pub fn evaluate_poses(
         .enumerate()
         .map(|(k, (f, pose))| {
             let mut prepared = PreparedFrame::new(f, scene)?;
-            prepared.occluders = others
-                .iter()
-                .filter_map(|(object, poses)| poses.get(k).map(|&pose| Occluder { object, pose }))
-                .collect();
+            prepared.set_occluders(
+                others
+                    .iter()
+                    .filter_map(|(object, poses)| poses.get(k).map(|&pose| Occluder { object, pose }))
+                    .collect(),
+            );
             Ok(if prepared.has_mask() {
                 prepared.evaluate(&mut composer, object, scene, pose, weights)
             } else {

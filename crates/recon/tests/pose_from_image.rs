@@ -226,6 +226,14 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         with.iou(),
         without.iou()
     );
+    // The ball is drawn once per pixel and kept (it stands still while the toy is fitted): the frame at the
+    // truth is then the frame itself, bit for bit, as often as it is drawn.
+    let mut at = PoseFromImage::new(cfg.clone(), &toy, &behind, &frame, truth)
+        .unwrap()
+        .with_occluders(occluders.clone());
+    for _ in 0..2 {
+        assert_eq!(at.evaluate().mse, 0.0, "the ball from the cache is the ball drawn");
+    }
     let guess = Pose::new(
         Quat::exp(Vec3::new(0.05, -0.1, 0.4 + 0.15)),
         truth.t + Vec3::new(0.01, -0.008, 0.006),
