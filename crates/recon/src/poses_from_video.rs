@@ -602,7 +602,38 @@ impl<'a> PosesFromVideo<'a> {
             fitted: true,
             start: from,
         };
+        self.offer_to_still_frames_after(k)?;
         Ok(true)
+    }
+
+    /// The still frames right after frame `k` ([`StartFrom::Still`]: they hold `k`'s former pose) take its new
+    /// pose where it explains them at least as well: a body at rest shows the same image again, so they are
+    /// not refitted one by one in the passes after the forward one.
+    fn offer_to_still_frames_after(&mut self, k: usize) -> Result<(), PosesFromVideoError> {
+        let anchor = self.results[k].clone();
+        for j in k + 1..self.results.len() {
+            if self.results[j].start != StartFrom::Still {
+                break;
+            }
+            let mut at = PoseFromImage::new(
+                self.cfg.pose.clone(),
+                self.object,
+                self.scene,
+                &self.frames[j],
+                anchor.pose,
+            )
+            .map_err(|error| PosesFromVideoError::Frame { frame: j, error })?
+            .with_occluders(self.occluders[j].clone());
+            let image = at.evaluate();
+            if image.loss <= self.results[j].image.loss {
+                self.results[j] = FramePose {
+                    image,
+                    start: StartFrom::Still,
+                    ..anchor.clone()
+                };
+            }
+        }
+        Ok(())
     }
 
     /// Whether the last frame is explained [`PosesFromVideoConfig::end_search_ratio`] times worse than the
@@ -884,8 +915,13 @@ impl<'a> PosesFromVideo<'a> {
                 }
                 None => {
                     self.chain = None;
+                    // Still frames follow their anchor ([`Self::offer_to_still_frames_after`]) in this pass and
+                    // the next, instead of being refitted one by one: the image of a body at rest is the same.
                     if std::mem::take(&mut self.sizing_pending) {
-                        self.sizing = (0..k).filter_map(|j| self.sized_start(j).map(|p| (j, p))).collect();
+                        self.sizing = (0..k)
+                            .filter(|&j| self.results[j].start != StartFrom::Still)
+                            .filter_map(|j| self.sized_start(j).map(|p| (j, p)))
+                            .collect();
                     }
                     if let Some((j, start)) = self.sizing.pop() {
                         let held = self.sides_held_at(j);
@@ -894,6 +930,7 @@ impl<'a> PosesFromVideo<'a> {
                     }
                     if std::mem::take(&mut self.continuing_pending) && self.cfg.continue_ratio > 0.0 {
                         self.continuing = self.explained_worse_than(self.cfg.continue_ratio);
+                        self.continuing.retain(|&j| self.results[j].start != StartFrom::Still);
                     }
                     match self.continuing.pop() {
                         Some(j) => {
