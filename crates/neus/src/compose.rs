@@ -129,7 +129,9 @@ pub struct RayGradient {
 
 /// Samples of fields rendered earlier and held fixed, per ray: bodies drawn where they stand while another is
 /// fitted. [`Composer::forward_over`] merges them with its layers' samples in depth order exactly as if their
-/// layers were rendered again: a field's NeuS opacities along a ray come from its own samples only.
+/// layers were rendered again, after its own layers (that order breaks ties at equal depths): a field's NeuS
+/// opacities along a ray come from its own samples only. Objects only: the scene's layer also gives what
+/// stands behind.
 #[derive(Clone, Debug, Default)]
 pub struct FixedSamples {
     /// Ray `i`'s samples are `offsets[i]..offsets[i + 1]`, front to back.
@@ -519,6 +521,10 @@ impl Composer {
     /// Every sample of the last forward, per ray in depth order, as [`FixedSamples`] (those behind a
     /// pre-rendered scene's surface left out): the fields of this render held fixed for later ones.
     pub fn samples_as_fixed(&self, layers: &[Layer<'_>]) -> FixedSamples {
+        assert!(
+            layers.iter().all(|l| l.object.is_some()),
+            "Composer::samples_as_fixed: objects only (the scene's layer gives what stands behind too)"
+        );
         let mut out = FixedSamples::default();
         out.clear();
         for i in 0..self.out.len() {
@@ -527,7 +533,7 @@ impl Composer {
                 out.t.push(m.t);
                 out.alpha.push(a);
                 out.rgb.push(c);
-                out.object.push(obj.map_or(u32::MAX, |o| o as u32));
+                out.object.push(obj.expect("objects only") as u32);
             }
             out.offsets.push(out.t.len());
         }

@@ -843,8 +843,9 @@ pub enum StartsOn {
 }
 
 /// A full windowed fit from the world's own contact values and from each `(restitution, friction)` of
-/// `starts` (other parameters from the world); the lowest loss over the whole sequence wins. `on_start` is
-/// told each start's result as it ends.
+/// `starts` (other parameters from the world); the lowest loss over the whole sequence wins (the first of
+/// them on a tie). The starts run side by side; `on_start` is told each start's result in start order, as
+/// soon as it and the starts before it have ended.
 pub fn fit_multi_start(
     cfg: PhysicsFitConfig,
     world: World,
@@ -907,8 +908,10 @@ pub fn fit_multi_start_bodies(
             Ok((fit, history, r, end))
         };
     // The starts side by side (each is one thread's work: a simulation with up to 16 derivatives is one
-    // dual-number pass), told to `on_start` as they end; the winner is the one a loop over them in order
-    // would keep (the first of the lowest loss), so the result does not depend on which ends first.
+    // dual-number pass) on rayon's global pool, which the calling thread waits for: call this from outside
+    // that pool. The winner is the one a loop over them in order would keep (the first of the lowest loss),
+    // so the result does not depend on which ends first; a start that fails does not stop the others, and
+    // the first failure in start order is returned.
     let (ended_tx, ended_rx) = std::sync::mpsc::channel::<(usize, StartResult)>();
     let ended = std::thread::scope(|s| {
         let all = &all;
@@ -926,8 +929,16 @@ pub fn fit_multi_start_bodies(
                 })
                 .collect::<Vec<_>>()
         });
+        // Told in start order, each as soon as it and every start before it have ended: the same calls,
+        // in the same order, whichever thread ends first (a log of the starts reads the same every run).
+        let mut waiting = std::collections::BTreeMap::new();
+        let mut next = 0;
         for (i, r) in ended_rx {
-            on_start(i, &r);
+            waiting.insert(i, r);
+            while let Some(r) = waiting.remove(&next) {
+                on_start(next, &r);
+                next += 1;
+            }
         }
         worker.join().unwrap_or_else(|e| std::panic::resume_unwind(e))
     });

@@ -283,11 +283,6 @@ impl<'a> PreparedFrame<'a> {
         *self.occluded.get_mut().unwrap_or_else(|e| e.into_inner()) = OccluderSamples::default();
     }
 
-    /// The other bodies of the frame.
-    pub fn occluders(&self) -> &[Occluder<'a>] {
-        &self.occluders
-    }
-
     /// The other bodies' samples along the rays of `pixels` (`origins`, `dirs`), from the cache; the pixels
     /// not drawn yet are drawn first (through `composer`).
     fn occluder_samples(
@@ -298,6 +293,8 @@ impl<'a> PreparedFrame<'a> {
         dirs: &[Vec3<f64>],
         weights: &ImageLossWeights,
     ) -> FixedSamples {
+        // Held while the missing pixels are drawn (in parallel, on rayon): a frame belongs to one fit, so no
+        // task of that drawing waits for this lock.
         let mut cache = self.occluded.lock().unwrap_or_else(|e| e.into_inner());
         let n = self.frame.rgb.len();
         if cache.slot.len() != n || cache.ray_steps != weights.ray_steps {

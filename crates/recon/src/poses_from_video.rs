@@ -606,9 +606,9 @@ impl<'a> PosesFromVideo<'a> {
         Ok(true)
     }
 
-    /// The still frames right after frame `k` ([`StartFrom::Still`]: they hold `k`'s former pose) take its new
-    /// pose where it explains them at least as well: a body at rest shows the same image again, so they are
-    /// not refitted one by one in the passes after the forward one.
+    /// The still frames right after frame `k` ([`StartFrom::Still`]: kept at its pose in the forward pass) take
+    /// its new pose where it explains them at least as well, whichever pass replaced it: a body at rest shows
+    /// the same image again, so the sizing and last passes do not refit them one by one.
     fn offer_to_still_frames_after(&mut self, k: usize) -> Result<(), PosesFromVideoError> {
         let anchor = self.results[k].clone();
         for j in k + 1..self.results.len() {
@@ -919,7 +919,7 @@ impl<'a> PosesFromVideo<'a> {
                     // the next, instead of being refitted one by one: the image of a body at rest is the same.
                     if std::mem::take(&mut self.sizing_pending) {
                         self.sizing = (0..k)
-                            .filter(|&j| self.results[j].start != StartFrom::Still)
+                            .filter(|&j| !self.follows_its_anchor(j))
                             .filter_map(|j| self.sized_start(j).map(|p| (j, p)))
                             .collect();
                     }
@@ -929,8 +929,10 @@ impl<'a> PosesFromVideo<'a> {
                         return Ok(Some(&self.results[j]));
                     }
                     if std::mem::take(&mut self.continuing_pending) && self.cfg.continue_ratio > 0.0 {
-                        self.continuing = self.explained_worse_than(self.cfg.continue_ratio);
-                        self.continuing.retain(|&j| self.results[j].start != StartFrom::Still);
+                        // A still frame explained as well as its anchor explains its own follows the anchor;
+                        // one explained worse (an offer it turned down, a creep `is_still` let pass) is fitted.
+                        let worse = self.explained_worse_than(self.cfg.continue_ratio);
+                        self.continuing = worse.into_iter().filter(|&j| !self.follows_its_anchor(j)).collect();
                     }
                     match self.continuing.pop() {
                         Some(j) => {
@@ -1084,6 +1086,18 @@ impl<'a> PosesFromVideo<'a> {
             fitted: true,
             start: StartFrom::Still,
         }))
+    }
+
+    /// Whether frame `j` is a still frame explained within [`STILL_LOSS_SLACK`] of how its anchor (the last
+    /// frame before it that is not still) explains its own frame.
+    fn follows_its_anchor(&self, j: usize) -> bool {
+        let r = &self.results[j];
+        r.start == StartFrom::Still
+            && self.results[..j]
+                .iter()
+                .rev()
+                .find(|a| a.start != StartFrom::Still)
+                .is_some_and(|a| r.image.loss <= a.image.loss * (1.0 + STILL_LOSS_SLACK))
     }
 
     /// The forward pass's outcome for the next frame; after the last one (with `hypotheses`), the last

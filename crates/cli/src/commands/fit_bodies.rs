@@ -27,7 +27,8 @@
 use super::fit::{
     check_guess_in_view, exposure_at, fit_world, frame_poses, ga_row, load_scene, metric_rows, object_entry,
     open_output, pose_of, read_guesses, read_video, report_ranges, reported_poses, rigid_body, scene_grid,
-    scene_through, search_first_pose_of, strip, write_ranges, FitArgs, FitRecord, RecordInputs, ReportedPose, Stage,
+    scene_through, search_first_pose_of, strip, video_fps, write_ranges, FitArgs, FitRecord, RecordInputs,
+    ReportedPose, Stage,
 };
 use super::objects::load_objects;
 use super::render_trajectory::{beside, to8};
@@ -97,18 +98,18 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     }
     // Every input is read and checked before anything is written.
     let mut bodies = Vec::new();
-    let mut video_fps = None;
+    let mut fps_of_capture = None;
     let mut videos = Vec::new();
     for (name, _) in &objects {
         let (frames, fps) = read_video(&a.video, name, false, a.frames)?;
-        video_fps = video_fps.or(fps);
+        fps_of_capture = fps_of_capture.or(fps);
         videos.push(frames);
     }
     for ((name, object), frames) in load_objects(&objects)?.into_iter().zip(videos) {
         bodies.push(Body { name, object, frames });
     }
     let n = bodies[0].frames.len();
-    let fps = super::fit::video_fps(&a, video_fps)?;
+    let fps = video_fps(&a, fps_of_capture)?;
     let guesses: Vec<Option<Pose<f64>>> = if a.init.as_os_str() == "auto" {
         vec![None; bodies.len()]
     } else {
