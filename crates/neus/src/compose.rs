@@ -132,7 +132,7 @@ pub struct RayGradient {
 /// layers were rendered again, after its own layers (that order breaks ties at equal depths): a field's NeuS
 /// opacities along a ray come from its own samples only. Objects only: the scene's layer also gives what
 /// stands behind.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct FixedSamples {
     /// Ray `i`'s samples are `offsets[i]..offsets[i + 1]`, front to back.
     offsets: Vec<usize>,
@@ -142,6 +142,19 @@ pub struct FixedSamples {
     rgb: Vec<[f32; 3]>,
     /// The object each sample belongs to.
     object: Vec<u32>,
+}
+
+impl Default for FixedSamples {
+    /// No rays.
+    fn default() -> Self {
+        Self {
+            offsets: vec![0],
+            t: Vec::new(),
+            alpha: Vec::new(),
+            rgb: Vec::new(),
+            object: Vec::new(),
+        }
+    }
 }
 
 impl FixedSamples {
@@ -157,7 +170,7 @@ impl FixedSamples {
 
     /// How many rays.
     pub fn rays(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
+        self.offsets.len() - 1
     }
 
     /// How many samples, over every ray.
@@ -167,9 +180,6 @@ impl FixedSamples {
 
     /// Appends ray `i` of `other`.
     pub fn push_ray_of(&mut self, other: &FixedSamples, i: usize) {
-        if self.offsets.is_empty() {
-            self.offsets.push(0);
-        }
         let r = other.offsets[i]..other.offsets[i + 1];
         self.t.extend_from_slice(&other.t[r.clone()]);
         self.alpha.extend_from_slice(&other.alpha[r.clone()]);
@@ -526,7 +536,6 @@ impl Composer {
             "Composer::samples_as_fixed: objects only (the scene's layer gives what stands behind too)"
         );
         let mut out = FixedSamples::default();
-        out.clear();
         for i in 0..self.out.len() {
             for m in &self.merged[self.merged_offsets[i]..self.merged_offsets[i + 1]] {
                 let (a, c, obj) = self.sample_of(layers, m);

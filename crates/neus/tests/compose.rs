@@ -490,6 +490,18 @@ fn pose_gradients_of_the_fast_path_match_central_differences() {
     check_pose_gradients(&r, &r.object, &r.capture_from_body, &cam, pose, true);
 }
 
+/// Random gradients of every output of `n` rays through two bodies.
+fn two_body_grads(n: usize, seed: u64) -> Vec<RayGradient> {
+    let mut rng = SplitMix64::new(seed);
+    (0..n)
+        .map(|_| RayGradient {
+            rgb: [0; 3].map(|_| rng.range(-1.0, 1.0) as f32),
+            depth: rng.range(-1.0, 1.0) as f32,
+            object_opacity: vec![rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32],
+        })
+        .collect()
+}
+
 /// Two bodies, one in front of the other: the gradient of one alone (`backward_of`) is, bit for bit, its
 /// entry of the full backward, and the body not wanted gets zero.
 #[test]
@@ -503,14 +515,7 @@ fn the_gradient_of_one_body_alone_is_its_entry_of_all() {
         Layer::object(&r.object, &r.capture_from_body, &near, 0),
         Layer::object(&r.object, &r.capture_from_body, &far, 1),
     ];
-    let mut rng = SplitMix64::new(5);
-    let grads: Vec<RayGradient> = (0..o.len())
-        .map(|_| RayGradient {
-            rgb: [0; 3].map(|_| rng.range(-1.0, 1.0) as f32),
-            depth: rng.range(-1.0, 1.0) as f32,
-            object_opacity: vec![rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32],
-        })
-        .collect();
+    let grads = two_body_grads(o.len(), 5);
     let mut c = Composer::default();
     c.forward(&layers, 2, Behind::Colour([0.2; 3]), &o, &d);
     let both: Vec<f64> = (0..o.len())
@@ -543,14 +548,7 @@ fn a_body_held_fixed_renders_as_its_layer_drawn_again() {
         Layer::object(&r.object, &r.capture_from_body, &near, 0),
         Layer::object(&r.object, &r.capture_from_body, &far, 1),
     ];
-    let mut rng = SplitMix64::new(9);
-    let grads: Vec<RayGradient> = (0..o.len())
-        .map(|_| RayGradient {
-            rgb: [0; 3].map(|_| rng.range(-1.0, 1.0) as f32),
-            depth: rng.range(-1.0, 1.0) as f32,
-            object_opacity: vec![rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32],
-        })
-        .collect();
+    let grads = two_body_grads(o.len(), 9);
     let mut both = Composer::default();
     both.forward(&layers, 2, Behind::Scene(&pre), &o, &d);
     let want = both.backward_of(&layers, &grads, |object| object == 0)[0];

@@ -33,7 +33,7 @@ use geom::{silhouette, Camera, Pose, SplitMix64, TriMesh, Vec3};
 use neus::compose::{Behind, ComposedRay, Composer, FixedSamples, Layer, RayGradient};
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
 
 /// One frame of a fixed camera: its image and one body's mask.
 pub struct FrameTarget {
@@ -283,8 +283,8 @@ impl<'a> PreparedFrame<'a> {
         *self.occluded.get_mut().unwrap_or_else(|e| e.into_inner()) = OccluderSamples::default();
     }
 
-    /// The other bodies' samples along the rays of `pixels` (`origins`, `dirs`), from the cache; the pixels
-    /// not drawn yet are drawn first (through `composer`).
+    /// The cache with the other bodies' samples along the rays of `pixels` (`origins`, `dirs`) gathered in its
+    /// `gathered`; the pixels not drawn yet are drawn first (through `composer`).
     fn occluder_samples(
         &self,
         composer: &mut Composer,
@@ -292,7 +292,7 @@ impl<'a> PreparedFrame<'a> {
         origins: &[Vec3<f64>],
         dirs: &[Vec3<f64>],
         weights: &ImageLossWeights,
-    ) -> FixedSamples {
+    ) -> MutexGuard<'_, OccluderSamples> {
         // Held while the missing pixels are drawn (in parallel, on rayon): a frame belongs to one fit, so no
         // task of that drawing waits for this lock.
         let mut cache = self.occluded.lock().unwrap_or_else(|e| e.into_inner());
@@ -301,7 +301,7 @@ impl<'a> PreparedFrame<'a> {
             *cache = OccluderSamples {
                 ray_steps: weights.ray_steps,
                 slot: vec![u32::MAX; n],
-                samples: FixedSamples::default(),
+                ..OccluderSamples::default()
             };
         }
         let mut missing: Vec<usize> = (0..pixels.len())
@@ -326,12 +326,17 @@ impl<'a> PreparedFrame<'a> {
                 cache.samples.push_ray_of(&drawn, r);
             }
         }
-        let mut out = FixedSamples::default();
-        out.clear();
+        let OccluderSamples {
+            slot,
+            samples,
+            gathered,
+            ..
+        } = &mut *cache;
+        gathered.clear();
         for &p in pixels {
-            out.push_ray_of(&cache.samples, cache.slot[p] as usize);
+            gathered.push_ray_of(samples, slot[p] as usize);
         }
-        out
+        cache
     }
 
     /// Whether the mask shows the body at all.
@@ -413,7 +418,9 @@ impl<'a> PreparedFrame<'a> {
             under.push(scene[p].clone());
         }
         let others = (!self.occluders.is_empty()).then(|| self.occluder_samples(composer, pixels, &o, &d, weights));
-        composer.forward_over(&layers, objects, Behind::Scene(&under), &o, &d, others.as_ref());
+        let fixed = others.as_ref().map(|cache| &cache.gathered);
+        composer.forward_over(&layers, objects, Behind::Scene(&under), &o, &d, fixed);
+        drop(others);
         let n = pixels.len().max(1) as f64;
         let mut out = ImageLoss {
             pixels: pixels.len(),
@@ -523,6 +530,8 @@ struct OccluderSamples {
     /// Per pixel: its ray in `samples`, or `u32::MAX` while it is not drawn yet.
     slot: Vec<u32>,
     samples: FixedSamples,
+    /// The rays of the last call's pixels, gathered from `samples` (kept: a fit gathers at every step).
+    gathered: FixedSamples,
 }
 
 /// Body `index` at `pose` as the loss draws it: through the capture that saw it best from `cam`, with the ray
