@@ -315,7 +315,17 @@ rays_per_step = 256
         for needle in ["resuming", "first pose: from", "PA: from", "GA: from"] {
             assert!(text(&o).contains(needle), "{needle}: {}", text(&o));
         }
-        assert!(out.join("trajectory.json").exists());
+        // What it finishes with is the uninterrupted fit's, bit for bit (the stage files read back exactly).
+        let resumed = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
+        assert_eq!(resumed.bodies[0].initial, fitted.bodies[0].initial);
+        assert_eq!(resumed.bodies[0].poses, fitted.bodies[0].poses);
+        assert_eq!(
+            (resumed.contact.restitution, resumed.contact.friction),
+            (fitted.contact.restitution, fitted.contact.friction)
+        );
+        for key in ["restitution_range", "friction_range"] {
+            assert_eq!(resumed.contact.extra[key], fitted.contact.extra[key], "{key}");
+        }
         // Other settings into the same folder need --force.
         std::fs::write(d.join("other.toml"), SMALL_FIT.replace("rounds = 1", "rounds = 2")).unwrap();
         let o = fit_cmd_with(&f, &f.video, &object, &d.join("init.json"), &out, &d.join("other.toml"))
@@ -647,6 +657,15 @@ friction = 0.15
                 assert!(lo <= v && v <= hi, "{p}");
             }
         }
+        // Stopped before its end, it resumes from its stage files to the same result, bit for bit (both rounds'
+        // worlds read back, the round kept by comparing them, the ranges from the kept one).
+        std::fs::remove_file(out.join("trajectory.json")).unwrap();
+        run_ok(&mut fit);
+        let resumed = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
+        for (a, b) in resumed.bodies.iter().zip(&fitted.bodies) {
+            assert_eq!((&a.initial, &a.poses), (&b.initial, &b.poses), "{}", a.name);
+        }
+        assert_eq!(resumed.contact.extra["pairs"], fitted.contact.extra["pairs"]);
         let _ = std::fs::remove_dir_all(&d);
     }
 }

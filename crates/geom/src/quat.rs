@@ -164,6 +164,18 @@ impl<S: Real> Quat<S> {
     }
 }
 
+impl Quat<f64> {
+    /// Unit length: left bit for bit when it already is to within rounding (a quaternion a program wrote and
+    /// read back), else normalised (or the identity when the norm is ~0).
+    pub fn unit(self) -> Self {
+        if (self.norm() - 1.0).abs() <= 8.0 * f64::EPSILON {
+            self
+        } else {
+            self.normalize_or_identity()
+        }
+    }
+}
+
 impl<S: Real> Mul for Quat<S> {
     type Output = Self;
     /// Hamilton product: `(a * b).rotate(v) == a.rotate(b.rotate(v))`.

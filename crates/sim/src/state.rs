@@ -32,7 +32,7 @@ impl<S: Real> BodyState<S> {
 impl BodyState<f64> {
     pub fn new(t: [f64; 3], q: [f64; 4], v: [f64; 3], omega: [f64; 3]) -> Self {
         Self {
-            pose: Pose::new(Quat::cst(q).normalize_or_identity(), Vec3::cst(t)),
+            pose: Pose::new(Quat::cst(q).unit(), Vec3::cst(t)),
             v: Vec3::cst(v),
             omega: Vec3::cst(omega),
         }

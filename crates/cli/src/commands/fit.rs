@@ -607,7 +607,8 @@ fn launch_world(job: &Job, first: &FirstPose) -> World {
 }
 
 pub(super) fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
-    Pose::new(Quat::cst(q).normalize_or_identity(), Vec3::cst(t))
+    // A quaternion a stage wrote is kept bit for bit: a resumed fit goes on exactly.
+    Pose::new(Quat::cst(q).unit(), Vec3::cst(t))
 }
 
 /// Stage 1: the first pose from the guess (lifted out of the scene), then the poses of the next frames the
