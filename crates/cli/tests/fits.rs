@@ -415,6 +415,19 @@ rays_per_step = 256
         let far = init_for("ball", Pose::from_translation(Vec3::new(3.0, 0.0, 0.03)), f.com);
         std::fs::write(d.join("far.json"), far).unwrap();
         expect("outside", &f.video, object, &d.join("far.json"), "outside the image");
+        // Settings the simulator refuses: named, and nothing written (they were checked only after the
+        // output folder was opened).
+        std::fs::write(
+            d.join("no_substeps.toml"),
+            format!("{SMALL_FIT}\n[sim]\nsubsteps = 0\n"),
+        )
+        .unwrap();
+        let out = d.join("refused_settings");
+        let o = fit_cmd_with(f, &f.video, object, &good_init, &out, &d.join("no_substeps.toml"))
+            .output()
+            .unwrap();
+        assert!(!o.status.success() && text(&o).contains("sim.substeps"), "{}", text(&o));
+        assert!(!out.exists(), "wrote {}", out.display());
     }
 }
 

@@ -346,6 +346,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     }
     let (scene_field, grid) = load_scene(&a)?;
     let body = rigid_body(&name, &object, &object_dir, a.density)?;
+    check_sim_settings(fps, frames.len(), &cfg)?;
     let record = FitRecord {
         inputs: RecordInputs {
             video: a.video.clone(),
@@ -490,6 +491,22 @@ pub(super) fn rigid_body(name: &str, object: &ObjectModel, dir: &Path, density: 
         );
     }
     Ok(body)
+}
+
+/// The settings' simulator values (`[sim]` at the video's rate and length, `[start_contact]`) checked before
+/// anything is written: [`fit_world`] checks them again with the scene and bodies in place.
+pub(super) fn check_sim_settings(fps: f64, frames: usize, cfg: &VideoFitConfig) -> Result<()> {
+    let sim_cfg = SimConfig {
+        fps,
+        frames,
+        ..cfg.sim.clone()
+    };
+    sim_cfg
+        .validate()
+        .map_err(|e| anyhow!("settings: sim.{}: {}", e.field, e.msg))?;
+    cfg.start_contact
+        .validate("start_contact")
+        .map_err(|e| anyhow!("settings: {}: {}", e.field, e.msg))
 }
 
 /// The world the stages simulate: the scene's grid and `bodies` at placeholder states (every stage starts

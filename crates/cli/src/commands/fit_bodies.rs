@@ -25,9 +25,9 @@
 //! schedule starts from the tracked poses too.
 
 use super::fit::{
-    check_guess_in_view, exposure_at, fit_world, frame_poses, ga_row, load_scene, metric_rows, object_entry,
-    open_output, pose_of, read_guesses, read_video, report_ranges, reported_poses, rigid_body, scene_grid,
-    scene_through, search_first_pose_of, strip, video_fps, write_ranges, FitArgs, FitRecord, RecordInputs,
+    check_guess_in_view, check_sim_settings, exposure_at, fit_world, frame_poses, ga_row, load_scene, metric_rows,
+    object_entry, open_output, pose_of, read_guesses, read_video, report_ranges, reported_poses, rigid_body,
+    scene_grid, scene_through, search_first_pose_of, strip, video_fps, write_ranges, FitArgs, FitRecord, RecordInputs,
     ReportedPose, Stage,
 };
 use super::objects::load_objects;
@@ -128,6 +128,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         .zip(&objects)
         .map(|(b, (_, dir))| rigid_body(&b.name, &b.object, dir, a.density))
         .collect::<Result<Vec<_>>>()?;
+    check_sim_settings(fps, n, &cfg)?;
     let record = FitRecord {
         inputs: RecordInputs {
             video: a.video.clone(),
