@@ -1696,6 +1696,26 @@ mod tests {
         }
     }
 
+    /// A 320 × 240 camera at the origin looking along +z, f = 290 px.
+    fn camera_down_z() -> Camera<f64> {
+        Camera {
+            k: geom::Intrinsics::centred(290.0, 320, 240),
+            world_to_cam: Pose::identity(),
+            width: 320,
+            height: 240,
+        }
+    }
+
+    /// The corners of a box 60 × 40 × 40 mm (body frame).
+    fn box_corners() -> Vec<Vec3<f64>> {
+        (0..8)
+            .map(|i| {
+                let s = |bit: usize, h: f64| if i >> bit & 1 == 1 { h } else { -h };
+                Vec3::new(s(0, 0.03), s(1, 0.02), s(2, 0.02))
+            })
+            .collect()
+    }
+
     /// Image terms with the loss `loss` and GA's silhouette.
     fn terms(loss: f64) -> ImageLoss {
         ga_at(Vec3::new(0.0, 0.0, 0.0), loss).image
@@ -1705,12 +1725,7 @@ mod tests {
     fn a_missed_frame_reports_ga_at_a_depth_weighed_by_what_ga_and_the_simulation_tell() {
         // The camera at the origin looks along +z (f = 290 px) at a body 0.4 m off (bounding radius 38 mm):
         // an edge is placed to 0.34 mm, GA's depth to 1.8 mm.
-        let camera = Camera {
-            k: geom::Intrinsics::centred(290.0, 320, 240),
-            world_to_cam: Pose::identity(),
-            width: 320,
-            height: 240,
-        };
+        let camera = camera_down_z();
         let radius = 0.038;
         let ga: Vec<FramePose> = (0..7)
             .map(|k| ga_at(Vec3::new(0.01 * k as f64, 0.0, 0.4), if k == 3 { 0.03 } else { 0.02 }))
@@ -1773,18 +1788,7 @@ mod tests {
     fn a_simulation_drawing_the_body_elsewhere_misses_the_frame_whatever_its_silhouette_margin() {
         // The camera at the origin looks along +z (f = 290 px) at a box 60 × 40 × 40 mm, 0.4 m off: about
         // 45 px wide. The simulation explains every frame within the IoU margin and 1.5 times GA's loss.
-        let camera = Camera {
-            k: geom::Intrinsics::centred(290.0, 320, 240),
-            world_to_cam: Pose::identity(),
-            width: 320,
-            height: 240,
-        };
-        let corners: Vec<Vec3<f64>> = (0..8)
-            .map(|i| {
-                let s = |bit: usize, h: f64| if i >> bit & 1 == 1 { h } else { -h };
-                Vec3::new(s(0, 0.03), s(1, 0.02), s(2, 0.02))
-            })
-            .collect();
+        let (camera, corners) = (camera_down_z(), box_corners());
         let ga: Vec<FramePose> = (0..4).map(|_| ga_at(Vec3::new(0.0, 0.0, 0.4), 0.02)).collect();
         let turned = |deg: f64| Quat::exp(Vec3::new(0.0, 0.0, deg.to_radians()));
         let simulated = vec![
@@ -1815,18 +1819,7 @@ mod tests {
     fn a_simulation_turned_away_from_ga_tells_its_depth_little() {
         // The camera at the origin looks along +z (f = 290 px) at a box 60 × 40 × 40 mm, 0.4 m off. The
         // simulation misses the frame, 10 mm deeper than GA with its origin on GA's line of sight, turned 20°.
-        let camera = Camera {
-            k: geom::Intrinsics::centred(290.0, 320, 240),
-            world_to_cam: Pose::identity(),
-            width: 320,
-            height: 240,
-        };
-        let corners: Vec<Vec3<f64>> = (0..8)
-            .map(|i| {
-                let s = |bit: usize, h: f64| if i >> bit & 1 == 1 { h } else { -h };
-                Vec3::new(s(0, 0.03), s(1, 0.02), s(2, 0.02))
-            })
-            .collect();
+        let (camera, corners) = (camera_down_z(), box_corners());
         let ga = vec![ga_at(Vec3::new(0.0, 0.0, 0.4), 0.02)];
         let turned = Quat::exp(Vec3::new(0.0, 0.0, 20f64.to_radians()));
         let simulated = vec![Pose::new(turned, ga[0].pose.t + Vec3::new(0.0, 0.0, 0.01))];

@@ -499,9 +499,9 @@ fn norm(q: &[f64; 4]) -> f64 {
     q.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-/// Only called after the checks, so `|q|` is within 1e-3 of 1.
-/// `q` made unit length; one already unit to within rounding is left as it is, so that what a program wrote
-/// reads back bit for bit.
+/// `q` made unit length by dividing by its norm; one already unit to within rounding (the tolerance of
+/// [`geom::Quat::unit`]) is left as it is, so what a program wrote reads back bit for bit. Only called after
+/// the checks, so `|q|` is within 1e-3 of 1.
 fn normalize(q: &mut [f64; 4]) {
     let n = norm(q);
     if (n - 1.0).abs() <= 8.0 * f64::EPSILON {
