@@ -1428,13 +1428,22 @@ pub(super) fn reported_poses<E>(
     // origin, and the body's points on average (a simulation turned away from GA's pose is off by its turn
     // however near its origin: the two-body block resting turned 28°, its origin 2.5 mm across and 6.8 mm
     // along the line of sight from the truth).
+    // How far apart the two draw the body's points, px (frames GA did not fit: nothing).
+    let apart_px: Vec<f64> = (0..n)
+        .map(|k| {
+            if ga[k].fitted {
+                apart_across_px(&ga[k].pose, &simulated[k], points, camera)
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let across: Vec<f64> = (0..n)
         .map(|k| {
             if ga[k].fitted {
                 let slid = recon::video_fit::toward_depth_of(&ga[k].pose, &simulated[k], eye, 1.0);
                 let z = (ga[k].pose.t - eye).norm();
-                let points_apart = apart_across_px(&ga[k].pose, &simulated[k], points, camera) * z / camera.k.fx;
-                (simulated[k].t - slid.t).norm().max(points_apart)
+                (simulated[k].t - slid.t).norm().max(apart_px[k] * z / camera.k.fx)
             } else {
                 0.0
             }
@@ -1459,10 +1468,8 @@ pub(super) fn reported_poses<E>(
     let missed: Vec<bool> = (0..n)
         .map(|k| {
             let (s, g) = (&simulated_losses[k], &ga[k]);
-            let drawn_elsewhere = g.fitted
-                && s.pixels > 0
-                && s.loss > g.image.loss
-                && apart_across_px(&g.pose, &simulated[k], points, camera) > SIMULATION_MISSES_BY_PX;
+            let drawn_elsewhere =
+                g.fitted && s.pixels > 0 && s.loss > g.image.loss && apart_px[k] > SIMULATION_MISSES_BY_PX;
             simulation_misses(s, g) || drawn_elsewhere
         })
         .collect();
