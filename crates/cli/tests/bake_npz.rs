@@ -23,20 +23,20 @@ fn a_grid_baked_to_npz_holds_the_same_values_as_the_grid_file() {
     let npz = read_npz(&d.join("cup.npz")).unwrap();
     let get = |name: &str| &npz.iter().find(|(k, _)| k == name).unwrap().1;
     let sdf = get("sdf");
-    let [nx, ny, nz] = grid.dims;
+    let [nx, ny, nz] = grid.dims();
     assert_eq!(sdf.shape, vec![nz, ny, nx]);
     match &sdf.data {
-        NpyData::F32(v) => assert!(v == &grid.values),
+        NpyData::F32(v) => assert!(v == grid.values()),
         other => panic!("sdf is not float32: {other:?}"),
     }
     match (&get("origin").data, &get("spacing").data) {
         (NpyData::F64(o), NpyData::F64(s)) => {
-            assert_eq!(o[..], grid.origin[..]);
-            assert_eq!(s[..], [grid.spacing]);
+            assert_eq!(o[..], grid.origin()[..]);
+            assert_eq!(s[..], [grid.spacing()]);
         }
         other => panic!("{other:?}"),
     }
     // Inside the cup's solid wall the distance is negative: index [k][j][i] is node (i, j, k).
-    assert!(grid.values.iter().any(|&v| v < 0.0));
+    assert!(grid.values().iter().any(|&v| v < 0.0));
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -926,12 +926,16 @@ fn scene_train_bake_and_simulate_on_the_reconstruction() {
     // The board region: the sphere's square (±0.45 m) in x, y; in z from 10 % of its radius (4.5 cm) below the
     // board to as far above the highest reconstructed surface, not the whole cube (±0.45 m).
     assert!(
-        g.origin[0] < -0.4 && top[0] > 0.4,
+        g.origin()[0] < -0.4 && top[0] > 0.4,
         "grid x {} – {}",
-        g.origin[0],
+        g.origin()[0],
         top[0]
     );
-    assert!(g.origin[2] < -0.04 && g.origin[2] > -0.1, "grid bottom {}", g.origin[2]);
+    assert!(
+        g.origin()[2] < -0.04 && g.origin()[2] > -0.1,
+        "grid bottom {}",
+        g.origin()[2]
+    );
     assert!(top[2] > 0.045 && top[2] < 0.25, "grid top {}", top[2]);
     // Under the board is solid, however little was seen there.
     use sim::sdf::Sdf;

@@ -36,7 +36,7 @@ impl Visibility {
         );
         let grid = SdfGrid::from_values(sampled.origin, sampled.spacing, sampled.dims, sampled.values)
             .expect("a valid grid by construction");
-        let (lo, hi) = (grid.origin, grid.max_corner());
+        let (lo, hi) = (grid.origin(), grid.max_corner());
         Self { cameras, grid, lo, hi }
     }
 
@@ -60,7 +60,7 @@ impl Visibility {
         if p.z < 0.0 || c.z < 0.0 {
             return false; // the board is opaque
         }
-        let h = self.grid.spacing;
+        let h = self.grid.spacing();
         let length = (c - p).norm();
         let dir = (c - p) * (1.0 / length);
         let mut t = 0.0;
@@ -85,7 +85,7 @@ impl Visibility {
         }
         let (s, g) = self.grid.distance_grad_local(x);
         let n = g * (1.0 / g.norm().max(1e-12));
-        let p = x - n * s + n * (1.5 * self.grid.spacing);
+        let p = x - n * s + n * (1.5 * self.grid.spacing());
         let seen = self.cameras.iter().filter(|c| self.clear_line(p, c)).count();
         seen as f64 / self.cameras.len() as f64
     }

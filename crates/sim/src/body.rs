@@ -5,6 +5,7 @@ use crate::contact::SampleStart;
 use crate::contact_points::spread_contact_points;
 use crate::mass_properties_mesh::{mass_properties, mesh_volume};
 use crate::mesh_check::{check_closed_mesh, MeshCheckError};
+use crate::point_clusters::{cluster_points, PointCluster};
 use crate::sdf::{SdfGrid, Shape};
 use geom::{Mat3, Pose, TriMesh, Vec3};
 use std::sync::Arc;
@@ -56,8 +57,10 @@ pub struct RigidBody {
     /// Inertia about the centre of mass, body axes.
     pub inertia: Mat3<f64>,
     pub inertia_inv: Mat3<f64>,
-    /// Contact points in the body frame.
+    /// Contact points in the body frame (read only: the clusters and the samples' starts are made from them).
     pub contact_points: Vec<Vec3<f64>>,
+    /// The contact points grouped by place, for detection ([`crate::point_clusters`]).
+    pub(crate) point_clusters: Vec<PointCluster>,
     /// Typical distance between neighbouring contact points, m (√(area / count)).
     pub contact_spacing: f64,
     /// Where each contact point's search for its support starts (found once: the body's own surface).
@@ -132,6 +135,7 @@ impl RigidBody {
         };
         let inertia_inv = props.inertia.try_inverse().ok_or(BodyError::Mass(m))?;
         let sample_starts = SampleStart::of_samples(&sdf, &contact_points, contact_spacing);
+        let point_clusters = cluster_points(&contact_points);
         Ok(Self {
             name: name.to_string(),
             mesh,
@@ -139,6 +143,7 @@ impl RigidBody {
             inertia: props.inertia,
             inertia_inv,
             contact_points,
+            point_clusters,
             contact_spacing,
             sample_starts,
             bounding_radius,

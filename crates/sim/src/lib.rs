@@ -12,6 +12,7 @@ pub mod contact_query;
 pub mod gradients;
 pub mod mass_properties_mesh;
 pub mod mesh_check;
+pub mod point_clusters;
 pub mod sample_surface;
 pub mod sdf;
 pub mod state;

@@ -45,8 +45,8 @@ fn cell_of(g: &SdfGrid, p: V) -> ([usize; 3], [f64; 3]) {
     let mut c = [0; 3];
     let mut u = [0.0; 3];
     for a in 0..3 {
-        let f = (p[a] - g.origin[a]) / g.spacing;
-        let i = (f.floor().max(0.0) as usize).min(g.dims[a] - 2);
+        let f = (p[a] - g.origin()[a]) / g.spacing();
+        let i = (f.floor().max(0.0) as usize).min(g.dims()[a] - 2);
         c[a] = i;
         u[a] = f - i as f64;
     }
@@ -55,9 +55,9 @@ fn cell_of(g: &SdfGrid, p: V) -> ([usize; 3], [f64; 3]) {
 
 fn node(g: &SdfGrid, i: [usize; 3]) -> V {
     V::new(
-        g.origin[0] + i[0] as f64 * g.spacing,
-        g.origin[1] + i[1] as f64 * g.spacing,
-        g.origin[2] + i[2] as f64 * g.spacing,
+        g.origin()[0] + i[0] as f64 * g.spacing(),
+        g.origin()[1] + i[1] as f64 * g.spacing(),
+        g.origin()[2] + i[2] as f64 * g.spacing(),
     )
 }
 
@@ -91,16 +91,16 @@ fn box_piece(p: V, h: [f64; 3], margin: f64) -> Option<(usize, i8)> {
 #[test]
 fn baked_dims_cover_the_bounds() {
     let g = sphere_grid();
-    assert_eq!(g.origin, LO);
-    assert_eq!(g.spacing, H);
-    assert_eq!(g.values.len(), g.dims.iter().product::<usize>());
+    assert_eq!(g.origin(), LO);
+    assert_eq!(g.spacing(), H);
+    assert_eq!(g.values().len(), g.dims().iter().product::<usize>());
     let top = g.max_corner();
     for a in 0..3 {
         assert!(top[a] >= HI[a] - 1e-12 && top[a] < HI[a] + H, "axis {a}: {top:?}");
     }
     // Node values are the analytic SDF rounded to f32.
-    for (k, &v) in g.values.iter().enumerate().step_by(97) {
-        let (nx, ny) = (g.dims[0], g.dims[1]);
+    for (k, &v) in g.values().iter().enumerate().step_by(97) {
+        let (nx, ny) = (g.dims()[0], g.dims()[1]);
         let p = node(&g, [k % nx, (k / nx) % ny, k / (nx * ny)]);
         assert_eq!(v, SPHERE.distance_local(p) as f32);
         // Trilinear at a node is the node value (the node may land at u = 1 of
@@ -226,7 +226,7 @@ fn dual_derivative_of_the_trilinear_value_is_its_gradient() {
         pts.push(node(&g, [3, 4, 5]));
         pts.push(V::new(node(&g, [7, 0, 0]).x, 0.123, -0.321));
         pts.push(V::cst(g.max_corner()));
-        pts.push(V::cst(g.origin));
+        pts.push(V::cst(g.origin()));
         for p in pts {
             let (d, gd) = g.distance_grad_local(seeded(p));
             let (df, gf) = g.distance_grad_local(p);
@@ -280,9 +280,9 @@ fn gradient_matches_central_differences_inside_a_cell() {
 fn clamp_to(g: &SdfGrid, p: V) -> V {
     let hi = g.max_corner();
     V::new(
-        p.x.clamp(g.origin[0], hi[0]),
-        p.y.clamp(g.origin[1], hi[1]),
-        p.z.clamp(g.origin[2], hi[2]),
+        p.x.clamp(g.origin()[0], hi[0]),
+        p.y.clamp(g.origin()[1], hi[1]),
+        p.z.clamp(g.origin()[2], hi[2]),
     )
 }
 
@@ -310,7 +310,7 @@ fn outside_the_grid_box_the_distance_grows() {
         }
         let (_, grad) = g.distance_grad_local(p);
         for a in 0..3 {
-            let clamped = p[a] < g.origin[a] || p[a] > hi[a];
+            let clamped = p[a] < g.origin()[a] || p[a] > hi[a];
             if clamped {
                 assert!((grad[a] - n[a]).abs() < 1e-12, "{p:?}: {grad:?} vs {n:?}");
             }
@@ -322,7 +322,7 @@ fn outside_the_grid_box_the_distance_grows() {
     }
     // Continuity across the box faces.
     for a in 0..3 {
-        for (side, face) in [(-1.0, g.origin[a]), (1.0, hi[a])] {
+        for (side, face) in [(-1.0, g.origin()[a]), (1.0, hi[a])] {
             let mut p = V::new(0.1, -0.2, 0.15).to_array();
             p[a] = face;
             let on = g.distance_local(V::cst(p));
@@ -355,14 +355,50 @@ fn outside_the_grid_box_the_gradient_is_the_derivative_of_the_distance() {
     }
 }
 
+/// The lower bound over a ball holds for every point of it, on a grid whose values are far from a distance
+/// (a sphere's, scaled up threefold and roughened), for balls inside, across and outside the grid box; and it
+/// is not empty-handed: over a ball far from the surface it stays above zero.
+#[test]
+fn the_lower_bound_over_a_ball_holds_for_every_point_in_it() {
+    let base = sphere_grid();
+    let mut rng = Rng::new(17);
+    let values: Vec<f32> = base
+        .values()
+        .iter()
+        .map(|&v| (3.0 * v as f64 + 0.02 * rng.range(-1.0, 1.0)) as f32)
+        .collect();
+    let g = SdfGrid::from_values(base.origin(), base.spacing(), base.dims(), values).unwrap();
+    let mut worst = f64::INFINITY;
+    for trial in 0..400 {
+        // Centres up to 0.4 beyond the grid box, radii from a tenth of a cell to five cells.
+        let c = V::new(rng.range(-1.4, 1.4), rng.range(-1.3, 1.3), rng.range(-1.5, 1.4));
+        let r = rng.range(0.1 * H, 5.0 * H);
+        let bound = g.lower_bound_in_ball(c, r);
+        for _ in 0..200 {
+            let p = c + rng.dir() * (r * rng.next_f64().cbrt());
+            let d = g.distance_local(p);
+            assert!(
+                d >= bound - 1e-12,
+                "trial {trial}: {d} < bound {bound} (centre {c:?}, radius {r})"
+            );
+            worst = worst.min(d - bound);
+        }
+    }
+    assert!(worst >= -1e-12);
+    // The sphere's surface is at 0.6 from the origin: a ball of 0.05 about (0, 0, 0.9) is far from it.
+    assert!(g.lower_bound_in_ball(V::new(0.0, 0.0, 0.9), 0.05) > 0.3);
+    // The exact shapes' bound is their distance less the radius.
+    assert!((SPHERE.lower_bound_in_ball(V::new(0.0, 0.0, 0.9), 0.05) - 0.25).abs() < 1e-12);
+}
+
 #[test]
 fn bytes_round_trip_exactly() {
     for g in [sphere_grid(), cuboid_grid()] {
         let b = g.to_bytes();
         assert_eq!(&b[..8], b"PGASDF01");
-        assert_eq!(b.len(), 52 + 4 * g.values.len());
-        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize, g.dims[0]);
-        assert_eq!(f64::from_le_bytes(b[44..52].try_into().unwrap()), g.spacing);
+        assert_eq!(b.len(), 52 + 4 * g.values().len());
+        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize, g.dims()[0]);
+        assert_eq!(f64::from_le_bytes(b[44..52].try_into().unwrap()), g.spacing());
         let back = SdfGrid::from_bytes(&b, Path::new("mem.sdf")).expect("round trip");
         assert_eq!(back, g);
         assert_eq!(back.to_bytes(), b);
@@ -407,13 +443,12 @@ fn malformed_bytes_give_format_errors() {
         assert_format_error(SdfGrid::from_bytes(&b, path), path, "wrong magic");
     }
     // A dimension below 2 (the byte count still matching).
-    let g1 = SdfGrid {
-        origin: [0.0; 3],
-        spacing: 1.0,
-        dims: [1, 2, 2],
-        values: vec![0.0; 4],
-    };
-    assert_format_error(SdfGrid::from_bytes(&g1.to_bytes(), path), path, "dims 1");
+    let mut g1 = SdfGrid::from_values([0.0; 3], 1.0, [2, 2, 2], vec![0.0; 8])
+        .unwrap()
+        .to_bytes();
+    g1[8..12].copy_from_slice(&1u32.to_le_bytes());
+    g1.truncate(52 + 4 * 4);
+    assert_format_error(SdfGrid::from_bytes(&g1, path), path, "dims 1");
     // Non-positive or NaN spacing, NaN origin, NaN value.
     for (off, bad) in [(44, 0.0f64), (44, -0.5), (44, f64::NAN), (20, f64::NAN)] {
         let mut b = good.clone();
@@ -551,7 +586,7 @@ fn smoothing_keeps_planes_and_removes_roughness() {
     let g = SdfGrid::from_values(origin, h, dims, clean.clone())
         .unwrap()
         .smoothed(1.5);
-    for (a, b) in g.values.iter().zip(&clean) {
+    for (a, b) in g.values().iter().zip(&clean) {
         assert!(
             (a - b).abs() < 1e-6,
             "a plane must stay where it is, borders included: {a} vs {b}"
@@ -560,8 +595,8 @@ fn smoothing_keeps_planes_and_removes_roughness() {
     let err =
         |v: &[f32]| (v.iter().zip(&clean).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
     let rough_grid = SdfGrid::from_values(origin, h, dims, rough.clone()).unwrap();
-    let before = err(&rough_grid.values);
-    let after = err(&rough_grid.smoothed(1.5).values);
+    let before = err(rough_grid.values());
+    let after = err(rough_grid.smoothed(1.5).values());
     assert!(after < 0.35 * before, "roughness {before:.2e} → {after:.2e}");
     assert_eq!(rough_grid.smoothed(0.0), rough_grid);
 }

@@ -244,8 +244,8 @@ fn grid_baked_from_the_mesh_matches_grid_baked_from_the_shape() {
     // match to one f32 ulp (≤ 1.2e-7 for |d| ≤ 1).
     let gm = SdfGrid::bake(&MeshDistance::new(&box_mesh()).unwrap(), lo, hi, h).unwrap();
     let ga = SdfGrid::bake(&CUBOID, lo, hi, h).unwrap();
-    assert_eq!(gm.dims, ga.dims);
-    for (a, b) in gm.values.iter().zip(&ga.values) {
+    assert_eq!(gm.dims(), ga.dims());
+    for (a, b) in gm.values().iter().zip(ga.values()) {
         assert!((a - b).abs() <= 1.2e-7, "node {a} vs {b}");
     }
     // Ball: node values differ by ≤ 2·gap (+ f32 rounding); interpolated
@@ -254,7 +254,7 @@ fn grid_baked_from_the_mesh_matches_grid_baked_from_the_shape() {
     let gap = tessellation_gap(&m, SPHERE.radius) + 1e-12;
     let gm = SdfGrid::bake(&MeshDistance::new(&m).unwrap(), lo, hi, h).unwrap();
     let ga = SdfGrid::bake(&SPHERE, lo, hi, h).unwrap();
-    for (a, b) in gm.values.iter().zip(&ga.values) {
+    for (a, b) in gm.values().iter().zip(ga.values()) {
         assert!(((a - b).abs() as f64) <= 2.0 * gap + 2e-7, "node {a} vs {b}");
     }
     let top = ga.max_corner();

@@ -12,7 +12,8 @@ use std::time::Instant;
 #[derive(Args)]
 #[command(after_help = "Examples:
   pganeus bench-sim
-  pganeus bench-sim --threads 1 --runs 7 --contact-model multi-point")]
+  pganeus bench-sim --threads 1 --runs 7 --contact-model multi-point
+  pganeus bench-sim --scene grid")]
 pub struct BenchSimArgs {
     /// Threads (the target figure is for one core).
     #[arg(long, default_value_t = 1)]
@@ -23,6 +24,16 @@ pub struct BenchSimArgs {
     /// The contact model timed: mean-point (the paper's) or multi-point.
     #[arg(long, value_enum, default_value = "mean-point")]
     pub contact_model: ContactModelArg,
+    /// The scene as analytic shapes (exact distances) or baked into a grid of 3.5 mm cells, as a
+    /// reconstructed scene is.
+    #[arg(long, value_enum, default_value = "analytic")]
+    pub scene: SceneArg,
+}
+
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+pub enum SceneArg {
+    Analytic,
+    Grid,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -47,7 +58,7 @@ impl ContactModelArg {
     }
 }
 
-fn bench_world(bodies: usize, model: sim::ContactModel) -> World {
+fn bench_world(bodies: usize, model: sim::ContactModel, scene: SceneArg) -> Result<World> {
     let ground = Shape::Plane(Plane {
         normal: [0.0, 0.0, 1.0],
         offset: 0.0,
@@ -64,7 +75,7 @@ fn bench_world(bodies: usize, model: sim::ContactModel) -> World {
             contact_model: model,
             ..SimConfig::default()
         },
-        Shape::Union(vec![ground, wall]),
+        bench_scene(Shape::Union(vec![ground, wall]), scene)?,
     );
     let c = ContactParams {
         restitution: 0.4,
@@ -91,7 +102,30 @@ fn bench_world(bodies: usize, model: sim::ContactModel) -> World {
             c,
         );
     }
-    w
+    Ok(w)
+}
+
+/// The scene as `scene` asks: the shapes themselves, or baked over the table's part the bodies reach
+/// (a reconstructed scene's spacing).
+fn bench_scene(shapes: Shape, scene: SceneArg) -> Result<Shape> {
+    Ok(match scene {
+        SceneArg::Analytic => shapes,
+        SceneArg::Grid => Shape::Grid(std::sync::Arc::new(sim::sdf::SdfGrid::bake(
+            &shapes,
+            [-0.3, -0.3, -0.05],
+            [0.9, 0.6, 0.15],
+            0.0035,
+        )?)),
+    })
+}
+
+impl SceneArg {
+    fn name(self) -> &'static str {
+        match self {
+            SceneArg::Analytic => "analytic",
+            SceneArg::Grid => "grid",
+        }
+    }
 }
 
 fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
@@ -109,9 +143,9 @@ fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
 
 pub fn run(a: BenchSimArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.max(1)).build()?;
-    pool.install(|| {
+    pool.install(|| -> Result<()> {
         for bodies in [1, 2, 4] {
-            let w = bench_world(bodies, a.contact_model.model());
+            let w = bench_world(bodies, a.contact_model.model(), a.scene)?;
             let p = w.params();
             let forward = median_ms(a.runs, || {
                 std::hint::black_box(w.simulate(&p));
@@ -128,12 +162,12 @@ pub fn run(a: BenchSimArgs) -> Result<()> {
                 println!(
                     "{}",
                     serde_json::json!({
-                        "bench": "sim", "contact_model": a.contact_model.name(), "bodies": bodies, "mode": mode, "params": params, "ms": (ms * 1000.0).round() / 1000.0,
+                        "bench": "sim", "contact_model": a.contact_model.name(), "scene": a.scene.name(), "bodies": bodies, "mode": mode, "params": params, "ms": (ms * 1000.0).round() / 1000.0,
                         "frames": 50, "fps": 60, "substeps": 10, "contact_points": 1000, "threads": a.threads,
                     })
                 );
             }
         }
-    });
-    Ok(())
+        Ok(())
+    })
 }

@@ -257,8 +257,8 @@ pub fn bake(a: BakeArgs) -> Result<()> {
     }
     println!(
         "baked {:?} nodes, spacing {:.3} mm{}, in {:.2} s; wrote {}",
-        grid.dims,
-        grid.spacing * 1e3,
+        grid.dims(),
+        grid.spacing() * 1e3,
         if smooth > 0.0 {
             format!(", smoothed over {smooth} spacings")
         } else {
@@ -444,18 +444,18 @@ fn capture_cameras(dir: &Path) -> Result<Vec<geom::Camera<f64>>> {
 /// A grid as a NumPy archive: x fastest in the file's order is C order for the shape [nz, ny, nx].
 fn write_grid_npz(grid: &sim::sdf::SdfGrid, path: &Path) -> Result<()> {
     use pganeus_io::{NpyArray, NpyData};
-    let [nx, ny, nz] = grid.dims;
+    let [nx, ny, nz] = grid.dims();
     let sdf = NpyArray {
         shape: vec![nz, ny, nx],
-        data: NpyData::F32(grid.values.clone()),
+        data: NpyData::F32(grid.values().to_vec()),
     };
     let origin = NpyArray {
         shape: vec![3],
-        data: NpyData::F64(grid.origin.to_vec()),
+        data: NpyData::F64(grid.origin().to_vec()),
     };
     let spacing = NpyArray {
         shape: vec![],
-        data: NpyData::F64(vec![grid.spacing]),
+        data: NpyData::F64(vec![grid.spacing()]),
     };
     pganeus_io::write_npz(path, &[("sdf", &sdf), ("origin", &origin), ("spacing", &spacing)])?;
     Ok(())

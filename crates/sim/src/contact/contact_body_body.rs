@@ -38,7 +38,8 @@ pub(crate) fn contact_body_body<S: Real>(
     };
     // The fastest any point of `a` moves relative to `b` (a bound).
     let speed = (va - vb).norm() + wa.norm() * a.bounding_radius + wb.norm() * (a.bounding_radius + (ta - tb).norm());
-    let near = Near::find(a, det, speed, b_from_a);
+    let b_bound = |c: Vec3<f64>, r: f64| b.sdf.lower_bound_in_ball(a_origin_in_b + a_to_b.mul_vec(c), r);
+    let near = Near::find(a, det, speed, b_from_a, b_bound);
     let colliding = near.colliding(det, &rot_a_re, ta, |x| {
         (va + wa.cross(x - ta)) - (vb + wb.cross(x - tb))
     });

@@ -21,9 +21,8 @@ pub(crate) fn contact_body_scene<S: Real>(
 ) -> usize {
     let delta = det.delta;
     let t_re = st.pose.t.re();
-    // Cull: the scene is a distance bound, so no point is within Δ when the
-    // centre is farther than the bounding radius + Δ.
-    if scene.distance_local(t_re) > body.bounding_radius + delta {
+    // Cull: no point is within Δ when the scene is farther than that over the body's bounding ball.
+    if scene.lower_bound_in_ball(t_re, body.bounding_radius) > delta {
         return 0;
     }
     // Detection (Eq. 8) runs on plain numbers: the set of colliding points is
@@ -37,7 +36,8 @@ pub(crate) fn contact_body_scene<S: Real>(
         (d, rot_re_t.mul_vec(g.normalize_or(Vec3::zero())))
     };
     let speed = v_re.norm() + w_re.norm() * body.bounding_radius;
-    let near = Near::find(body, det, speed, scene_from_body);
+    let scene_bound = |c: Vec3<f64>, r: f64| scene.lower_bound_in_ball(t_re + rot_re.mul_vec(c), r);
+    let near = Near::find(body, det, speed, scene_from_body, scene_bound);
     let colliding = near.colliding(det, &rot_re, t_re, |x| v_re + w_re.cross(x - t_re));
     let rot = st.pose.q.to_mat();
     let rot_t = rot.transpose();

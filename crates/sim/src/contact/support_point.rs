@@ -57,6 +57,10 @@ const CREASE_COS: f64 = 0.985;
 /// Searches in a row that find no support before the rest of a substep's samples keep their places.
 const MAX_MISSES: usize = 8;
 
+/// A cluster is passed over when its bound exceeds the threshold by more than this (m): the bound and the
+/// points' distances are rounded differently.
+const CULL_MARGIN: f64 = 1e-9;
+
 /// How far a sample may slide, in contact-point spacings.
 const REACH_SPACINGS: f64 = 4.0;
 
@@ -127,13 +131,28 @@ pub(crate) struct Near {
 
 impl Near {
     /// `speed`: the fastest any point of the body moves (m/s); `other(x)`: the other surface's distance and
-    /// unit normal at the body-frame point `x`.
-    pub fn find(body: &RigidBody, det: &Detection, speed: f64, other: impl Fn(Vec3<f64>) -> (f64, Vec3<f64>)) -> Self {
-        let mut touches: Vec<Touch> = body
-            .contact_points
+    /// unit normal at the body-frame point `x`; `other_bound(c, r)`: a lower bound of its distance over the
+    /// ball of radius `r` about the body-frame point `c` (a cluster of points whose bound is above the
+    /// threshold has none near, [`crate::point_clusters`]).
+    pub fn find(
+        body: &RigidBody,
+        det: &Detection,
+        speed: f64,
+        other: impl Fn(Vec3<f64>) -> (f64, Vec3<f64>),
+        other_bound: impl Fn(Vec3<f64>, f64) -> f64,
+    ) -> Self {
+        let mut candidates: Vec<usize> = body
+            .point_clusters
             .iter()
-            .enumerate()
-            .filter_map(|(sample, &point)| {
+            .filter(|c| other_bound(c.centre, c.radius) <= det.delta + CULL_MARGIN)
+            .flat_map(|c| c.members.iter().map(|&i| i as usize))
+            .collect();
+        // In the points' own order, as without the clusters (the solvers' sums run in it).
+        candidates.sort_unstable();
+        let mut touches: Vec<Touch> = candidates
+            .into_iter()
+            .filter_map(|sample| {
+                let point = body.contact_points[sample];
                 let (distance, normal) = other(point);
                 (distance <= det.delta).then_some(Touch {
                     point,
@@ -344,7 +363,7 @@ impl Lengths {
 /// The cell of a grid SDF (placed or not), 0 for an analytic one.
 fn grid_cell(body: &Shape) -> f64 {
     match body {
-        Shape::Grid(grid) => grid.spacing,
+        Shape::Grid(grid) => grid.spacing(),
         Shape::Transformed { shape, .. } => grid_cell(shape),
         _ => 0.0,
     }
@@ -456,7 +475,7 @@ fn project(body: &Shape, x: Vec3<f64>) -> Option<Vec3<f64>> {
 fn surface_normal(body: &Shape, x: Vec3<f64>) -> Option<(f64, Vec3<f64>)> {
     match body {
         Shape::Grid(grid) => {
-            let h = grid.spacing;
+            let h = grid.spacing();
             let at = |dx: f64, dy: f64, dz: f64| grid.distance_local(x + Vec3::new(dx, dy, dz));
             let g = Vec3::new(
                 at(h, 0.0, 0.0) - at(-h, 0.0, 0.0),

@@ -27,6 +27,14 @@ pub trait Sdf: Send + Sync {
         self.distance_grad_local(p).0
     }
 
+    /// A lower bound of the distance over the ball of `radius` about `centre` (shape frame): what lets
+    /// contact detection skip a cluster of points with one query. An exact distance changes no faster than
+    /// the point moves, so the default is the centre's distance less the radius; a shape whose values are not
+    /// an exact distance (a baked grid) overrides it.
+    fn lower_bound_in_ball(&self, centre: Vec3<f64>, radius: f64) -> f64 {
+        self.distance_local(centre) - radius
+    }
+
     /// Distance and world-frame gradient at world point `p`, for the shape
     /// placed at `pose` (shape frame to world).
     fn distance_grad<S: Real>(&self, pose: &Pose<S>, p: Vec3<S>) -> (S, Vec3<S>) {

@@ -8,6 +8,7 @@ use super::Sdf;
 use geom::{Real, Vec3};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 const MAGIC: &[u8; 8] = b"PGASDF01";
 
@@ -23,16 +24,90 @@ pub enum GridError {
     Mesh(#[from] super::MeshSdfError),
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct SdfGrid {
     /// Position of node (0, 0, 0).
-    pub origin: [f64; 3],
+    origin: [f64; 3],
     /// Distance between neighbouring nodes (the same on every axis).
-    pub spacing: f64,
+    spacing: f64,
     /// Node counts, each ≥ 2.
-    pub dims: [usize; 3],
+    dims: [usize; 3],
     /// Values, x fastest then y then z.
-    pub values: Vec<f32>,
+    values: Vec<f32>,
+    /// The far corner (every distance query clamps to it).
+    hi: [f64; 3],
+    /// Bounds of the gradient's length per block of cells, built on the first [`Sdf::lower_bound_in_ball`].
+    slopes: OnceLock<BlockSlopes>,
+}
+
+impl PartialEq for SdfGrid {
+    fn eq(&self, other: &Self) -> bool {
+        (self.origin, self.spacing, self.dims) == (other.origin, other.spacing, other.dims)
+            && self.values == other.values
+    }
+}
+
+/// Cells per block side of [`BlockSlopes`]: a contact cluster (a centimetre or two) spans a few blocks of a
+/// reconstructed scene's 3–4 mm cells.
+const SLOPE_BLOCK: usize = 4;
+
+/// For each block of `SLOPE_BLOCK`³ cells, a bound on the length of the trilinear interpolant's gradient
+/// over it: along each axis the largest difference between neighbouring nodes on the cells' edges (the
+/// derivative along an axis interpolates those differences), over the spacing. A baked reconstruction is not
+/// an exact distance (its gradient's length strays from 1 away from the surface), so a ball's bound needs
+/// the slope of the part of the grid it covers.
+#[derive(Clone, Debug)]
+struct BlockSlopes {
+    blocks: [usize; 3],
+    slope: Vec<f64>,
+}
+
+impl BlockSlopes {
+    fn of(grid: &SdfGrid) -> Self {
+        let [nx, ny, nz] = grid.dims;
+        let cells = [nx - 1, ny - 1, nz - 1];
+        let blocks: [usize; 3] = std::array::from_fn(|a| cells[a].div_ceil(SLOPE_BLOCK));
+        let inv_h = 1.0 / grid.spacing;
+        // One z-layer of blocks per task; each cell's bound from its twelve edges.
+        let slope = (0..blocks[2])
+            .into_par_iter()
+            .flat_map_iter(|bk| {
+                let mut layer = vec![0.0f64; blocks[0] * blocks[1]];
+                for k in bk * SLOPE_BLOCK..((bk + 1) * SLOPE_BLOCK).min(cells[2]) {
+                    for j in 0..cells[1] {
+                        for i in 0..cells[0] {
+                            let c = |di, dj, dk| grid.at(i + di, j + dj, k + dk);
+                            let mut edge = [0.0f64; 3];
+                            for (u, w) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                                edge[0] = edge[0].max((c(1, u, w) - c(0, u, w)).abs());
+                                edge[1] = edge[1].max((c(u, 1, w) - c(u, 0, w)).abs());
+                                edge[2] = edge[2].max((c(u, w, 1) - c(u, w, 0)).abs());
+                            }
+                            let cell = (edge[0] * edge[0] + edge[1] * edge[1] + edge[2] * edge[2]).sqrt() * inv_h;
+                            let b = &mut layer[i / SLOPE_BLOCK + blocks[0] * (j / SLOPE_BLOCK)];
+                            *b = b.max(cell);
+                        }
+                    }
+                }
+                layer
+            })
+            .collect();
+        Self { blocks, slope }
+    }
+
+    /// The largest bound over the blocks holding the cells `lo..=hi` (cell indices per axis).
+    fn max_over(&self, lo: [usize; 3], hi: [usize; 3]) -> f64 {
+        let [bx, by, _] = self.blocks;
+        let mut m = 0.0f64;
+        for k in lo[2] / SLOPE_BLOCK..=hi[2] / SLOPE_BLOCK {
+            for j in lo[1] / SLOPE_BLOCK..=hi[1] / SLOPE_BLOCK {
+                for i in lo[0] / SLOPE_BLOCK..=hi[0] / SLOPE_BLOCK {
+                    m = m.max(self.slope[i + bx * (j + by * k)]);
+                }
+            }
+        }
+        m
+    }
 }
 
 impl SdfGrid {
@@ -52,12 +127,7 @@ impl SdfGrid {
                 sdf.distance_local(Vec3::<f64>::cst(p)) as f32
             })
             .collect();
-        Ok(Self {
-            origin: min,
-            spacing,
-            dims,
-            values,
-        })
+        Ok(Self::with(min, spacing, dims, values))
     }
 
     /// The signed distance of a closed mesh (sign by winding number), on a
@@ -83,12 +153,39 @@ impl SdfGrid {
                 values.len()
             )));
         }
-        Ok(Self {
+        Ok(Self::with(origin, spacing, dims, values))
+    }
+
+    /// The grid of checked parts.
+    fn with(origin: [f64; 3], spacing: f64, dims: [usize; 3], values: Vec<f32>) -> Self {
+        Self {
             origin,
             spacing,
             dims,
             values,
-        })
+            hi: std::array::from_fn(|a| origin[a] + (dims[a] - 1) as f64 * spacing),
+            slopes: OnceLock::new(),
+        }
+    }
+
+    /// Position of node (0, 0, 0).
+    pub fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    /// Distance between neighbouring nodes (the same on every axis).
+    pub fn spacing(&self) -> f64 {
+        self.spacing
+    }
+
+    /// Node counts, each ≥ 2.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Values, x fastest then y then z.
+    pub fn values(&self) -> &[f32] {
+        &self.values
     }
 
     /// The grid blurred by a Gaussian of `sigma` node spacings along each axis (separable). Beyond the
@@ -148,15 +245,17 @@ impl SdfGrid {
                 }
             }
         }
-        Self {
-            values: values.into_iter().map(|v| v as f32).collect(),
-            ..self.clone()
-        }
+        Self::with(
+            self.origin,
+            self.spacing,
+            self.dims,
+            values.into_iter().map(|v| v as f32).collect(),
+        )
     }
 
     /// The far corner.
     pub fn max_corner(&self) -> [f64; 3] {
-        std::array::from_fn(|a| self.origin[a] + (self.dims[a] - 1) as f64 * self.spacing)
+        self.hi
     }
 
     #[inline]
@@ -256,7 +355,7 @@ impl Sdf for SdfGrid {
     /// Trilinear interpolation inside the grid; outside, the value at the
     /// nearest point of the grid box plus the distance to it.
     fn distance_grad_local<S: Real>(&self, p: Vec3<S>) -> (S, Vec3<S>) {
-        let hi = self.max_corner();
+        let hi = self.hi;
         let pa = p.to_array();
         let mut clamped = pa;
         for a in 0..3 {
@@ -268,7 +367,8 @@ impl Sdf for SdfGrid {
         let mut u = [S::zero(); 3];
         for a in 0..3 {
             let f = (clamped[a] - self.origin[a]) * inv_h;
-            let i = (f.re().floor().max(0.0) as usize).min(self.dims[a] - 2);
+            // `f` ≥ 0 (clamped), so the cast is the floor.
+            let i = (f.re().max(0.0) as usize).min(self.dims[a] - 2);
             cell[a] = i;
             u[a] = f - i as f64;
         }
@@ -309,5 +409,22 @@ impl Sdf for SdfGrid {
         } else {
             (d, grad)
         }
+    }
+
+    /// The value at the centre less the ball's radius times the steepest slope of the blocks of cells the
+    /// ball's clamped box overlaps; where the ball leaves the grid, one more radius for the distance added
+    /// outside (that term is 1-Lipschitz, and the clamp moves no point farther than it moves the centre).
+    fn lower_bound_in_ball(&self, centre: Vec3<f64>, radius: f64) -> f64 {
+        let c = centre.to_array();
+        let slopes = self.slopes.get_or_init(|| BlockSlopes::of(self));
+        let inside = (0..3).all(|a| c[a] - radius >= self.origin[a] && c[a] + radius <= self.hi[a]);
+        let cell = |x: f64, a: usize| {
+            let f = (x.clamp(self.origin[a], self.hi[a]) - self.origin[a]) / self.spacing;
+            (f.max(0.0) as usize).min(self.dims[a] - 2)
+        };
+        let lo: [usize; 3] = std::array::from_fn(|a| cell(c[a] - radius, a));
+        let hi: [usize; 3] = std::array::from_fn(|a| cell(c[a] + radius, a));
+        let slope = slopes.max_over(lo, hi) + if inside { 0.0 } else { 1.0 };
+        self.distance_local(centre) - slope * radius
     }
 }

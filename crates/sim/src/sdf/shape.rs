@@ -56,4 +56,20 @@ impl Sdf for Shape {
             Shape::Transformed { pose, shape } => shape.distance_grad(&Pose::<S>::lift(*pose), p),
         }
     }
+
+    fn lower_bound_in_ball(&self, centre: Vec3<f64>, radius: f64) -> f64 {
+        match self {
+            Shape::Grid(g) => g.lower_bound_in_ball(centre, radius),
+            Shape::Union(parts) => parts
+                .iter()
+                .map(|part| part.lower_bound_in_ball(centre, radius))
+                .fold(f64::INFINITY, f64::min),
+            // A rigid placement keeps the ball's radius.
+            Shape::Transformed { pose, shape } => {
+                shape.lower_bound_in_ball(pose.inverse_transform_point(centre), radius)
+            }
+            // The analytic shapes are exact distances.
+            _ => self.distance_local(centre) - radius,
+        }
+    }
 }
