@@ -88,8 +88,9 @@ pub fn first_contacts(world: &World, poses: &[Vec<Pose<f64>>]) -> Vec<(usize, us
     out
 }
 
-/// One step of the schedule and how it ended.
-#[derive(Clone, Debug)]
+/// One step of the schedule and how it ended (kept in `fit`'s PGA stage files, so a resumed fit widens its
+/// ranges by the same starts).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ScheduleStep {
     /// What the step fits, e.g. `launch, frames 0-3` or `pair 0`.
     pub label: String,

@@ -809,7 +809,7 @@ pub const CONTACT_STARTS: [(f64, f64); 9] = [
 ];
 
 /// One start of [`fit_multi_start`] and where it ended.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct StartResult {
     pub restitution: f64,
     pub friction: f64,
@@ -834,7 +834,8 @@ pub struct MultiStart {
 }
 
 /// Which contact values the starts of [`fit_multi_start_bodies`] set.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum StartsOn {
     /// Every observed body's values against the scene.
     Scene,

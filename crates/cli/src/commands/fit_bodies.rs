@@ -608,7 +608,7 @@ impl PgaRound {
     fn write_schedule(&self, m: &Multi) -> Result<()> {
         for (name, w) in [("pga_guess.json", &self.guess), ("pga_launch.json", &self.after_launch)] {
             if let Some(w) = w {
-                write_simulation(m, w, &m.out.join(name))?;
+                write_simulation(m, w, &m.out.join(name), Map::new())?;
             }
         }
         Ok(())
@@ -624,7 +624,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         tracing::info!("PGA: from {}", path.display());
         return Ok(PgaRound {
             world: world_from_file(m, &path)?,
-            steps: Vec::new(),
+            steps: schedule_of(&pganeus_io::read_trajectory(&path)?.extra, &path),
             guess: None,
             after_launch: None,
         });
@@ -668,7 +668,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     for s in &fit.steps {
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
-    write_simulation(m, &fit.world, &path)?;
+    write_simulation(m, &fit.world, &path, schedule_extra(&fit.steps)?)?;
     Ok(PgaRound {
         world: fit.world,
         steps: fit.steps,
@@ -677,10 +677,39 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     })
 }
 
-/// `world`'s simulation as a trajectory file at `path`, each body with its object entry.
-fn write_simulation(m: &Multi, world: &World, path: &Path) -> Result<()> {
+/// The key of a PGA stage file that holds its schedule's steps (their starts widen the value ranges).
+const SCHEDULE_KEY: &str = "schedule";
+
+/// A PGA stage file's keys that keep its schedule's steps.
+fn schedule_extra(steps: &[recon::ScheduleStep]) -> Result<Map<String, Value>> {
+    let mut extra = Map::new();
+    extra.insert(SCHEDULE_KEY.into(), serde_json::to_value(steps)?);
+    Ok(extra)
+}
+
+/// The schedule's steps kept in a PGA stage file's `extra` keys: none (with a warning) in a file from before
+/// they were kept, or whose steps do not read (a resumed fit then widens its ranges by no starts).
+fn schedule_of(extra: &Map<String, Value>, path: &Path) -> Vec<recon::ScheduleStep> {
+    let Some(v) = extra.get(SCHEDULE_KEY) else {
+        tracing::warn!(
+            "{}: no schedule kept (an older stage file): the value ranges are not widened by its starts",
+            path.display()
+        );
+        return Vec::new();
+    };
+    serde_json::from_value(v.clone()).unwrap_or_else(|e| {
+        tracing::warn!(
+            "{}: its \"{SCHEDULE_KEY}\" does not read ({e}): the value ranges are not widened by its starts",
+            path.display()
+        );
+        Vec::new()
+    })
+}
+
+/// `world`'s simulation as a trajectory file at `path`, each body with its object entry, with `extra` keys.
+fn write_simulation(m: &Multi, world: &World, path: &Path, extra: Map<String, Value>) -> Result<()> {
     let traj = world.simulate(&world.params());
-    let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, Map::new());
+    let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, extra);
     for (tb, body) in t.bodies.iter_mut().zip(&m.bodies) {
         tb.extra
             .extend(object_entry(&body.object, &format!("object_{}.ply", body.name)));
@@ -932,6 +961,43 @@ fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A PGA stage file keeps its schedule's steps exactly (a resumed fit widens its ranges by the same
+    /// starts as the uninterrupted one).
+    #[test]
+    fn the_schedule_reads_back_from_its_stage_file_exactly() {
+        let start = |r: f64, f: f64| recon::StartResult {
+            restitution: r,
+            friction: f,
+            loss: 0.1 + 0.2,
+            iterations: 7,
+            fitted_restitution: 1.0 / 3.0,
+            fitted_friction: std::f64::consts::PI / 10.0,
+        };
+        let steps = vec![
+            recon::ScheduleStep {
+                label: "launch, frames 0-3".into(),
+                starts: vec![start(0.5, 0.5), start(0.2, 0.8)],
+                winner: 1,
+                loss: 2.0f64.sqrt() / 7.0,
+                on: recon::StartsOn::Scene,
+                whole_video: false,
+            },
+            recon::ScheduleStep {
+                label: "pair 0".into(),
+                starts: vec![start(0.9, 0.1)],
+                winner: 0,
+                loss: 1e-7 / 3.0,
+                on: recon::StartsOn::Pair(0),
+                whole_video: true,
+            },
+        ];
+        let text = serde_json::to_string(&Value::Object(schedule_extra(&steps).unwrap())).unwrap();
+        let extra: Map<String, Value> = serde_json::from_str(&text).unwrap();
+        let path = Path::new("pga.json");
+        assert_eq!(schedule_of(&extra, path), steps);
+        assert!(schedule_of(&Map::new(), path).is_empty(), "an older file: no steps");
+    }
 
     fn frame(x: f64, loss: f64, fitted: bool) -> FramePose {
         FramePose {
