@@ -29,7 +29,8 @@ pub fn cluster_points(points: &[Vec3<f64>]) -> Vec<PointCluster> {
         if part.is_empty() {
             continue;
         }
-        let (lo, hi) = bounds(points, &part);
+        let (lo, hi) = geom::bounding_box(part.iter().map(|&i| points[i as usize].to_array()));
+        let (lo, hi) = (Vec3::cst(lo), Vec3::cst(hi));
         let centre = (lo + hi) * 0.5;
         if part.len() <= CLUSTER_POINTS {
             let radius = part
@@ -60,19 +61,6 @@ pub fn cluster_points(points: &[Vec3<f64>]) -> Vec<PointCluster> {
         parts.push(upper);
     }
     clusters
-}
-
-fn bounds(points: &[Vec3<f64>], part: &[u32]) -> (Vec3<f64>, Vec3<f64>) {
-    part.iter().fold(
-        (Vec3::cst([f64::INFINITY; 3]), Vec3::cst([f64::NEG_INFINITY; 3])),
-        |(lo, hi), &i| {
-            let p = points[i as usize];
-            (
-                Vec3::new(lo.x.min(p.x), lo.y.min(p.y), lo.z.min(p.z)),
-                Vec3::new(hi.x.max(p.x), hi.y.max(p.y), hi.z.max(p.z)),
-            )
-        },
-    )
 }
 
 #[cfg(test)]
