@@ -141,16 +141,13 @@ impl Near {
         other: impl Fn(Vec3<f64>) -> (f64, Vec3<f64>),
         other_bound: impl Fn(Vec3<f64>, f64) -> f64,
     ) -> Self {
-        let mut candidates: Vec<usize> = body
+        // No list of candidate indices (a substep's hot path): the touches of the clusters that may be near,
+        // then put in the points' own order, as without the clusters (the solvers' sums run in it).
+        let mut touches: Vec<Touch> = body
             .point_clusters
             .iter()
             .filter(|c| other_bound(c.centre, c.radius) <= det.delta + CULL_MARGIN)
             .flat_map(|c| c.members.iter().map(|&i| i as usize))
-            .collect();
-        // In the points' own order, as without the clusters (the solvers' sums run in it).
-        candidates.sort_unstable();
-        let mut touches: Vec<Touch> = candidates
-            .into_iter()
             .filter_map(|sample| {
                 let point = body.contact_points[sample];
                 let (distance, normal) = other(point);
@@ -163,6 +160,7 @@ impl Near {
                 })
             })
             .collect();
+        touches.sort_unstable_by_key(|t| t.sample);
         if det.supports && !touches.is_empty() {
             slide_to_supports(body, det, speed, &other, &mut touches);
         }
