@@ -929,7 +929,7 @@ fn finish(
         let s = &world.initial[b];
         let ious: Vec<f64> = rows[b].iter().filter_map(|r| r["iou"].as_f64()).collect();
         summary.push(format!(
-            "{}: v0 {:?} m/s, IoU worst {:.3}, {} frames from GA ({} at a weighed depth)",
+            "{}: v0 {:?} m/s, IoU against the masks worst {:.3}, {} frames from GA ({} at a weighed depth)",
             body.name,
             s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
             ious.iter().cloned().fold(f64::INFINITY, f64::min),
