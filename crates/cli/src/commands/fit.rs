@@ -1608,7 +1608,7 @@ fn finish(
     let s = &world.initial[0];
     println!(
         "fitted {n} frames in {:.1} s: v0 {:?} m/s, omega0 {:?} rad/s, restitution {:.3}, friction {:.3}; \
-         PSNR {:.2} dB, IoU mean {:.3} worst {:.3}; {} frames reported from GA (the simulation misses them), \
+         PSNR {:.2} dB, IoU against the masks mean {:.3} worst {:.3}; {} frames reported from GA (the simulation misses them), \
          {} of them at a depth weighed with the simulation's; wrote {}",
         t_start.elapsed().as_secs_f64(),
         s.v.to_array().map(|x| (x * 1e3).round() / 1e3),
