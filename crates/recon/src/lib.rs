@@ -7,6 +7,7 @@ pub mod exposure_gain;
 pub mod first_pose_search;
 pub mod fit_physics;
 pub mod image_loss;
+pub mod image_precision;
 pub mod least_squares;
 pub mod physics_from_video;
 pub mod pose_from_image;
@@ -28,6 +29,7 @@ pub use fit_physics::{
     PhysicsFitConfig, PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
+pub use image_precision::ImagePrecision;
 pub use physics_from_video::{
     PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsResult, VideoPhysicsStats,
 };

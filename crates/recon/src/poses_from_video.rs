@@ -25,6 +25,7 @@
 use crate::contact_penalty::{contact_sides, faces, ContactPenaltyConfig, ContactTerm};
 use crate::first_pose_search::{search_first_pose, FirstPoseSearchConfig};
 use crate::image_loss::{window_union, FrameTarget, ImageLoss, ImageLossWeights, Occluder};
+use crate::image_precision::ImagePrecision;
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 use geom::{Pose, Vec3};
 use neus::compose::ComposedRay;
@@ -569,6 +570,7 @@ impl<'a> PosesFromVideo<'a> {
             points,
             cfg: self.penalty_config(holds),
             sides: held.clone(),
+            seen: Some(self.image_precision(k, &start)),
         };
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
@@ -718,6 +720,12 @@ impl<'a> PosesFromVideo<'a> {
             lambda_out: if holds { self.cfg.contact.lambda_out } else { 0.0 },
             ..self.cfg.contact.clone()
         }
+    }
+
+    /// How precisely frame `k`'s image places the body at `pose` (the contact penalty's slack).
+    fn image_precision(&self, k: usize, pose: &Pose<f64>) -> ImagePrecision {
+        let diameter = 2.0 * self.world.bodies[self.body].bounding_radius;
+        ImagePrecision::of(&self.frames[k].camera, pose, diameter)
     }
 
     /// Every contact point of the body with its distance to the scene at `pose`, nearest first.
@@ -987,6 +995,7 @@ impl<'a> PosesFromVideo<'a> {
                     points: s.contacts.clone(),
                     cfg: self.penalty_config(!s.held.is_empty()),
                     sides: s.held.clone(),
+                    seen: Some(self.image_precision(k, &s.pose)),
                 })
             });
         }

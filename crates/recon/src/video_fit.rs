@@ -11,6 +11,7 @@ use crate::fit_physics::{
     fit_multi_start_bodies, FitError, MultiStart, Observed, PhysicsFitConfig, StartContact, StartsOn, CONTACT_STARTS,
 };
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
+use crate::image_precision::ImagePrecision;
 use crate::physics_from_video::VideoPhysicsConfig;
 use crate::pose_from_image::PoseFitConfig;
 use crate::poses_from_video::PosesFromVideoConfig;
@@ -233,23 +234,17 @@ pub fn toward_depth_of(pose: &Pose<f64>, other: &Pose<f64>, eye: Vec3<f64>, shar
     Pose::new(pose.q, pose.t + dir * ((other.t - pose.t).dot(dir) * share))
 }
 
-/// How precisely a silhouette's edge is placed, in pixels: the image's and the reconstruction's surface
-/// together (a quarter pixel; the tabletop toy's fitted poses land within 0.05–0.2 px across the line of
-/// sight, and their depth within `z / d` times a quarter pixel or better at both of its scales).
-pub const EDGE_PRECISION_PX: f64 = 0.25;
-
 /// The share of the way from a pose fitted to one image to the simulation's depth that the two are best
 /// weighed at: each depth counts by the inverse of its variance. The fitted pose's depth is known to
-/// `z / d` times its precision across the line of sight (a body of apparent size `d f / z` pixels changes
-/// size by one edge precision over `z / d` of it), scaled by `loss_ratio` (the frame's image loss over the
+/// the image's precision along the line of sight ([`ImagePrecision`]), scaled by `loss_ratio` (the frame's image loss over the
 /// median frame's, at least 1: a frame the fit explains badly tells its depth worse); the simulation's to
 /// about how far it is from the fitted pose across the line of sight (`sim_across`, where the image says
 /// where the body is), at least one edge precision. `z`: the distance from the camera, `diameter`: the
 /// body's, `focal_px`: the camera's focal length in pixels.
 pub fn depth_share(z: f64, diameter: f64, focal_px: f64, loss_ratio: f64, sim_across: f64) -> f64 {
-    let edge = EDGE_PRECISION_PX * z / focal_px;
-    let sigma_fit = z / diameter.max(1e-9) * edge * loss_ratio.max(1.0);
-    let sigma_sim = sim_across.max(edge);
+    let image = ImagePrecision::at_distance(Vec3::new(0.0, 0.0, 1.0), z, diameter, focal_px);
+    let sigma_fit = image.along * loss_ratio.max(1.0);
+    let sigma_sim = sim_across.max(image.across);
     let (a, b) = (sigma_fit * sigma_fit, sigma_sim * sigma_sim);
     if (a + b).is_finite() && a + b > 0.0 {
         a / (a + b)

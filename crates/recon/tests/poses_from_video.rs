@@ -317,11 +317,12 @@ fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
             b.image.loss
         );
     }
-    // Measured: 9.5° off without the last pass, its loss 1.8 times the worst resting frame's (0.0277 against
-    // 0.0151); 5.0° with it, its loss as low as theirs (0.0128). The untrained sphere field's faint colours
-    // tell its turn to about 3° (the resting frames: 0.6–3.5°).
+    // Measured: 7.4° off without the last pass, its loss 2.3 times the worst resting frame's (0.0239 against
+    // 0.0103); 1.4° with it, its loss 1.13 times theirs (0.0116). The untrained sphere field's faint colours
+    // tell its turn to about 3° (the resting frames: 0.0–0.1°). (Before the contact penalty left the depth
+    // to the image within its precision: 9.5° and 5.0°, losses 0.0277 and 0.0128 against 0.0151.)
     let worst_rest = with[..last].iter().map(|r| r.image.loss).fold(0.0, f64::max);
-    assert!(turn(&without[last], last) > 8.0, "the steps run out 12° off");
+    assert!(turn(&without[last], last) > 6.0, "the steps run out 12° off");
     assert!(
         without[last].image.loss > 1.3 * worst_rest,
         "and the frame is explained poorly"
@@ -333,10 +334,15 @@ fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
         turn(&with[last], last)
     );
     assert!(
-        with[last].image.loss < 1.1 * worst_rest,
+        with[last].image.loss < 1.2 * worst_rest,
         "as well explained as the resting frames: {:.4} against {worst_rest:.4}",
         with[last].image.loss
     );
+}
+
+/// A camera 0.4 m off looking down at 53° (f = 290 px): the image's precision on a body 50 mm across.
+fn seen_obliquely() -> recon::ImagePrecision {
+    recon::ImagePrecision::at_distance(Vec3::new(0.6, 0.0, -0.8), 0.4, 0.05, 290.0)
 }
 
 #[test]
@@ -347,37 +353,91 @@ fn the_contact_penalty_gradient_matches_finite_differences() {
     let mut points: Vec<usize> = (0..body.contact_points.len()).collect();
     points.sort_by(|&a, &b| body.contact_points[a].z.total_cmp(&body.contact_points[b].z));
     points.truncate(12);
-    let term = ContactTerm {
-        body,
-        scene: &w.scene,
-        points,
-        sides: Vec::new(),
-        cfg: ContactPenaltyConfig::default(),
-    };
     let tilt = Quat::exp(Vec3::new(0.05, -0.08, 0.3));
-    // Floating 1.5 mm, and sunk 1 mm.
-    for lift in [RADIUS + 0.0015, RADIUS - 0.001] {
-        let pose = Pose::new(tilt, Vec3::new(0.01, -0.02, lift));
-        let (value, grad) = term.evaluate(&pose);
-        assert!(value > 0.0, "a penalty at lift {lift}");
-        let h = 1e-6;
-        for k in 0..6 {
-            let moved = |s: f64| {
-                let mut d = [0.0; 6];
-                d[k] = s * h;
-                let dt = Vec3::new(d[0], d[1], d[2]);
-                let dw = Vec3::new(d[3], d[4], d[5]);
-                let p = Pose::new((Quat::exp(dw) * pose.q).normalize_or_identity(), pose.t + dt);
-                term.evaluate(&p).0
-            };
-            let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
-            assert!(
-                (fd - grad[k]).abs() <= 1e-4 * (1.0 + fd.abs()),
-                "lift {lift}, component {k}: analytic {} vs finite difference {fd}",
-                grad[k]
-            );
+    // At the surface and with the image's slack; floating 1.5 mm beyond it, and sunk 1 mm.
+    for seen in [None, Some(seen_obliquely())] {
+        let term = ContactTerm {
+            body,
+            scene: &w.scene,
+            points: points.clone(),
+            sides: Vec::new(),
+            seen,
+            cfg: ContactPenaltyConfig::default(),
+        };
+        let slack = seen.map_or(0.0, |p| p.along_direction(Vec3::new(0.0, 0.0, 1.0)));
+        // The tilted cube's lowest point below its centre.
+        let drop = points
+            .iter()
+            .map(|&i| -tilt.rotate(body.contact_points[i]).z)
+            .fold(0.0, f64::max);
+        for lift in [drop + slack + 0.0015, drop - slack - 0.001] {
+            let pose = Pose::new(tilt, Vec3::new(0.01, -0.02, lift));
+            let (value, grad) = term.evaluate(&pose);
+            assert!(value > 0.0, "a penalty at lift {lift}");
+            let h = 1e-6;
+            for k in 0..6 {
+                let moved = |s: f64| {
+                    let mut d = [0.0; 6];
+                    d[k] = s * h;
+                    let dt = Vec3::new(d[0], d[1], d[2]);
+                    let dw = Vec3::new(d[3], d[4], d[5]);
+                    let p = Pose::new((Quat::exp(dw) * pose.q).normalize_or_identity(), pose.t + dt);
+                    term.evaluate(&p).0
+                };
+                let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
+                assert!(
+                    (fd - grad[k]).abs() <= 1e-4 * (1.0 + fd.abs()),
+                    "slack {slack}, lift {lift}, component {k}: analytic {} vs finite difference {fd}",
+                    grad[k]
+                );
+            }
         }
     }
+}
+
+#[test]
+fn the_contact_penalty_leaves_to_the_image_what_it_can_tell() {
+    let w = world(V0, TRUTH);
+    let body = &w.bodies[0];
+    let points: Vec<usize> = (0..body.contact_points.len()).collect();
+    let seen = seen_obliquely();
+    let term = |seen: Option<recon::ImagePrecision>, image_slack: f64| ContactTerm {
+        body,
+        scene: &w.scene,
+        points: points.clone(),
+        sides: Vec::new(),
+        seen,
+        cfg: ContactPenaltyConfig {
+            image_slack,
+            ..ContactPenaltyConfig::default()
+        },
+    };
+    // The image places the cube to 2.2 mm along the board's normal, seen at 53°.
+    let slack = seen.along_direction(Vec3::new(0.0, 0.0, 1.0));
+    assert!(slack > 0.002 && slack < 0.0025, "{slack}");
+    let at = |dz: f64| Pose::new(Quat::identity(), Vec3::new(0.0, 0.0, RADIUS + dz));
+    for dz in [0.001, -0.001, 0.9 * slack, -0.9 * slack] {
+        assert_eq!(
+            term(Some(seen), 1.0).evaluate(&at(dz)),
+            (0.0, [0.0; 6]),
+            "{dz} m: within the slack"
+        );
+        assert!(term(None, 1.0).evaluate(&at(dz)).0 > 0.0, "{dz} m: held at the surface");
+        assert!(
+            term(Some(seen), 0.0).evaluate(&at(dz)).0 > 0.0,
+            "{dz} m: no slack asked for"
+        );
+    }
+    // Beyond the slack the penalty grows as it did from the surface, and pulls back.
+    let (up, g_up) = term(Some(seen), 1.0).evaluate(&at(slack + 0.002));
+    let (from_surface, _) = term(None, 1.0).evaluate(&at(0.002));
+    assert!(
+        (up - from_surface).abs() < 1e-9 * from_surface,
+        "{up} against {from_surface}"
+    );
+    assert!(g_up[2] > 0.0, "pulled down: {g_up:?}");
+    let (_, g_down) = term(Some(seen), 1.0).evaluate(&at(-slack - 0.002));
+    assert!(g_down[2] < 0.0, "pushed up: {g_down:?}");
 }
 
 #[test]
@@ -406,6 +466,7 @@ fn a_body_against_a_wall_is_held_on_the_board_too() {
         scene: &scene,
         points: points.clone(),
         sides,
+        seen: None,
         cfg: ContactPenaltyConfig::default(),
     };
     // Slid 4 mm up the wall (toward a camera looking down at it): the wall still touches.
@@ -496,7 +557,7 @@ fn still_frames_are_kept(
     let still: Vec<usize> = (0..poses.len())
         .filter(|&k| kept[k].start == recon::StartFrom::Still)
         .collect();
-    // Measured: frame 0 fitted 3.6 mm off, frames 1 and 2 within 0.1 mm and still, 3–5 kept (0.1 mm).
+    // Measured (noise-free): frame 0 fitted 0.07 mm off, frames 1–5 0.27 mm off and 2–5 kept.
     assert!(
         still.len() >= 2,
         "the resting frames after two still ones are kept: {still:?}"
@@ -511,9 +572,10 @@ fn still_frames_are_kept(
         assert!(off(k) < 0.5, "and it is right: {:.2} mm", off(k));
         assert!(kept[k].image.loss <= kept[k - 1].image.loss * (1.0 + recon::STILL_LOSS_SLACK));
     }
-    // The pushed frames are fitted.
+    // The pushed frames (8 and 16 mm on) are fitted, to the image's precision (measured 0.35 and 0.53 mm:
+    // the contact penalty leaves the depth to the image within it).
     for k in 6..8 {
         assert_ne!(kept[k].start, recon::StartFrom::Still);
-        assert!(off(k) < 0.5, "frame {k}: {:.2} mm", off(k));
+        assert!(off(k) < 1.0, "frame {k}: {:.2} mm", off(k));
     }
 }

@@ -1267,7 +1267,8 @@ fn pga_config(job: &Job) -> PhysicsFitConfig {
 }
 
 /// GA's poses as PGA observes them: weighed by GA's residuals and rests, each frame's depth counting least
-/// where GA did not hold the body on the scene.
+/// where GA did not hold the body on the scene closer than its image tells the depth
+/// ([`recon::ContactPenaltyConfig::pins_depth`]).
 fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> recon::Observed {
     let eye = job.frames[0].camera.center();
     let weights = ga_weights_of(ga, eye, job.world.bodies[0].bounding_radius);
@@ -1275,7 +1276,10 @@ fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> rec
     recon::Observed {
         start: start_contact,
         eye: job.frames.first().map(|f| f.camera.center().to_array()),
-        depth_held: ga.iter().map(|r| r.in_contact).collect(),
+        depth_held: ga
+            .iter()
+            .map(|r| r.in_contact && job.cfg.ga.contact.pins_depth())
+            .collect(),
         ..recon::Observed::new(0, poses, Some(weights))
     }
 }
@@ -1343,12 +1347,12 @@ const SIMULATION_LOSS_RATIO: f64 = 1.5;
 
 /// A simulated pose that draws its body this many pixels from GA's on average (its depth set to GA's) draws
 /// it visibly elsewhere: four times the precision a silhouette's edge is placed to
-/// ([`recon::video_fit::EDGE_PRECISION_PX`]). The silhouette margin above does not scale with the body's
+/// ([`recon::image_precision::EDGE_PRECISION_PX`]). The silhouette margin above does not scale with the body's
 /// size in the image: on a body 70 px wide it forgives a frame the simulation turned 5° and moved 2.6 mm
 /// (2–3 px) off (the 320×240 tabletop drop's bounce: IoU 0.877 against GA's 0.961), where on a 14 px ball
 /// it forgives a fraction of a pixel. Depth is left out: one view tells it least, and the simulation's is
 /// weighed against GA's where GA's pose is reported.
-const SIMULATION_MISSES_BY_PX: f64 = 4.0 * recon::video_fit::EDGE_PRECISION_PX;
+const SIMULATION_MISSES_BY_PX: f64 = 4.0 * recon::image_precision::EDGE_PRECISION_PX;
 
 /// How far apart two poses draw a body's `points` (body frame) through `camera`, in pixels on average,
 /// `b`'s depth along its line of sight first set to `a`'s: what the image can tell of the difference.

@@ -728,7 +728,7 @@ fn pga_config(m: &Multi) -> PhysicsFitConfig {
 }
 
 /// GA's poses as PGA observes them: weighed by GA's residuals and rests, each body's depth counting least
-/// where GA did not hold it on the scene, as in the one-body fit.
+/// where GA did not hold it on the scene closer than its image tells the depth, as in the one-body fit.
 fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
     let poses: Vec<Vec<Pose<f64>>> = ga.iter().map(|rs| rs.iter().map(|r| r.pose).collect()).collect();
     let eye = m.bodies[0].frames[0].camera.center();
@@ -739,7 +739,14 @@ fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
         .collect();
     recon::ObservedBodies {
         eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
-        depth_held: ga.iter().map(|rs| rs.iter().map(|r| r.in_contact).collect()).collect(),
+        depth_held: ga
+            .iter()
+            .map(|rs| {
+                rs.iter()
+                    .map(|r| r.in_contact && m.cfg.ga.contact.pins_depth())
+                    .collect()
+            })
+            .collect(),
         ..recon::ObservedBodies::new(poses, weights)
     }
 }
