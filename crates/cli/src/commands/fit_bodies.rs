@@ -669,8 +669,10 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
     write_simulation(m, &fit.world, &path, schedule_extra(&fit.steps)?)?;
+    // The world as the file holds it (the simulation's first state, its quaternion normalised to the last
+    // bit), so that a resumed fit goes on from exactly the world this one does.
     Ok(PgaRound {
-        world: fit.world,
+        world: world_from_file(m, &path)?,
         steps: fit.steps,
         guess: Some(fit.guess),
         after_launch: fit.after_launch,
