@@ -564,21 +564,13 @@ impl<'a> PosesFromVideo<'a> {
         let frame = &self.frames[k];
         let contacts = self.touching(&start, &held);
         let holds = !held.is_empty();
-        let term = |points: Vec<usize>| ContactTerm {
-            body: &self.world.bodies[self.body],
-            scene: &self.world.scene,
-            points,
-            cfg: self.penalty_config(holds),
-            sides: held.clone(),
-            seen: Some(self.image_precision(k, &start)),
-        };
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
             .with_occluders(self.occluders[k].clone());
         let mut new = if contacts.is_empty() {
             new
         } else {
-            new.with_contact(term(contacts.clone()))
+            new.with_contact(self.contact_term(k, &start, contacts.clone(), held.clone()))
         };
         new.run();
         let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, self.results[k].pose)
@@ -713,19 +705,30 @@ impl<'a> PosesFromVideo<'a> {
             .collect()
     }
 
-    /// The penalty's config: whole where the contact is known ([`Start::holds`]), else without its floating
-    /// term (the body only kept from sinking).
-    fn penalty_config(&self, holds: bool) -> ContactPenaltyConfig {
-        ContactPenaltyConfig {
-            lambda_out: if holds { self.cfg.contact.lambda_out } else { 0.0 },
-            ..self.cfg.contact.clone()
+    /// Frame `k`'s contact penalty for a fit started at `start`: `points` held on the scene's `held` sides
+    /// (whole where the contact is known, [`Start::holds`]; else without its floating term, the body only
+    /// kept from sinking), with the slack of the frame's image at `start`.
+    fn contact_term(&self, k: usize, start: &Pose<f64>, points: Vec<usize>, held: Vec<Vec3<f64>>) -> ContactTerm<'a> {
+        let body = &self.world.bodies[self.body];
+        ContactTerm {
+            body,
+            scene: &self.world.scene,
+            points,
+            cfg: ContactPenaltyConfig {
+                lambda_out: if held.is_empty() {
+                    0.0
+                } else {
+                    self.cfg.contact.lambda_out
+                },
+                ..self.cfg.contact.clone()
+            },
+            sides: held,
+            seen: Some(ImagePrecision::of(
+                &self.frames[k].camera,
+                start,
+                2.0 * body.bounding_radius,
+            )),
         }
-    }
-
-    /// How precisely frame `k`'s image places the body at `pose` (the contact penalty's slack).
-    fn image_precision(&self, k: usize, pose: &Pose<f64>) -> ImagePrecision {
-        let diameter = 2.0 * self.world.bodies[self.body].bounding_radius;
-        ImagePrecision::of(&self.frames[k].camera, pose, diameter)
     }
 
     /// Every contact point of the body with its distance to the scene at `pose`, nearest first.
@@ -989,14 +992,7 @@ impl<'a> PosesFromVideo<'a> {
             fits.push(if s.contacts.is_empty() {
                 fit
             } else {
-                fit.with_contact(ContactTerm {
-                    body: &self.world.bodies[self.body],
-                    scene: &self.world.scene,
-                    points: s.contacts.clone(),
-                    cfg: self.penalty_config(!s.held.is_empty()),
-                    sides: s.held.clone(),
-                    seen: Some(self.image_precision(k, &s.pose)),
-                })
+                fit.with_contact(self.contact_term(k, &s.pose, s.contacts.clone(), s.held.clone()))
             });
         }
         let mut best = 0;

@@ -1273,13 +1273,11 @@ fn pga_observed(job: &Job, ga: &[FramePose], start_contact: StartContact) -> rec
     let eye = job.frames[0].camera.center();
     let weights = ga_weights_of(ga, eye, job.world.bodies[0].bounding_radius);
     let poses: Vec<Pose<f64>> = ga.iter().map(|r| r.pose).collect();
+    let pinned = job.cfg.ga.contact.pins_depth();
     recon::Observed {
         start: start_contact,
         eye: job.frames.first().map(|f| f.camera.center().to_array()),
-        depth_held: ga
-            .iter()
-            .map(|r| r.in_contact && job.cfg.ga.contact.pins_depth())
-            .collect(),
+        depth_held: ga.iter().map(|r| r.in_contact && pinned).collect(),
         ..recon::Observed::new(0, poses, Some(weights))
     }
 }

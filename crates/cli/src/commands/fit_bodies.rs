@@ -739,15 +739,12 @@ fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
         .zip(&m.world.bodies)
         .map(|(rs, body)| ga_weights_of(rs, eye, body.bounding_radius))
         .collect();
+    let pinned = m.cfg.ga.contact.pins_depth();
     recon::ObservedBodies {
         eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
         depth_held: ga
             .iter()
-            .map(|rs| {
-                rs.iter()
-                    .map(|r| r.in_contact && m.cfg.ga.contact.pins_depth())
-                    .collect()
-            })
+            .map(|rs| rs.iter().map(|r| r.in_contact && pinned).collect())
             .collect(),
         ..recon::ObservedBodies::new(poses, weights)
     }
