@@ -167,6 +167,8 @@ pub enum StartFrom {
     /// Not fitted again: the body was still and the last fitted frame's pose explains this frame as well
     /// ([`PosesFromVideoConfig::keep_still`]).
     Still,
+    /// PGA's simulation, after GA ([`PosesFromVideo::refit_worst_from_physics`]).
+    Pga,
 }
 
 impl StartFrom {
@@ -180,6 +182,7 @@ impl StartFrom {
             StartFrom::Searched => "searched",
             StartFrom::Continued => "continued",
             StartFrom::Still => "still",
+            StartFrom::Pga => "pga",
         }
     }
 }
@@ -1114,6 +1117,57 @@ impl<'a> PosesFromVideo<'a> {
             self.sizing_pending = true;
             self.continuing_pending = true;
         }
+    }
+
+    /// GA's frames as fitted before (one per frame, as `ga.json` holds them), every pass taken as done: a
+    /// stage built on another trajectory (PGA's simulation) to refit from it the frames they explain worst
+    /// ([`Self::refit_worst_from_physics`]).
+    pub fn with_results(mut self, results: Vec<FramePose>) -> Result<Self, PosesFromVideoError> {
+        if results.len() != self.frames.len() {
+            return Err(PosesFromVideoError::FrameCount {
+                frames: self.frames.len(),
+                trajectory: results.len(),
+            });
+        }
+        self.results = results;
+        self.end_pending = false;
+        self.sizing_pending = false;
+        self.continuing_pending = false;
+        Ok(self)
+    }
+
+    /// The fitted frames explained [`PosesFromVideoConfig::continue_ratio`] times worse than the median frame
+    /// (still frames that follow their anchor aside), each fitted again from this stage's trajectory (PGA's
+    /// simulation, held on the sides of the scene it touches in that frame) where it starts elsewhere than
+    /// the frame's pose, and kept where it explains the frame better. Every start of GA's passes comes from
+    /// the frame's own fit or its neighbours', so a tumble that GA turned the wrong way over a few frames
+    /// stays so (the drop Rapier made, 320 × 240: frame 9 13° off, its loss 1.4 times the pose a run before
+    /// found); the simulation fitted to the whole video is an independent start there. `on_frame` is told
+    /// after each frame tried. The frames replaced, in order.
+    pub fn refit_worst_from_physics(&mut self, mut on_frame: impl FnMut()) -> Result<Vec<usize>, PosesFromVideoError> {
+        let worse: Vec<usize> = if self.cfg.continue_ratio > 0.0 {
+            self.explained_worse_than(self.cfg.continue_ratio)
+                .into_iter()
+                .filter(|&k| !self.follows_its_anchor(k))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut replaced = Vec::new();
+        for k in worse {
+            let start = self.frames[k].centred_on_mask(&self.starts[k]);
+            let pose = self.results[k].pose;
+            if !same_start(&start, &pose) {
+                // Steps as a start that far off takes (full scale at 15° or 15 mm).
+                let scale = self.step_scale(pace(&pose, &start));
+                let held = self.pa_sides[k].clone();
+                if self.replace_if_better(k, start, scale, held, StartFrom::Pga, 0.0)? {
+                    replaced.push(k);
+                }
+            }
+            on_frame();
+        }
+        Ok(replaced)
     }
 
     /// Fit every frame left; all outcomes.

@@ -117,6 +117,32 @@ const SUPPORT_BAND: f64 = 0.001;
 /// merged, measured 0.32 (the slide's first frame, `RUST_LOG=recon::video_fit=debug`).
 const FACE_WIDTH: f64 = 0.25;
 
+/// A body whose surface facing the scene (its outward normal within this of the scene's, opposite) spreads
+/// as a face ([`FACE_WIDTH`]) near the scene lies on that face: a pose fitted to one image is a degree or
+/// two off (the tabletop slide's first pose from a guess 15° off touched along an edge, which freed a spin
+/// about the board's axes that the fit then took, 2.4–7.8 rad/s), and a reconstructed face's normals are
+/// a degree or two rough. A ball's cap that faces within it is `sin 5°` = 0.09 of its radius wide.
+const FACING_ANGLE: f64 = 5.0 * std::f64::consts::PI / 180.0;
+
+/// The narrower RMS half-width of `points` in the plane spanned by `a` and `b` (the square root of the
+/// smaller eigenvalue of their 2 × 2 covariance); 0 without points.
+fn narrower_half_width(points: &[Vec3<f64>], a: Vec3<f64>, b: Vec3<f64>) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let count = points.len() as f64;
+    let mean = points.iter().fold(Vec3::new(0.0, 0.0, 0.0), |s, p| s + *p) * (1.0 / count);
+    let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (x, y) = ((*p - mean).dot(a), (*p - mean).dot(b));
+        saa += x * x / count;
+        sab += x * y / count;
+        sbb += y * y / count;
+    }
+    let narrow = 0.5 * (saa + sbb) - (0.25 * (saa - sbb).powi(2) + sab * sab).sqrt();
+    narrow.max(0.0).sqrt()
+}
+
 /// [`start_contact`] when `in_plane` (the `launch_in_plane` switch), else [`StartContact::Free`].
 pub fn launch_start(body: &RigidBody, scene: &Shape, pose: &Pose<f64>, in_plane: bool) -> StartContact {
     if in_plane {
@@ -128,7 +154,8 @@ pub fn launch_start(body: &RigidBody, scene: &Shape, pose: &Pose<f64>, in_plane:
 
 /// How the body at `pose` touches the scene ([`StartContact`]): off it when its lowest contact point is
 /// [`TOUCHING`] or more above it; else the scene's normal there (the mean of its gradients at the
-/// support's points), and a face when the support spreads in both directions of the tangent plane.
+/// support's points), and a face when the support spreads in both directions of the tangent plane, or the
+/// part of the body's surface near the scene that faces it does ([`FACING_ANGLE`]).
 pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> StartContact {
     let lowest = clearance(body, scene, pose);
     if !(lowest < TOUCHING) {
@@ -152,22 +179,28 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
     let normal = n.to_array();
     // The support's spread in the tangent plane: the smaller eigenvalue of its 2 × 2 covariance.
     let [a, b] = crate::unknowns::tangent_basis(normal).map(Vec3::cst);
-    let count = support.len() as f64;
-    let mean = support.iter().fold(Vec3::new(0.0, 0.0, 0.0), |s, p| s + *p) * (1.0 / count);
-    let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
-    for p in &support {
-        let (x, y) = ((*p - mean).dot(a), (*p - mean).dot(b));
-        saa += x * x / count;
-        sab += x * y / count;
-        sbb += y * y / count;
-    }
-    let narrow = 0.5 * (saa + sbb) - (0.25 * (saa - sbb).powi(2) + sab * sab).sqrt();
-    let width = narrow.max(0.0).sqrt() / body.bounding_radius;
+    let width = narrower_half_width(&support, a, b) / body.bounding_radius;
+    // A pose fitted to one image is a degree or two off: a body sliding on its face then touches along its
+    // lower edge only. What it lies on is the part of its surface that faces the scene, near it.
+    let band = lowest + SUPPORT_BAND + FACING_ANGLE.tan() * 2.0 * body.bounding_radius;
+    let facing: Vec<Vec3<f64>> = body
+        .contact_points
+        .iter()
+        .filter_map(|p| {
+            let at = pose.transform_point(*p);
+            let outward = pose.q.rotate(body.sdf.distance_grad_local(*p).1);
+            let faces = outward.dot(n) <= -FACING_ANGLE.cos() * outward.norm();
+            (faces && scene.distance_local(at) < band).then_some(at)
+        })
+        .collect();
+    let facing_width = narrower_half_width(&facing, a, b) / body.bounding_radius;
     tracing::debug!(
-        "start contact: {} support points, narrower RMS half-width {width:.3} of the radius",
-        support.len()
+        "start contact: {} support points, narrower RMS half-width {width:.3} of the radius; {} facing the \
+         scene, {facing_width:.3}",
+        support.len(),
+        facing.len()
     );
-    if width >= FACE_WIDTH {
+    if width >= FACE_WIDTH || facing_width >= FACE_WIDTH {
         StartContact::Face { normal }
     } else {
         StartContact::Touching { normal }
@@ -494,6 +527,21 @@ mod tests {
         match start_contact(&ball, &slope, &Pose::new(Quat::identity(), normal * 0.02)) {
             StartContact::Touching { normal } => assert!(close(normal), "{normal:?}"),
             other => panic!("the ball: {other:?}"),
+        }
+        // Lying on its face turned 2.5° about its longer side, as a pose fitted to one image may be: along one
+        // edge within a millimetre, its face within 2 mm. A face; turned 8°, an edge.
+        let settle = |q: Quat<f64>| {
+            let lifted = lift_out(&block, &slope, Pose::new(q, normal * 0.03)).0;
+            Pose::new(lifted.q, lifted.t - normal * clearance(&block, &slope, &lifted))
+        };
+        for (degrees, face) in [(2.5f64, true), (8.0, false)] {
+            let turned = settle(tilt * Quat::exp(Vec3::new(degrees.to_radians(), 0.0, 0.0)));
+            let found = start_contact(&block, &slope, &turned);
+            assert_eq!(
+                matches!(found, StartContact::Face { .. }),
+                face,
+                "turned {degrees}°: {found:?}"
+            );
         }
         // On an edge: touching, not a face.
         let on_edge = Pose::new(tilt * Quat::exp(Vec3::new(0.6, 0.0, 0.0)), normal * 0.03);

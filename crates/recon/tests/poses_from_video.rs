@@ -5,7 +5,7 @@
 //! block slides); a block bouncing off the board, held to it only where it
 //! touches it when the frame is taken; a block lost while hidden, found again
 //! by searching the last frame; a last frame turned farther than its steps
-//! reach, fitted on from its own pose; a block at rest kept without fitting
+//! reach, fitted on from its own pose, or again from a simulation that passes near the truth; a block at rest kept without fitting
 //! (with and without a camera's noise) and fitted again once pushed; and the penalty's gradient against finite
 //! differences.
 
@@ -338,6 +338,74 @@ fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
         "as well explained as the resting frames: {:.4} against {worst_rest:.4}",
         with[last].image.loss
     );
+}
+
+#[test]
+fn a_frame_turned_the_wrong_way_is_fitted_again_from_the_simulation() {
+    let ball = ball_model();
+    // The resting block of the test above, turned 12° in the last frame; GA without its last pass leaves that
+    // frame where its steps ran out. Then a trajectory that passes within 2° of the truth there (as PGA's
+    // simulation, fitted to the whole video, may where GA's frames went another way) starts it again.
+    let mut rest_world = world([0.0; 3], TRUTH);
+    rest_world.config.frames = 5;
+    let rest = Quat::exp(Vec3::new(0.0, 0.0, 0.4));
+    rest_world.initial[0] = sim::BodyState::new([-0.02, 0.01, RADIUS], rest.to_array_re(), [0.0; 3], [0.0; 3]);
+    let pa = rest_world.simulate(&rest_world.params());
+    let mut poses: Vec<Pose<f64>> = pa.frames.iter().map(|f| f[0].pose).collect();
+    let last = poses.len() - 1;
+    let turned = Quat::exp(Vec3::new(0.0, 0.0, 12f64.to_radians()));
+    poses[last].q = (turned * poses[last].q).normalize_or_identity();
+    let (behind, frames) = film_poses(&ball, &poses);
+    let cfg = PosesFromVideoConfig {
+        end_search_ratio: 0.0,
+        continue_ratio: 0.0,
+        ..short_fits()
+    };
+    let mut ga = PosesFromVideo::new(cfg.clone(), &ball, &behind, &frames, &rest_world, 0, &pa).expect("valid input");
+    let before = ga.run().expect("every frame fits").to_vec();
+    let mut simulated = pa.clone();
+    let near = Quat::exp(Vec3::new(0.0, 0.0, 10f64.to_radians()));
+    simulated.frames[last][0].pose.q = (near * pa.frames[last][0].pose.q).normalize_or_identity();
+    let refit = |ratio: f64| {
+        let cfg = PosesFromVideoConfig {
+            continue_ratio: ratio,
+            ..cfg.clone()
+        };
+        let mut again = PosesFromVideo::new(cfg, &ball, &behind, &frames, &rest_world, 0, &simulated)
+            .and_then(|s| s.with_results(before.clone()))
+            .expect("valid input");
+        let mut told = 0;
+        let replaced = again.refit_worst_from_physics(|| told += 1).expect("every frame fits");
+        (replaced, told, again.results)
+    };
+    let turn = |r: &recon::FramePose, k: usize| geom::rotation_distance(r.pose.q, poses[k].q).to_degrees();
+    let (replaced, told, after) = refit(PosesFromVideoConfig::default().continue_ratio);
+    for (k, (a, b)) in after.iter().zip(&before).enumerate() {
+        eprintln!(
+            "frame {k}: {:.1}° from {:?}, loss {:.4} (before: {:.1}°, loss {:.4})",
+            turn(a, k),
+            a.start,
+            a.image.loss,
+            turn(b, k),
+            b.image.loss
+        );
+    }
+    assert!(turn(&before[last], last) > 6.0, "GA's steps run out 12° off");
+    assert_eq!(replaced, vec![last], "only the frame explained poorly is fitted again");
+    assert_eq!(told, 1);
+    assert_eq!(after[last].start, recon::StartFrom::Pga);
+    assert!(
+        turn(&after[last], last) < 3.0,
+        "from the simulation: {:.1}°",
+        turn(&after[last], last)
+    );
+    assert!(after[last].image.loss < before[last].image.loss);
+    for k in 0..last {
+        assert_eq!(after[k].pose, before[k].pose, "frame {k} is explained well and kept");
+    }
+    // Without a ratio nothing is fitted again.
+    let (none, told, _) = refit(0.0);
+    assert!(none.is_empty() && told == 0);
 }
 
 /// A camera 0.4 m off looking down at 53° (f = 290 px): the image's precision on a body 50 mm across.

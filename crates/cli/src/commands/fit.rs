@@ -1211,13 +1211,99 @@ fn stage_pga(
         ));
         from = world;
     }
-    let (world, ga, _, starts) = best.expect("at least one round");
+    let (mut world, mut ga, mut total, starts) = best.expect("at least one round");
+    if kept > 0 && from_pa {
+        let (refit, replaced) = stage_ga_from_pga(job, &world, &ga)?;
+        ga = refit;
+        if !replaced.is_empty() {
+            // GA's poses moved where the simulation showed the way: PGA once more from its own winner, kept if
+            // its simulation explains the video better (GA's new poses are kept either way: they explain
+            // their frames better by construction).
+            let observed = pga_observed(job, &ga, start_contact);
+            let fit = fit_to_poses(&pga_config(job), false, world.clone(), observed, &mut |_, _| {})
+                .map_err(|e| anyhow!("PGA after GA's refit: {e}"))?;
+            let again = fit.worlds[fit.winner].clone();
+            let traj = again.simulate(&again.params());
+            let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+            let losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights_cfg)?;
+            let again_total = total_loss(&losses);
+            let better = again_total < total;
+            job.log(json!({"stage": "pga", "round": "ga_refit", "image_loss": again_total, "kept": better}))?;
+            if better {
+                report_stage("PGA after GA's refit", &again, &losses);
+                world = again;
+                total = again_total;
+            }
+        }
+    }
+    tracing::debug!("PGA: kept image loss {total:.4}");
     let mut ranges = value_ranges(job, &world, &ga, start_contact)?;
     if let Some((starts, loss)) = starts {
         recon::widen_by_starts(&mut ranges, &starts, recon::StartsOn::Scene, loss);
     }
     report_ranges(&ranges, &mut |row| job.log(row))?;
     Ok((world, ga, kept, ranges))
+}
+
+/// GA's frames explained worst fitted again from the kept PGA world's simulation
+/// ([`PosesFromVideo::refit_worst_from_physics`]), resumed from `ga_pga.json`; GA's frames after it and
+/// the frames replaced.
+fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(Vec<FramePose>, Vec<usize>)> {
+    let path = job.stage_file("ga_pga.json");
+    let replaced_of =
+        |r: &[FramePose]| -> Vec<usize> { (0..r.len()).filter(|&k| r[k].start == StartFrom::Pga).collect() };
+    if path.exists() {
+        let r = read_ga(&path, job.frames.len())?;
+        // The file holds GA's poses but where it replaced them: from another GA (rerun), it is stale.
+        let same = r
+            .iter()
+            .zip(ga)
+            .all(|(a, b)| a.start == StartFrom::Pga || a.pose == b.pose);
+        if same {
+            tracing::info!("GA from PGA's simulation: from {}", path.display());
+            let replaced = replaced_of(&r);
+            return Ok((r, replaced));
+        }
+        tracing::warn!("{}: from another GA run; fitted again", path.display());
+    }
+    let traj = world.simulate(&world.params());
+    let pb = super::progress(0, "GA from PGA");
+    let (results, rows) = {
+        let mut stage = PosesFromVideo::new(
+            job.cfg.ga.clone(),
+            &job.object,
+            &job.scene_pre,
+            &job.frames,
+            world,
+            0,
+            &traj,
+        )
+        .and_then(|s| s.with_results(ga.to_vec()))
+        .map_err(|e| anyhow!("GA from PGA's simulation: {e}"))?;
+        let replaced = stage
+            .refit_worst_from_physics(|| pb.inc(1))
+            .map_err(|e| anyhow!("GA from PGA's simulation: {e}"))?;
+        pb.finish_and_clear();
+        tracing::info!(
+            "GA from PGA's simulation: {} frames explained better ({replaced:?})",
+            replaced.len()
+        );
+        let rows: Vec<Value> = replaced
+            .iter()
+            .map(|&k| {
+                let r = &stage.results[k];
+                json!({"stage": "ga", "from": "pga", "frame": k, "loss": r.image.loss, "iou": r.image.iou(),
+                "contact_penalty": r.contact_penalty, "in_contact": r.in_contact, "was": ga[k].image.loss})
+            })
+            .collect();
+        (stage.results, rows)
+    };
+    for row in rows {
+        job.log(row)?;
+    }
+    write_ga(job, &path, &results)?;
+    let replaced = replaced_of(&results);
+    Ok((results, replaced))
 }
 
 /// PGA's starts that end within this share of the best one's loss fit GA's poses alike (the drop Rapier
