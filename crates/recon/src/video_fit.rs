@@ -155,7 +155,7 @@ pub fn launch_start(body: &RigidBody, scene: &Shape, pose: &Pose<f64>, in_plane:
 /// How the body at `pose` touches the scene ([`StartContact`]): off it when its lowest contact point is
 /// [`TOUCHING`] or more above it; else the scene's normal there (the mean of its gradients at the
 /// support's points), and a face when the support spreads in both directions of the tangent plane, or the
-/// part of the body's surface near the scene that faces it does ([`FACING_ANGLE`]).
+/// part of the body's surface near the scene that faces it within 5° does.
 pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> StartContact {
     let lowest = clearance(body, scene, pose);
     if !(lowest < TOUCHING) {
