@@ -115,6 +115,8 @@ impl Default for PosesFromVideoConfig {
 pub enum PosesFromVideoError {
     #[error("{frames} frames but PA's trajectory has {trajectory}")]
     FrameCount { frames: usize, trajectory: usize },
+    #[error("{frames} frames but {results} fitted poses given")]
+    ResultCount { frames: usize, results: usize },
     #[error("body index {0} is out of range")]
     NoSuchBody(usize),
     #[error("frame {frame}: {error}")]
@@ -494,6 +496,20 @@ impl<'a> PosesFromVideo<'a> {
         };
         (0..self.results.len())
             .filter(|&k| self.results[k].fitted && self.results[k].image.loss > ratio * median)
+            .collect()
+    }
+
+    /// The fitted frames still explained [`PosesFromVideoConfig::continue_ratio`] times worse than the median
+    /// frame, in order (none when it is 0): the last pass's and the refit's from PGA's simulation. A still
+    /// frame explained as well as its anchor explains its own follows the anchor; one explained worse (an
+    /// offer it turned down, a creep `is_still` let pass) is fitted.
+    fn poorly_explained(&self) -> Vec<usize> {
+        if self.cfg.continue_ratio <= 0.0 {
+            return Vec::new();
+        }
+        self.explained_worse_than(self.cfg.continue_ratio)
+            .into_iter()
+            .filter(|&k| !self.follows_its_anchor(k))
             .collect()
     }
 
@@ -942,11 +958,8 @@ impl<'a> PosesFromVideo<'a> {
                         self.replace_if_better(j, start, 1.0, held, StartFrom::Sized, 0.0)?;
                         return Ok(Some(&self.results[j]));
                     }
-                    if std::mem::take(&mut self.continuing_pending) && self.cfg.continue_ratio > 0.0 {
-                        // A still frame explained as well as its anchor explains its own follows the anchor;
-                        // one explained worse (an offer it turned down, a creep `is_still` let pass) is fitted.
-                        let worse = self.explained_worse_than(self.cfg.continue_ratio);
-                        self.continuing = worse.into_iter().filter(|&j| !self.follows_its_anchor(j)).collect();
+                    if std::mem::take(&mut self.continuing_pending) {
+                        self.continuing = self.poorly_explained();
                     }
                     match self.continuing.pop() {
                         Some(j) => {
@@ -1124,9 +1137,9 @@ impl<'a> PosesFromVideo<'a> {
     /// ([`Self::refit_worst_from_physics`]).
     pub fn with_results(mut self, results: Vec<FramePose>) -> Result<Self, PosesFromVideoError> {
         if results.len() != self.frames.len() {
-            return Err(PosesFromVideoError::FrameCount {
+            return Err(PosesFromVideoError::ResultCount {
                 frames: self.frames.len(),
-                trajectory: results.len(),
+                results: results.len(),
             });
         }
         self.results = results;
@@ -1148,16 +1161,8 @@ impl<'a> PosesFromVideo<'a> {
     /// 0.064 and 3.7°); the simulation fitted to the whole video is an independent start there. `on_frame` is told
     /// after each frame tried. The frames replaced, in order.
     pub fn refit_worst_from_physics(&mut self, mut on_frame: impl FnMut()) -> Result<Vec<usize>, PosesFromVideoError> {
-        let worse: Vec<usize> = if self.cfg.continue_ratio > 0.0 {
-            self.explained_worse_than(self.cfg.continue_ratio)
-                .into_iter()
-                .filter(|&k| !self.follows_its_anchor(k))
-                .collect()
-        } else {
-            Vec::new()
-        };
         let mut replaced = Vec::new();
-        for k in worse {
+        for k in self.poorly_explained() {
             let start = self.frames[k].centred_on_mask(&self.starts[k]);
             let pose = self.results[k].pose;
             if !same_start(&start, &pose) {

@@ -189,7 +189,7 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
         .filter_map(|p| {
             let at = pose.transform_point(*p);
             let outward = pose.q.rotate(body.sdf.distance_grad_local(*p).1);
-            let faces = outward.dot(n) <= -FACING_ANGLE.cos() * outward.norm();
+            let faces = outward.norm() > 0.0 && outward.dot(n) <= -FACING_ANGLE.cos() * outward.norm();
             (faces && scene.distance_local(at) < band).then_some(at)
         })
         .collect();

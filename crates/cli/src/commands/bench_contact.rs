@@ -138,9 +138,10 @@ pub fn run(a: BenchContactArgs) -> Result<()> {
             let fitted = errors(&fitted_world, &fitted_world.params(), &poses);
             let p = multi.best.fitted_body_params();
             // The same fit's error over the frames the reference is converged in, and a fit to those alone.
-            let traj = fitted_world.simulate(&fitted_world.params());
-            let while_converged = pose_errors(traj.frames.iter().map(|f| &f[0].pose), &poses[..converged]);
-            let on_converged = if converged >= 2 && converged < poses.len() {
+            let while_converged = errors(&fitted_world, &fitted_world.params(), &poses[..converged]);
+            let on_converged = if converged < 2 {
+                serde_json::Value::Null
+            } else if converged < poses.len() {
                 let mut short = w.clone();
                 short.config.frames = converged;
                 let window = poses[..converged].to_vec();

@@ -1109,8 +1109,9 @@ pub(super) fn frame_poses(poses: &[pganeus_io::Pose], rows: &[Value]) -> Vec<Fra
         .collect()
 }
 
-/// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls; the best
-/// world, the GA poses it was fitted to and the rounds kept.
+/// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls, then GA's
+/// worst frames again from the kept world's simulation ([`stage_ga_from_pga`]); the best world, GA's poses
+/// to report (those it was fitted to, but for the frames the refit moved) and the rounds kept.
 fn stage_pga(
     job: &mut Job,
     start: World,
@@ -1211,7 +1212,10 @@ fn stage_pga(
         ));
         from = world;
     }
-    let (mut world, mut ga, mut total, starts) = best.expect("at least one round");
+    let (mut world, fitted_ga, mut total, mut starts) = best.expect("at least one round");
+    // The GA poses the reported world was fitted to (its value ranges are profiled on them), and GA's
+    // poses to report.
+    let (mut ranges_ga, mut ga) = (fitted_ga.clone(), fitted_ga);
     if kept > 0 && from_pa {
         let (refit, replaced) = stage_ga_from_pga(job, &world, &ga)?;
         ga = refit;
@@ -1228,16 +1232,19 @@ fn stage_pga(
             let losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights_cfg)?;
             let again_total = total_loss(&losses);
             let better = again_total < total;
-            job.log(json!({"stage": "pga", "round": "ga_refit", "image_loss": again_total, "kept": better}))?;
+            job.log(json!({"stage": "pga_after_refit", "image_loss": again_total, "kept": better}))?;
             if better {
                 report_stage("PGA after GA's refit", &again, &losses);
                 world = again;
                 total = again_total;
+                ranges_ga = ga.clone();
+                // The multi-start's starts were fitted to the poses before.
+                starts = None;
             }
         }
     }
     tracing::debug!("PGA: kept image loss {total:.4}");
-    let mut ranges = value_ranges(job, &world, &ga, start_contact)?;
+    let mut ranges = value_ranges(job, &world, &ranges_ga, start_contact)?;
     if let Some((starts, loss)) = starts {
         recon::widen_by_starts(&mut ranges, &starts, recon::StartsOn::Scene, loss);
     }
@@ -1254,11 +1261,17 @@ fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(
         |r: &[FramePose]| -> Vec<usize> { (0..r.len()).filter(|&k| r[k].start == StartFrom::Pga).collect() };
     if path.exists() {
         let r = read_ga(&path, job.frames.len())?;
-        // The file holds GA's poses but where it replaced them: from another GA (rerun), it is stale.
-        let same = r
-            .iter()
-            .zip(ga)
-            .all(|(a, b)| a.start == StartFrom::Pga || a.pose == b.pose);
+        // The file holds GA's poses but where it replaced them (and the still frames that followed a replaced
+        // frame): from another GA (rerun), it is stale.
+        let mut moved = false;
+        let same = r.iter().zip(ga).all(|(a, b)| {
+            match a.start {
+                StartFrom::Pga => moved = true,
+                StartFrom::Still => {}
+                _ => moved = false,
+            }
+            moved || a.pose == b.pose
+        });
         if same {
             tracing::info!("GA from PGA's simulation: from {}", path.display());
             let replaced = replaced_of(&r);
@@ -1292,7 +1305,7 @@ fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(
             .iter()
             .map(|&k| {
                 let r = &stage.results[k];
-                json!({"stage": "ga", "from": "pga", "frame": k, "loss": r.image.loss, "iou": r.image.iou(),
+                json!({"stage": "ga_from_pga", "frame": k, "loss": r.image.loss, "iou": r.image.iou(),
                 "contact_penalty": r.contact_penalty, "in_contact": r.in_contact, "was": ga[k].image.loss})
             })
             .collect();
@@ -1600,7 +1613,8 @@ fn finish(
     // The reported pose is the simulated one (Eq. 11) wherever it explains the frame: GA's poses follow
     // each image alone and, where the image cannot tell depth (a small object far off), wander by
     // centimetres that the physics does not. Where the simulation clearly misses the body's silhouette
-    // (motion the simulator cannot make), GA's pose is reported instead; both stay in pga.json and ga.json.
+    // (motion the simulator cannot make), GA's pose is reported instead; both stay in pga.json and ga.json
+    // (and ga_pga.json: GA's after the frames refitted from the simulation).
     let (reported, source) = match ga {
         Some(ga) => {
             let at_depth =
