@@ -277,13 +277,18 @@ fn a_body_lost_while_hidden_is_found_again_from_the_last_frame() {
     }
 }
 
-#[test]
-fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
-    let ball = ball_model();
-    // The block rests on the board for 4 frames and is turned 12° about the vertical in the last (as a
-    // tumble turns a body between two frames). PA keeps it at rest, so every start of the last frame is 12°
-    // off, farther than 24 steps of 0.01 rad decaying tenfold move it (about 5.6°); the pass back does not
-    // reach the last frame, and the search of a lost last frame is off here.
+/// A block resting on the board for 4 frames and turned 12° about the vertical in the last (as a tumble
+/// turns a body between two frames), filmed; PA (the world's simulation) keeps it at rest.
+struct TurnedLast {
+    rest_world: sim::World,
+    pa: sim::Trajectory<f64>,
+    poses: Vec<Pose<f64>>,
+    last: usize,
+    behind: Vec<neus::compose::ComposedRay>,
+    frames: Vec<recon::FrameTarget>,
+}
+
+fn turned_last(ball: &neus::ObjectModel) -> TurnedLast {
     let mut rest_world = world([0.0; 3], TRUTH);
     rest_world.config.frames = 5;
     let rest = Quat::exp(Vec3::new(0.0, 0.0, 0.4));
@@ -293,7 +298,32 @@ fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
     let last = poses.len() - 1;
     let turned = Quat::exp(Vec3::new(0.0, 0.0, 12f64.to_radians()));
     poses[last].q = (turned * poses[last].q).normalize_or_identity();
-    let (behind, frames) = film_poses(&ball, &poses);
+    let (behind, frames) = film_poses(ball, &poses);
+    TurnedLast {
+        rest_world,
+        pa,
+        poses,
+        last,
+        behind,
+        frames,
+    }
+}
+
+#[test]
+fn a_frame_that_ran_out_of_steps_is_fitted_on_from_its_own_pose() {
+    let ball = ball_model();
+    // The block rests on the board for 4 frames and is turned 12° about the vertical in the last (as a
+    // tumble turns a body between two frames). PA keeps it at rest, so every start of the last frame is 12°
+    // off, farther than 24 steps of 0.01 rad decaying tenfold move it (about 5.6°); the pass back does not
+    // reach the last frame, and the search of a lost last frame is off here.
+    let TurnedLast {
+        rest_world,
+        pa,
+        poses,
+        last,
+        behind,
+        frames,
+    } = turned_last(&ball);
     let run = |ratio: f64| {
         let cfg = PosesFromVideoConfig {
             end_search_ratio: 0.0,
@@ -346,16 +376,14 @@ fn a_frame_turned_the_wrong_way_is_fitted_again_from_the_simulation() {
     // The resting block of the test above, turned 12° in the last frame; GA without its last pass leaves that
     // frame where its steps ran out. Then a trajectory that passes within 2° of the truth there (as PGA's
     // simulation, fitted to the whole video, may where GA's frames went another way) starts it again.
-    let mut rest_world = world([0.0; 3], TRUTH);
-    rest_world.config.frames = 5;
-    let rest = Quat::exp(Vec3::new(0.0, 0.0, 0.4));
-    rest_world.initial[0] = sim::BodyState::new([-0.02, 0.01, RADIUS], rest.to_array_re(), [0.0; 3], [0.0; 3]);
-    let pa = rest_world.simulate(&rest_world.params());
-    let mut poses: Vec<Pose<f64>> = pa.frames.iter().map(|f| f[0].pose).collect();
-    let last = poses.len() - 1;
-    let turned = Quat::exp(Vec3::new(0.0, 0.0, 12f64.to_radians()));
-    poses[last].q = (turned * poses[last].q).normalize_or_identity();
-    let (behind, frames) = film_poses(&ball, &poses);
+    let TurnedLast {
+        rest_world,
+        pa,
+        poses,
+        last,
+        behind,
+        frames,
+    } = turned_last(&ball);
     let cfg = PosesFromVideoConfig {
         end_search_ratio: 0.0,
         continue_ratio: 0.0,
