@@ -1127,16 +1127,7 @@ fn stage_pga(
     if from_pa {
         // PA's own simulation is the bar: PGA fits GA's poses, and where GA is noisier than PA was (depth
         // from a small silhouette), a round that explains the images worse is not kept.
-        let traj = start.simulate(&start.params());
-        let poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
-        let total = total_loss(&evaluate_poses(
-            &job.object,
-            &job.scene_pre,
-            &job.frames,
-            &poses,
-            &[],
-            &weights_cfg,
-        )?);
+        let total = total_loss(&simulation_losses(job, &start, &weights_cfg)?);
         job.log(json!({"stage": "pga", "round": "pa", "image_loss": total}))?;
         best = Some((start.clone(), ga.clone(), total, None));
     }
@@ -1172,9 +1163,7 @@ fn stage_pga(
         let mut scored: Vec<Option<Vec<ImageLoss>>> = vec![None; pga_losses.len()];
         let winner = among_ties(&pga_losses, PGA_TIE, |i| -> Result<f64> {
             let w = &fit.worlds[i];
-            let traj = w.simulate(&w.params());
-            let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
-            let losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights_cfg)?;
+            let losses = simulation_losses(job, w, &weights_cfg)?;
             let total = total_loss(&losses);
             job.log(
                 json!({"stage": "pga", "round": round, "start": i, "tied_image_loss": total,
@@ -1227,9 +1216,7 @@ fn stage_pga(
             let fit = fit_to_poses(&pga_config(job), false, world.clone(), observed, &mut |_, _| {})
                 .map_err(|e| anyhow!("PGA after GA's refit: {e}"))?;
             let again = fit.worlds[fit.winner].clone();
-            let traj = again.simulate(&again.params());
-            let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
-            let losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights_cfg)?;
+            let losses = simulation_losses(job, &again, &weights_cfg)?;
             let again_total = total_loss(&losses);
             let better = again_total < total;
             job.log(json!({"stage": "pga_after_refit", "image_loss": again_total, "kept": better}))?;
@@ -1252,13 +1239,25 @@ fn stage_pga(
     Ok((world, ga, kept, ranges))
 }
 
+/// The image terms of the body's simulated poses in every frame of the video.
+fn simulation_losses(job: &Job, world: &World, weights: &recon::ImageLossWeights) -> Result<Vec<ImageLoss>> {
+    let traj = world.simulate(&world.params());
+    let poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
+    Ok(evaluate_poses(
+        &job.object,
+        &job.scene_pre,
+        &job.frames,
+        &poses,
+        &[],
+        weights,
+    )?)
+}
+
 /// GA's frames explained worst fitted again from the kept PGA world's simulation
 /// ([`PosesFromVideo::refit_worst_from_physics`]), resumed from `ga_pga.json`; GA's frames after it and
 /// the frames replaced.
 fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(Vec<FramePose>, Vec<usize>)> {
     let path = job.stage_file("ga_pga.json");
-    let replaced_of =
-        |r: &[FramePose]| -> Vec<usize> { (0..r.len()).filter(|&k| r[k].start == StartFrom::Pga).collect() };
     if path.exists() {
         let r = read_ga(&path, job.frames.len())?;
         // The file holds GA's poses but where it replaced them (and the still frames that followed a replaced
@@ -1274,14 +1273,14 @@ fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(
         });
         if same {
             tracing::info!("GA from PGA's simulation: from {}", path.display());
-            let replaced = replaced_of(&r);
+            let replaced = (0..r.len()).filter(|&k| r[k].start == StartFrom::Pga).collect();
             return Ok((r, replaced));
         }
         tracing::warn!("{}: from another GA run; fitted again", path.display());
     }
     let traj = world.simulate(&world.params());
     let pb = super::progress(0, "GA from PGA");
-    let (results, rows) = {
+    let (results, replaced, rows) = {
         let mut stage = PosesFromVideo::new(
             job.cfg.ga.clone(),
             &job.object,
@@ -1309,13 +1308,12 @@ fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(
                 "contact_penalty": r.contact_penalty, "in_contact": r.in_contact, "was": ga[k].image.loss})
             })
             .collect();
-        (stage.results, rows)
+        (stage.results, replaced, rows)
     };
     for row in rows {
         job.log(row)?;
     }
     write_ga(job, &path, &results)?;
-    let replaced = replaced_of(&results);
     Ok((results, replaced))
 }
 
