@@ -748,6 +748,33 @@ impl PhysicsFit {
         (held.loss, self.unknowns.values(&held.params))
     }
 
+    /// The weighed squared errors over the current window at the current parameters (each frame's weight
+    /// times its translation error, weighed along the line of sight as the loss does, squared, plus its
+    /// rotation error's), and their degrees of freedom: 6 per observed body and frame whose pose the fit
+    /// can miss (frame 0 only with `fit_initial_pose`: otherwise it is the observation itself).
+    pub(crate) fn squares(&self) -> (f64, usize) {
+        let traj = self.world.simulate(&self.params);
+        let lq = self.cfg.rotation_weight;
+        let mut sum = 0.0;
+        for (k, f) in traj.frames.iter().enumerate() {
+            for (i, &b) in self.bodies.iter().enumerate() {
+                let s = f[b];
+                let obs = &self.poses[i][k];
+                let et = self.translation_error(i, k, s.pose.t - obs.t).norm();
+                let eq: f64 = Self::quat_error(s.pose.q, obs.q).iter().map(|v| v * v).sum();
+                sum += self.weights[i][k] * (et * et + lq * lq * eq);
+            }
+        }
+        let first = usize::from(!self.cfg.fit_initial_pose);
+        let dof = 6 * self.bodies.len() * traj.frames.len().saturating_sub(first);
+        (sum, dof)
+    }
+
+    /// The number of values this fit moves.
+    pub(crate) fn unknown_count(&self) -> usize {
+        self.unknowns.len()
+    }
+
     /// The bounds the contact values keep to.
     pub(crate) fn contact_bounds(&self) -> (f64, f64) {
         (self.cfg.bound_margin, 1.0 - self.cfg.bound_margin)

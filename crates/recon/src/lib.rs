@@ -6,6 +6,7 @@ pub mod contact_penalty;
 pub mod exposure_gain;
 pub mod first_pose_search;
 pub mod fit_physics;
+pub mod flight;
 pub mod image_loss;
 pub mod image_precision;
 pub mod least_squares;
@@ -28,6 +29,7 @@ pub use fit_physics::{
     fit_multi_start, fit_multi_start_bodies, ContactValue, FitError, FitStats, MultiStart, Observed, PhysicsFit,
     PhysicsFitConfig, PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
+pub use flight::{check_flight, first_contact_frame, fit_holding_launch, FlightCheck, MIN_FLIGHT_FRAMES};
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use image_precision::ImagePrecision;
 pub use physics_from_video::{

@@ -52,6 +52,10 @@ pub struct VideoFitConfig {
     /// PGA also starts from each contact pair of [`CONTACT_STARTS`] (the lowest loss wins; `fit` lets the images
     /// overrule it among the starts within a tenth of it, where they tell them apart by a tenth too). Default true.
     pub pga_multi_start: bool,
+    /// PGA's launch is tested against the flight before the first contact ([`crate::flight`]): where it
+    /// misses the flight by more than the poses' noise, the flight's launch is held, the contact values are
+    /// fitted around it, and that world is kept if its simulation explains the video better. Default true.
+    pub flight_test: bool,
     /// The ranges of the fitted contact values that the motion cannot tell apart ([`crate::value_ranges`]),
     /// the initial poses held at their fitted values (`steps = 0`: none).
     pub ranges: RangeScan,
@@ -91,6 +95,7 @@ impl Default for VideoFitConfig {
                 ..PhysicsFitConfig::default()
             },
             pga_multi_start: true,
+            flight_test: true,
             ranges: RangeScan::default(),
             rounds: 1,
         }
