@@ -20,7 +20,7 @@ use recon::video_fit::{
     evaluate_poses, fit_to_poses, ga_weights_of, launch_guess, lift_out, pose_from_guess, total_loss, TOUCHING,
 };
 use recon::{
-    FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
+    FramePose, FrameTarget, ImageLoss, MultiStart, PhysicsFitConfig, PhysicsFromVideo, PoseFitConfig, PoseFromImage,
     PosesFromVideo, StartContact, StartFrom, StartResult, ValueRange, VideoFitConfig,
 };
 use serde::{Deserialize, Serialize};
@@ -1158,21 +1158,7 @@ fn stage_pga(
         for r in start_rows {
             job.log(r)?;
         }
-        // The starts that ended within PGA_TIE of the best fit GA's poses alike: the images choose among them.
-        let pga_losses: Vec<f64> = fit.starts.iter().map(|r| r.loss).collect();
-        let mut scored: Vec<Option<Vec<ImageLoss>>> = vec![None; pga_losses.len()];
-        let winner = among_ties(&pga_losses, PGA_TIE, |i| -> Result<f64> {
-            let w = &fit.worlds[i];
-            let losses = simulation_losses(job, w, &weights_cfg)?;
-            let total = total_loss(&losses);
-            job.log(
-                json!({"stage": "pga", "round": round, "start": i, "tied_image_loss": total,
-                "v0": w.initial[0].v.to_array(), "omega0": w.initial[0].omega.to_array()}),
-            )?;
-            scored[i] = Some(losses);
-            Ok(total)
-        })?;
-        let sim_losses = scored[winner].take().expect("the winner was scored");
+        let (winner, sim_losses) = winner_by_images(job, &fit, json!({"stage": "pga", "round": round}))?;
         let total = total_loss(&sim_losses);
         let world = fit.worlds[winner].clone();
         report_stage(&format!("PGA round {}", round + 1), &world, &sim_losses);
@@ -1303,19 +1289,7 @@ fn launch_from_flight(
     let fit = recon::fit_holding_launch(&cfg, check.flight_world, vec![observed], starts, &mut |_, _| pb.inc(1))
         .map_err(|e| anyhow!("PGA with the flight's launch: {e}"))?;
     pb.finish_and_clear();
-    let weights_cfg = job.cfg.pa.weights.clone();
-    let pga_losses: Vec<f64> = fit.starts.iter().map(|r| r.loss).collect();
-    let mut scored: Vec<Option<Vec<ImageLoss>>> = vec![None; pga_losses.len()];
-    let winner = among_ties(&pga_losses, PGA_TIE, |i| -> Result<f64> {
-        let losses = simulation_losses(job, &fit.worlds[i], &weights_cfg)?;
-        let total = total_loss(&losses);
-        scored[i] = Some(losses);
-        Ok(total)
-    })?;
-    let losses = match scored[winner].take() {
-        Some(l) => l,
-        None => simulation_losses(job, &fit.worlds[winner], &weights_cfg)?,
-    };
+    let (winner, losses) = winner_by_images(job, &fit, json!({"stage": "pga_flight"}))?;
     let total = total_loss(&losses);
     let world = fit.worlds[winner].clone();
     let kept = total < kept_total;
@@ -1416,6 +1390,31 @@ fn stage_ga_from_pga(job: &mut Job, world: &World, ga: &[FramePose]) -> Result<(
 /// apart (the Rapier drop: 2.76 against 3.47; the backdrop slide's 0.748 against 0.755 do not, and the pick
 /// they would have overruled had the launch spin right).
 const PGA_TIE: f64 = 0.1;
+
+/// The start of a PGA multi-start to keep: the starts that ended within [`PGA_TIE`] of the best fit GA's
+/// poses alike, so the images choose among them ([`among_ties`]); with its simulation's image terms. Each
+/// scored start is logged (`row` and the start's image loss and launch).
+fn winner_by_images(job: &mut Job, fit: &MultiStart, row: Value) -> Result<(usize, Vec<ImageLoss>)> {
+    let weights = job.cfg.pa.weights.clone();
+    let pga_losses: Vec<f64> = fit.starts.iter().map(|r| r.loss).collect();
+    let mut scored: Vec<Option<Vec<ImageLoss>>> = vec![None; pga_losses.len()];
+    let winner = among_ties(&pga_losses, PGA_TIE, |i| -> Result<f64> {
+        let w = &fit.worlds[i];
+        let losses = simulation_losses(job, w, &weights)?;
+        let total = total_loss(&losses);
+        let mut r = row.clone();
+        r["start"] = json!(i);
+        r["tied_image_loss"] = json!(total);
+        r["v0"] = json!(w.initial[0].v.to_array());
+        r["omega0"] = json!(w.initial[0].omega.to_array());
+        job.log(r)?;
+        scored[i] = Some(losses);
+        Ok(total)
+    })?;
+    // The pick is within the tie of itself: always scored.
+    let losses = scored[winner].take().expect("the winner was scored");
+    Ok((winner, losses))
+}
 
 /// The start to keep of a multi-start whose starts ended at `losses`: PGA's own pick (the lowest; the first
 /// of equal ones) unless, of the starts within `tie` of it (`(1 + tie)` times its loss), the one `image_loss`
