@@ -523,12 +523,14 @@ impl PhysicsFit {
         self.loss_in(&self.world, p)
     }
 
-    /// Eq. 11's loss of parameters `p` over the frames `world` simulates, summed over the observed bodies.
-    fn loss_in(&self, world: &World, p: &[f64]) -> f64 {
+    /// Each observed body's errors in each frame `world` simulates with parameters `p`: the frame's weight, its
+    /// translation error as the loss weighs it ([`Observed::eye`]) and its rotation error (the quaternion
+    /// error's norm times `rotation_weight`). Frame 0 counts too: it is the initial pose, fitted with
+    /// `fit_initial_pose` (without it, a constant).
+    fn frame_errors(&self, world: &World, p: &[f64]) -> Vec<(f64, f64, f64)> {
         let traj = world.simulate(p);
         let lq = self.cfg.rotation_weight;
-        let mut loss = 0.0;
-        // Frame 0 counts too: it is the initial pose, fitted with `fit_initial_pose` (without it, a constant).
+        let mut out = Vec::with_capacity(traj.frames.len() * self.bodies.len());
         for (k, f) in traj.frames.iter().enumerate() {
             for (i, &b) in self.bodies.iter().enumerate() {
                 let s = f[b];
@@ -540,10 +542,18 @@ impl PhysicsFit {
                     .sum::<f64>()
                     .sqrt()
                     * lq;
-                loss += self.weights[i][k] * (et + eq);
+                out.push((self.weights[i][k], et, eq));
             }
         }
-        loss
+        out
+    }
+
+    /// Eq. 11's loss of parameters `p` over the frames `world` simulates, summed over the observed bodies.
+    fn loss_in(&self, world: &World, p: &[f64]) -> f64 {
+        self.frame_errors(world, p)
+            .iter()
+            .map(|&(w, et, eq)| w * (et + eq))
+            .sum()
     }
 
     /// Residual rows (reweighted for L1) and their Jacobian at the current parameters.
@@ -753,20 +763,10 @@ impl PhysicsFit {
     /// rotation error's), and their degrees of freedom: 6 per observed body and frame whose pose the fit
     /// can miss (frame 0 only with `fit_initial_pose`: otherwise it is the observation itself).
     pub(crate) fn squares(&self) -> (f64, usize) {
-        let traj = self.world.simulate(&self.params);
-        let lq = self.cfg.rotation_weight;
-        let mut sum = 0.0;
-        for (k, f) in traj.frames.iter().enumerate() {
-            for (i, &b) in self.bodies.iter().enumerate() {
-                let s = f[b];
-                let obs = &self.poses[i][k];
-                let et = self.translation_error(i, k, s.pose.t - obs.t).norm();
-                let eq: f64 = Self::quat_error(s.pose.q, obs.q).iter().map(|v| v * v).sum();
-                sum += self.weights[i][k] * (et * et + lq * lq * eq);
-            }
-        }
+        let errors = self.frame_errors(&self.world, &self.params);
+        let sum = errors.iter().map(|&(w, et, eq)| w * (et * et + eq * eq)).sum();
         let first = usize::from(!self.cfg.fit_initial_pose);
-        let dof = 6 * self.bodies.len() * traj.frames.len().saturating_sub(first);
+        let dof = 6 * self.bodies.len() * self.window.saturating_sub(first);
         (sum, dof)
     }
 

@@ -94,7 +94,8 @@ fn first_frames(observed: &[Observed], frames: usize) -> Vec<Observed> {
 
 /// The flight test of `fitted` (a world fitted to `observed` with `cfg`, its initial states as fitted):
 /// `None` when the simulation flies fewer than [`MIN_FLIGHT_FRAMES`] frames before its first contact, never
-/// touches anything within the observed frames, or the flight has no more degrees of freedom than values.
+/// touches anything within the observed frames, `cfg` fits no part of the launch, or the flight has no more
+/// degrees of freedom than values.
 pub fn check_flight(
     cfg: &PhysicsFitConfig,
     fitted: &World,
@@ -118,8 +119,12 @@ pub fn check_flight(
         initial_window: 0,
         ..cfg.clone()
     };
-    let joint =
-        PhysicsFit::new_bodies(flight_cfg, world.clone(), first_frames(observed, frames))?.with_params_of(&world);
+    let joint = match PhysicsFit::new_bodies(flight_cfg, world.clone(), first_frames(observed, frames)) {
+        Ok(fit) => fit.with_params_of(&world),
+        // The settings hold the whole launch: nothing to test.
+        Err(FitError::NothingToFit) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     let (joint_squares, dof) = joint.squares();
     let unknowns = joint.unknown_count();
     if dof <= unknowns {
@@ -145,6 +150,7 @@ pub fn check_flight(
 
 /// The contact values fitted to `observed` with the launch (initial poses, v0, ω0) held at `world`'s, from
 /// `world`'s own values and each of `starts` (the scene's values; as [`fit_multi_start_bodies`]).
+/// [`FitError::NothingToFit`] where `cfg` fits no contact value.
 pub fn fit_holding_launch(
     cfg: &PhysicsFitConfig,
     world: World,

@@ -338,6 +338,16 @@ fn a_launch_the_contacts_bent_is_taken_from_the_flight() {
             flight_error * 100.0
         );
         assert_eq!(check.frames, landing, "the flight ends where the truth lands");
+        let launch_held = PhysicsFitConfig {
+            fit_velocity: false,
+            fit_angular_velocity: false,
+            fit_initial_pose: false,
+            ..cfg.clone()
+        };
+        assert!(
+            recon::check_flight(&launch_held, &joint, &observed).unwrap().is_none(),
+            "settings that hold the launch leave nothing to test"
+        );
         assert_eq!(
             check.bent(),
             other_model,
@@ -346,6 +356,22 @@ fn a_launch_the_contacts_bent_is_taken_from_the_flight() {
             check.critical
         );
         if other_model {
+            let contact_held = PhysicsFitConfig {
+                fit_restitution: false,
+                fit_friction: false,
+                ..cfg.clone()
+            };
+            let nothing = recon::fit_holding_launch(
+                &contact_held,
+                check.flight_world.clone(),
+                observed.clone(),
+                &[],
+                &mut |_, _| {},
+            );
+            assert!(
+                matches!(nothing, Err(recon::FitError::NothingToFit)),
+                "no contact value to fit"
+            );
             let held =
                 recon::fit_holding_launch(&cfg, check.flight_world.clone(), observed, &[], &mut |_, _| {}).unwrap();
             let w = &held.worlds[held.winner];

@@ -1220,7 +1220,7 @@ fn stage_pga(
         if let Some((held, held_total, held_starts)) =
             launch_from_flight(job, &world, total, &ranges_ga, start_contact)?
         {
-            (world, total, starts) = (held, held_total, Some(held_starts));
+            (world, total, starts) = (held, held_total, held_starts);
         }
     }
     tracing::debug!("PGA: kept image loss {total:.4}");
@@ -1240,7 +1240,8 @@ type FitStarts = (Vec<StartResult>, f64);
 /// fitted around it (from the kept world's values and, with `pga_multi_start`, each of
 /// [`recon::CONTACT_STARTS`]; the images choose among the starts within [`PGA_TIE`] as in PGA), kept if its
 /// simulation explains the video better than the kept world's (image loss `kept_total`), with that loss and
-/// its starts; `None` where the launch stands.
+/// its starts (none where the settings fit no contact value: the flight's world as it is); `None` where the
+/// launch stands.
 ///
 /// The images decide, not the test alone: the flight's launch is fitted to a few of GA's poses, whose errors
 /// are not independent from frame to frame (a depth that drifts over the flight), so the test flags a
@@ -1252,7 +1253,7 @@ fn launch_from_flight(
     kept_total: f64,
     ga: &[FramePose],
     start_contact: StartContact,
-) -> Result<Option<(World, f64, FitStarts)>> {
+) -> Result<Option<(World, f64, Option<FitStarts>)>> {
     let cfg = pga_config(job);
     let observed = pga_observed(job, ga, start_contact);
     let check = recon::check_flight(&cfg, world, std::slice::from_ref(&observed))
@@ -1286,23 +1287,33 @@ fn launch_from_flight(
         &[]
     };
     let pb = super::progress(1 + starts.len() as u64, "PGA, launch held");
-    let fit = recon::fit_holding_launch(&cfg, check.flight_world, vec![observed], starts, &mut |_, _| pb.inc(1))
-        .map_err(|e| anyhow!("PGA with the flight's launch: {e}"))?;
+    let held = recon::fit_holding_launch(&cfg, check.flight_world.clone(), vec![observed], starts, &mut |_, _| {
+        pb.inc(1)
+    });
     pb.finish_and_clear();
-    let (winner, losses) = winner_by_images(job, &fit, json!({"stage": "pga_flight"}))?;
+    let (world, losses, fit_starts) = match held {
+        Ok(fit) => {
+            let (winner, losses) = winner_by_images(job, &fit, json!({"stage": "pga_flight"}))?;
+            let starts = (fit.starts.clone(), fit.starts[winner].loss);
+            (fit.worlds[winner].clone(), losses, Some(starts))
+        }
+        // The settings hold the contact values too: the flight's world as it is.
+        Err(recon::FitError::NothingToFit) => {
+            let losses = simulation_losses(job, &check.flight_world, &job.cfg.pa.weights)?;
+            (check.flight_world, losses, None)
+        }
+        Err(e) => bail!("PGA with the flight's launch: {e}"),
+    };
     let total = total_loss(&losses);
-    let world = fit.worlds[winner].clone();
     let kept = total < kept_total;
     report_stage("PGA, the flight's launch held", &world, &losses);
     tracing::info!(
         "the flight's launch held: image loss {total:.3} against {kept_total:.3}: {}",
         if kept { "kept" } else { "not kept" }
     );
-    job.log(
-        json!({"stage": "pga_flight", "winner": winner, "image_loss": total, "kept": kept,
-        "restitution": world.scene_contact[0].restitution, "friction": world.scene_contact[0].friction}),
-    )?;
-    Ok(kept.then(|| (world, total, (fit.starts.clone(), fit.starts[winner].loss))))
+    job.log(json!({"stage": "pga_flight", "image_loss": total, "kept": kept,
+        "restitution": world.scene_contact[0].restitution, "friction": world.scene_contact[0].friction}))?;
+    Ok(kept.then_some((world, total, fit_starts)))
 }
 
 /// The image terms of the body's simulated poses in every frame of the video.
