@@ -14,6 +14,7 @@ pub mod physics_from_video;
 pub mod pose_from_image;
 pub mod poses_from_video;
 pub mod rest;
+pub mod seen_space;
 pub mod target;
 mod unknowns;
 pub mod value_ranges;
@@ -39,6 +40,7 @@ pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{
     FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom, STILL_LOSS_SLACK,
 };
+pub use seen_space::scene_less_seen;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;

@@ -77,6 +77,15 @@ pub struct PosesFromVideoConfig {
     /// former 40 steps the demo drop's frame 11 ended 6.5° off, its image loss twice the true pose's). With
     /// `hypotheses`. 0: never. Default 1.5 (the pass back's).
     pub continue_ratio: f64,
+    /// Then, every frame held on the scene by the contact penalty that is still explained this many times
+    /// worse than the median frame is fitted once more without the penalty, from its own pose and from the
+    /// two frames before carried on, each kept where it explains the frame by [`SWITCH_MARGIN`] better
+    /// than the pose it would replace (the start `unheld`): the penalty reads the reconstructed scene, and where that scene is wrong
+    /// near the body (a concave foot of a wall rounded into a fillet 10–15 mm wide, as NeuS rounds the
+    /// corners it sees at grazing angles), it holds the body off its true pose. The margin keeps the
+    /// penalty where the images cannot tell (a drift along the line of sight changes the loss little).
+    /// 0: never. Default 2.
+    pub unheld_ratio: f64,
     /// A frame after two in which the body stayed still ([`crate::rest::is_still`]) keeps the last fitted
     /// frame's pose, without fitting, where that pose explains it within [`STILL_LOSS_SLACK`] of how it
     /// explained its own frame (its image loss over the window): a body at rest shows the same image
@@ -106,6 +115,7 @@ impl Default for PosesFromVideoConfig {
             end_search_ratio: 2.0,
             end_search: FirstPoseSearchConfig::default(),
             continue_ratio: BACKWARD_LOSS_RATIO,
+            unheld_ratio: 2.0,
             keep_still: true,
         }
     }
@@ -171,6 +181,8 @@ pub enum StartFrom {
     Still,
     /// PGA's simulation, after GA ([`PosesFromVideo::refit_worst_from_physics`]).
     Pga,
+    /// The last pass, without the contact penalty ([`PosesFromVideoConfig::unheld_ratio`]).
+    Unheld,
 }
 
 impl StartFrom {
@@ -185,6 +197,7 @@ impl StartFrom {
             StartFrom::Continued => "continued",
             StartFrom::Still => "still",
             StartFrom::Pga => "pga",
+            StartFrom::Unheld => "unheld",
         }
     }
 }
@@ -212,6 +225,14 @@ impl Start {
     fn held(&self) -> bool {
         !self.held.is_empty() && !self.contacts.is_empty()
     }
+}
+
+/// The contact penalty of a refit ([`PosesFromVideo::replace_if_better_with`]).
+enum Penalty {
+    /// The points near the scene at the start kept from sinking, and held on these sides of it.
+    Held(Vec<Vec3<f64>>),
+    /// None: the images alone.
+    None,
 }
 
 /// Starts closer than this (m, rad) to an earlier one are not fitted again.
@@ -530,11 +551,46 @@ impl<'a> PosesFromVideo<'a> {
     fn continue_fit(&mut self, k: usize) -> Result<bool, PosesFromVideoError> {
         let pose = self.results[k].pose;
         let held = self.sides_held_at(k);
+        let scale = self.step_scale(self.pace_around(k));
+        self.replace_if_better(k, pose, scale, held, StartFrom::Continued, 0.0)
+    }
+
+    /// The pace between fitted frame `k` and the fitted frames beside it, the faster.
+    fn pace_around(&self, k: usize) -> f64 {
+        let pose = self.results[k].pose;
         let fitted = |j: usize| self.results.get(j).filter(|r| r.fitted).map(|r| r.pose);
         let before = k.checked_sub(1).and_then(fitted).map_or(0.0, |p| pace(&p, &pose));
         let after = fitted(k + 1).map_or(0.0, |p| pace(&pose, &p));
-        let scale = self.step_scale(before.max(after));
-        self.replace_if_better(k, pose, scale, held, StartFrom::Continued, 0.0)
+        before.max(after)
+    }
+
+    /// Whether fitted frame `k` was held on the scene and is explained
+    /// [`PosesFromVideoConfig::unheld_ratio`] times worse than the median frame.
+    fn held_and_poorly_explained(&self, k: usize) -> bool {
+        let r = &self.results[k];
+        let median = median_fitted_loss(self.results.iter().map(|r| (r.image.loss, r.fitted)));
+        self.cfg.unheld_ratio > 0.0
+            && r.fitted
+            && r.in_contact
+            && median.is_some_and(|m| r.image.loss > self.cfg.unheld_ratio * m)
+    }
+
+    /// Frame `k` fitted without the contact penalty from its own pose and from the two frames before it
+    /// carried on ([`PosesFromVideoConfig::unheld_ratio`]); each kept where it explains the frame by
+    /// [`SWITCH_MARGIN`] better than the pose it would replace.
+    fn fit_unheld(&mut self, k: usize) -> Result<(), PosesFromVideoError> {
+        let mut starts = vec![self.results[k].pose];
+        if k >= 2 && self.results[k - 2].fitted && self.results[k - 1].fitted {
+            let carried = carried_on(&self.results[k - 2].pose, &self.results[k - 1].pose);
+            starts.push(self.frames[k].centred_on_mask(&carried));
+        }
+        for start in starts {
+            let scale = self.step_scale(pace(&self.results[k].pose, &start).max(self.pace_around(k)));
+            let replaced =
+                self.replace_if_better_with(k, start, scale, Penalty::None, StartFrom::Unheld, SWITCH_MARGIN)?;
+            tracing::debug!("frame {k}: unheld start at {:?} (replaced: {replaced})", start.t);
+        }
+        Ok(())
     }
 
     /// Frame `k` fitted again from the next two frames carried back; kept if it explains the image better.
@@ -573,6 +629,19 @@ impl<'a> PosesFromVideo<'a> {
         from: StartFrom,
         margin: f64,
     ) -> Result<bool, PosesFromVideoError> {
+        self.replace_if_better_with(k, start, scale, Penalty::Held(held), from, margin)
+    }
+
+    /// [`Self::replace_if_better`] with the contact penalty `penalty`.
+    fn replace_if_better_with(
+        &mut self,
+        k: usize,
+        start: Pose<f64>,
+        scale: f64,
+        penalty: Penalty,
+        from: StartFrom,
+        margin: f64,
+    ) -> Result<bool, PosesFromVideoError> {
         let n = self.results.len();
         let cfg = PoseFitConfig {
             seed: self.cfg.pose.seed.wrapping_add((n + k) as u64),
@@ -581,7 +650,10 @@ impl<'a> PosesFromVideo<'a> {
             ..self.cfg.pose.clone()
         };
         let frame = &self.frames[k];
-        let contacts = self.touching(&start, &held);
+        let (contacts, held) = match penalty {
+            Penalty::Held(held) => (self.touching(&start, &held), held),
+            Penalty::None => (Vec::new(), Vec::new()),
+        };
         let holds = !held.is_empty();
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
@@ -964,6 +1036,9 @@ impl<'a> PosesFromVideo<'a> {
                     match self.continuing.pop() {
                         Some(j) => {
                             self.continue_fit(j)?;
+                            if self.held_and_poorly_explained(j) {
+                                self.fit_unheld(j)?;
+                            }
                             Ok(Some(&self.results[j]))
                         }
                         None => Ok(None),

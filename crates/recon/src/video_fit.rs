@@ -63,6 +63,10 @@ pub struct VideoFitConfig {
     /// trajectory. Default 1: on the tabletop slide a second round (another GA, 3 minutes of a 48-frame
     /// fit) never lowered it.
     pub rounds: usize,
+    /// PGA and everything after it simulate in the scene less the space GA saw the body in
+    /// ([`crate::seen_space`]): a reconstructed scene's fillet at a wall's foot otherwise kicks the simulated
+    /// body up where the images show it pressed into the corner. Default true.
+    pub carve_scene: bool,
 }
 
 impl Default for VideoFitConfig {
@@ -98,6 +102,7 @@ impl Default for VideoFitConfig {
             flight_test: true,
             ranges: RangeScan::default(),
             rounds: 1,
+            carve_scene: true,
         }
     }
 }

@@ -438,6 +438,11 @@ pub fn run(a: FitArgs) -> Result<()> {
         return Ok(());
     }
     let t = Instant::now();
+    let start_world = if job.cfg.carve_scene {
+        carve_seen_space(&mut job, start_world, &ga)?
+    } else {
+        start_world
+    };
     let (final_world, final_ga, rounds, ranges) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(rounds));
@@ -614,6 +619,23 @@ pub(super) fn scene_grid(
         path.display()
     );
     Ok(g)
+}
+
+/// `world` (and the job's) in the scene less the space GA saw the body in ([`recon::seen_space`]), written
+/// to `scene_carved.sdf` for `simulate` to replay the fit.
+fn carve_seen_space(job: &mut Job, mut world: World, ga: &[FramePose]) -> Result<World> {
+    let slack = job.cfg.ga.contact.image_slack;
+    let Some((scene, raised)) = recon::scene_less_seen(&world, 0, ga, &job.frames, slack) else {
+        return Ok(world);
+    };
+    if let sim::sdf::Shape::Grid(grid) = &scene {
+        grid.save(&job.out.join("scene_carved.sdf"))?;
+    }
+    tracing::info!("the scene less the space GA saw the body in: {raised} grid nodes raised");
+    job.log(json!({"stage": "carve", "nodes_raised": raised}))?;
+    world.scene = scene.clone();
+    job.world.scene = scene;
+    Ok(world)
 }
 
 /// The world at the first pose with the launch guess (PA's start, or PGA's with `--no-pa`).

@@ -5,6 +5,7 @@
 //! the normal at a contact carries derivatives (its Hessian-vector products)
 //! into the impulse.
 
+mod carve;
 mod sdf_grid;
 mod sdf_mesh;
 mod shape;
