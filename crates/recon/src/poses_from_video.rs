@@ -79,7 +79,7 @@ pub struct PosesFromVideoConfig {
     pub continue_ratio: f64,
     /// Then, every frame held on the scene by the contact penalty that is still explained this many times
     /// worse than the median frame is fitted once more without the penalty, from its own pose and from the
-    /// two frames before carried on, each kept where it explains the frame by [`SWITCH_MARGIN`] better
+    /// two frames before carried on, each kept where it explains the frame by a tenth (`SWITCH_MARGIN`) better
     /// than the pose it would replace (the start `unheld`): the penalty reads the reconstructed scene, and where that scene is wrong
     /// near the body (a concave foot of a wall rounded into a fillet 10–15 mm wide, as NeuS rounds the
     /// corners it sees at grazing angles), it holds the body off its true pose. The margin keeps the
