@@ -11,37 +11,42 @@
 //! [`crate::contact_penalty`]): a pose that merely grazes the scene within
 //! what its image tells cuts nothing.
 
-use crate::{FramePose, FrameTarget, ImagePrecision};
-use geom::Pose;
+use crate::{FramePose, ImagePrecision};
+use geom::{Camera, Pose};
 use sim::sdf::Shape;
 use sim::World;
 use std::sync::Arc;
 
-/// `world`'s scene with body `body` cut out at each pose GA fitted (`ga`, one per frame of `frames`), each
-/// shrunk by `slack` standard deviations of its image's precision along the scene's normal; and the grid
-/// nodes raised. `None` when the scene is not a baked grid (an analytic scene is taken as exact).
+/// `world`'s scene with each body of `seen` (its index, and GA's frames of it) cut out at every pose GA
+/// fitted, shrunk by `slack` standard deviations of the precision `camera`'s image places it to along the
+/// scene's normal; and the grid nodes raised. `None` when the scene is not a baked grid (an analytic scene
+/// is taken as exact).
 pub fn scene_less_seen(
     world: &World,
-    body: usize,
-    ga: &[FramePose],
-    frames: &[FrameTarget],
+    seen: &[(usize, &[FramePose])],
+    camera: &Camera<f64>,
     slack: f64,
 ) -> Option<(Shape, usize)> {
     let Shape::Grid(grid) = &world.scene else {
         return None;
     };
-    let b = &world.bodies[body];
-    let seen: Vec<(Pose<f64>, ImagePrecision)> = ga
-        .iter()
-        .zip(frames)
-        .filter(|(r, _)| r.fitted)
-        .map(|(r, f)| (r.pose, ImagePrecision::of(&f.camera, &r.pose, 2.0 * b.bounding_radius)))
-        .collect();
-    let poses: Vec<Pose<f64>> = seen.iter().map(|(p, _)| *p).collect();
-    let (carved, raised) = grid.carved(&b.sdf, b.bounding_radius, &poses, |k, normal| {
-        slack * seen[k].1.along_direction(normal)
-    });
-    Some((Shape::Grid(Arc::new(carved)), raised))
+    let mut grid = (**grid).clone();
+    let mut raised = 0;
+    for &(body, ga) in seen {
+        let b = &world.bodies[body];
+        let fitted: Vec<(Pose<f64>, ImagePrecision)> = ga
+            .iter()
+            .filter(|r| r.fitted)
+            .map(|r| (r.pose, ImagePrecision::of(camera, &r.pose, 2.0 * b.bounding_radius)))
+            .collect();
+        let poses: Vec<Pose<f64>> = fitted.iter().map(|(p, _)| *p).collect();
+        let (carved, n) = grid.carved(&b.sdf, b.bounding_radius, &poses, |k, normal| {
+            slack * fitted[k].1.along_direction(normal)
+        });
+        grid = carved;
+        raised += n;
+    }
+    Some((Shape::Grid(Arc::new(grid)), raised))
 }
 
 #[cfg(test)]
@@ -97,30 +102,24 @@ mod tests {
         }
     }
 
-    fn frame() -> FrameTarget {
+    fn camera() -> Camera<f64> {
         let (w, h) = (320, 240);
-        FrameTarget {
-            camera: Camera::look_at(
-                Vec3::new(0.0, -0.3, 0.3),
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(0.0, 0.0, 1.0),
-                Intrinsics::centred(1.2 * w as f64, w, h),
-                w,
-                h,
-            ),
-            rgb: Vec::new(),
-            mask: Vec::new(),
-            exposure: 1.0,
-        }
+        Camera::look_at(
+            Vec3::new(0.0, -0.3, 0.3),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Intrinsics::centred(1.2 * w as f64, w, h),
+            w,
+            h,
+        )
     }
 
     #[test]
     fn the_bump_the_images_saw_the_body_rest_on_is_cut_away() {
         let w = world(true);
-        let frames = [frame(), frame()];
         // Seen resting on the board over the bump; a frame GA did not fit, sunk deep, cuts nothing.
         let ga = [seen_at([0.0, 0.0, 0.02], true), seen_at([0.05, 0.0, 0.0], false)];
-        let (scene, raised) = scene_less_seen(&w, 0, &ga, &frames, 1.0).expect("a baked scene");
+        let (scene, raised) = scene_less_seen(&w, &[(0, &ga)], &camera(), 1.0).expect("a baked scene");
         assert!(raised > 0);
         let d = |s: &Shape, x: f64, z: f64| s.distance_local(Vec3::new(x, 0.0, z));
         // The bump's top under the block: 4 mm inside the scene's surface before, free after.
@@ -131,6 +130,6 @@ mod tests {
             assert_eq!(d(&scene, x, -0.002), d(&w.scene, x, -0.002));
         }
         // An exact scene is not cut.
-        assert!(scene_less_seen(&world(false), 0, &ga, &frames, 1.0).is_none());
+        assert!(scene_less_seen(&world(false), &[(0, &ga)], &camera(), 1.0).is_none());
     }
 }

@@ -438,11 +438,7 @@ pub fn run(a: FitArgs) -> Result<()> {
         return Ok(());
     }
     let t = Instant::now();
-    let start_world = if job.cfg.carve_scene {
-        carve_seen_space(&mut job, start_world, &ga)?
-    } else {
-        start_world
-    };
+    let start_world = carve_seen_space(&mut job, start_world, &ga)?;
     let (final_world, final_ga, rounds, ranges) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(rounds));
@@ -621,21 +617,41 @@ pub(super) fn scene_grid(
     Ok(g)
 }
 
-/// `world` (and the job's) in the scene less the space GA saw the body in ([`recon::seen_space`]), written
-/// to `scene_carved.sdf` for `simulate` to replay the fit.
+/// `world` (and the job's) in the scene less the space GA saw the body in ([`carved_scene`]).
 fn carve_seen_space(job: &mut Job, mut world: World, ga: &[FramePose]) -> Result<World> {
-    let slack = job.cfg.ga.contact.image_slack;
-    let Some((scene, raised)) = recon::scene_less_seen(&world, 0, ga, &job.frames, slack) else {
-        return Ok(world);
-    };
-    if let sim::sdf::Shape::Grid(grid) = &scene {
-        grid.save(&job.out.join("scene_carved.sdf"))?;
+    let camera = job.frames[0].camera;
+    if let Some((scene, raised)) = carved_scene(&world, &[(0, ga)], &camera, &job.cfg) {
+        job.log(json!({"stage": "carve", "nodes_raised": raised}))?;
+        world.scene = scene.clone();
+        job.world.scene = scene;
+        save_carved_scene(&world, &job.out)?;
     }
-    tracing::info!("the scene less the space GA saw the body in: {raised} grid nodes raised");
-    job.log(json!({"stage": "carve", "nodes_raised": raised}))?;
-    world.scene = scene.clone();
-    job.world.scene = scene;
     Ok(world)
+}
+
+/// With `carve_scene`, `world`'s scene less the space GA saw each body of `seen` in ([`recon::seen_space`]),
+/// and the grid nodes raised.
+pub(super) fn carved_scene(
+    world: &World,
+    seen: &[(usize, &[FramePose])],
+    camera: &Camera<f64>,
+    cfg: &VideoFitConfig,
+) -> Option<(sim::sdf::Shape, usize)> {
+    if !cfg.carve_scene {
+        return None;
+    }
+    let (scene, raised) = recon::scene_less_seen(world, seen, camera, cfg.ga.contact.image_slack)?;
+    tracing::info!("the scene less the space GA saw the bodies in: {raised} grid nodes raised");
+    Some((scene, raised))
+}
+
+/// The scene grid the final world simulates in, as `out/scene_carved.sdf` (`bake`'s format: a scene file's
+/// `grid` shape replays the fit with it).
+pub(super) fn save_carved_scene(world: &World, out: &Path) -> Result<()> {
+    if let sim::sdf::Shape::Grid(grid) = &world.scene {
+        grid.save(&out.join("scene_carved.sdf"))?;
+    }
+    Ok(())
 }
 
 /// The world at the first pose with the launch guess (PA's start, or PGA's with `--no-pa`).

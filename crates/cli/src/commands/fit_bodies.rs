@@ -213,6 +213,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         return Ok(());
     }
     let t = Instant::now();
+    carve_seen_space(&mut m, &mut log, &tracked)?;
     let first_round = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
     time("pga_tracked", t);
     // GA again from that simulation (the one-body fit's GA from PA), then PGA on its poses; the round whose
@@ -221,6 +222,7 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     let ga = stage_ga(&m, &mut log, &first, Some(&first_round.world), "ga.json", true)?;
     time("ga", t);
     let t = Instant::now();
+    carve_seen_space(&mut m, &mut log, &ga)?;
     let second_round = stage_pga(&m, &mut log, &ga, "pga.json")?;
     time("pga", t);
     let (first_losses, second_losses) = (
@@ -243,10 +245,25 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
         (first_round, &tracked, first_losses)
     };
     kept.write_schedule(&m)?;
+    if m.cfg.carve_scene {
+        super::fit::save_carved_scene(&kept.world, &m.out)?;
+    }
     let t = Instant::now();
     let ranges = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
     time("ranges", t);
     finish(&m, &kept.world, &stand_ins, losses, &ranges, &timings, t_start)
+}
+
+/// The scene less the space GA (`ga`, per body) saw every body in, for the PGA round after it
+/// ([`super::fit::carved_scene`]; each round's world keeps the scene it was fitted in).
+fn carve_seen_space(m: &mut Multi, log: &mut Log, ga: &[Vec<FramePose>]) -> Result<()> {
+    let seen: Vec<(usize, &[FramePose])> = ga.iter().enumerate().map(|(b, g)| (b, g.as_slice())).collect();
+    let camera = m.bodies[0].frames[0].camera;
+    if let Some((scene, raised)) = super::fit::carved_scene(&m.world, &seen, &camera, &m.cfg) {
+        log.write(json!({"stage": "carve", "nodes_raised": raised}))?;
+        m.world.scene = scene;
+    }
+    Ok(())
 }
 
 /// Per body and frame, the GA pose of `a` or `b` with the lower image loss (a fitted one before one that
