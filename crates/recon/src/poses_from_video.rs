@@ -567,12 +567,9 @@ impl<'a> PosesFromVideo<'a> {
     /// Whether fitted frame `k` was held on the scene and is explained
     /// [`PosesFromVideoConfig::unheld_ratio`] times worse than the median frame.
     fn held_and_poorly_explained(&self, k: usize) -> bool {
-        let r = &self.results[k];
-        let median = median_fitted_loss(self.results.iter().map(|r| (r.image.loss, r.fitted)));
         self.cfg.unheld_ratio > 0.0
-            && r.fitted
-            && r.in_contact
-            && median.is_some_and(|m| r.image.loss > self.cfg.unheld_ratio * m)
+            && self.results[k].in_contact
+            && self.explained_worse_than(self.cfg.unheld_ratio).contains(&k)
     }
 
     /// Frame `k` fitted without the contact penalty from its own pose and from the two frames before it
@@ -586,9 +583,8 @@ impl<'a> PosesFromVideo<'a> {
         }
         for start in starts {
             let scale = self.step_scale(pace(&self.results[k].pose, &start).max(self.pace_around(k)));
-            let replaced =
-                self.replace_if_better_with(k, start, scale, Penalty::None, StartFrom::Unheld, SWITCH_MARGIN)?;
-            tracing::debug!("frame {k}: unheld start at {:?} (replaced: {replaced})", start.t);
+            // `replace_if_better_with` logs the two losses.
+            self.replace_if_better_with(k, start, scale, Penalty::None, StartFrom::Unheld, SWITCH_MARGIN)?;
         }
         Ok(())
     }

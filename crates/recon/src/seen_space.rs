@@ -30,23 +30,25 @@ pub fn scene_less_seen(
     let Shape::Grid(grid) = &world.scene else {
         return None;
     };
-    let mut grid = (**grid).clone();
+    let mut grid = Arc::clone(grid);
     let mut raised = 0;
     for &(body, ga) in seen {
         let b = &world.bodies[body];
-        let fitted: Vec<(Pose<f64>, ImagePrecision)> = ga
+        let mut fitted: Vec<(Pose<f64>, ImagePrecision)> = ga
             .iter()
             .filter(|r| r.fitted)
             .map(|r| (r.pose, ImagePrecision::of(camera, &r.pose, 2.0 * b.bounding_radius)))
             .collect();
+        // A body at rest keeps one pose over many frames (GA's still frames): it cuts once.
+        fitted.dedup_by(|a, b| a.0 == b.0);
         let poses: Vec<Pose<f64>> = fitted.iter().map(|(p, _)| *p).collect();
         let (carved, n) = grid.carved(&b.sdf, b.bounding_radius, &poses, |k, normal| {
             slack * fitted[k].1.along_direction(normal)
         });
-        grid = carved;
+        grid = Arc::new(carved);
         raised += n;
     }
-    Some((Shape::Grid(Arc::new(grid)), raised))
+    Some((Shape::Grid(grid), raised))
 }
 
 #[cfg(test)]

@@ -589,9 +589,7 @@ fn a_still_body_keeps_its_pose_and_one_that_moves_on_is_fitted() {
     // then is pushed 8 mm along x in frame 6 and 8 more in frame 7. PA keeps it at rest throughout. Its
     // rotation is not fitted (the sphere's faint colours tell it to a few degrees only), so the resting
     // fits differ by their translations alone.
-    let mut rest_world = world([0.0; 3], TRUTH);
-    rest_world.config.frames = 8;
-    rest_world.initial[0] = sim::BodyState::new([-0.02, 0.01, RADIUS], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+    let rest_world = resting_world(8, [-0.02, 0.01]);
     let pa = rest_world.simulate(&rest_world.params());
     let mut poses = vec![pa.frames[0][0].pose; 8];
     poses[6].t.x += 0.008;
@@ -684,9 +682,7 @@ fn a_frame_held_off_its_pose_by_a_wrongly_reconstructed_scene_is_fitted_by_the_i
     // turn it); PA has it right. The scene the contact penalty reads has a bump 8 mm high under the block's
     // last place alone (as a reconstructed scene rounds the foot of a wall into a fillet the body truly
     // presses into); the images show the block on the board.
-    let mut truth = world([0.0; 3], TRUTH);
-    truth.config.frames = 5;
-    truth.initial[0] = sim::BodyState::new([-0.04, 0.02, RADIUS], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+    let truth = resting_world(5, [-0.04, 0.02]);
     let mut pa = truth.simulate(&truth.params());
     let bumped = pa.frames.len() - 1;
     pa.frames[bumped][0].pose.t.x += 0.1;

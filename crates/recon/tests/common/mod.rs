@@ -83,6 +83,14 @@ pub fn world(v0: [f64; 3], contact: ContactParams) -> World {
     w
 }
 
+/// The block resting unturned on the board at `(x, y)` for `frames` frames.
+pub fn resting_world(frames: usize, [x, y]: [f64; 2]) -> World {
+    let mut w = world([0.0; 3], TRUTH);
+    w.config.frames = frames;
+    w.initial[0] = BodyState::new([x, y, RADIUS], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+    w
+}
+
 /// The scene pre-rendered through the camera, and each frame of `world`'s simulation rendered over it
 /// (mask: the body's opacity above ½).
 pub fn film(ball: &ObjectModel, world: &World) -> (Vec<ComposedRay>, Vec<FrameTarget>) {
