@@ -64,8 +64,10 @@ pub struct SimConfig {
 #[serde(rename_all = "snake_case")]
 pub enum ContactModel {
     /// The paper's: one impulse at the mean of the colliding points, plus torsional friction of the patch.
-    /// It cannot tip a body over an edge or rock it on its support, and its derivatives drift once a body
-    /// rests on a face (a turn about the impulse's point is free in them; see the README).
+    /// It cannot tip a body over an edge or rock it on its support. A turn about the impulse's point is
+    /// free in its derivatives (the values stay flat only because the colliding set shifts), so where a
+    /// body rests or slides on a face over its centre of mass the derivatives of its tilt rate are held
+    /// at zero (a tilt hold; the values are untouched; see the README).
     #[default]
     MeanPoint,
     /// Each patch of colliding points (grouped by normal) reduced to at most four points spanning its

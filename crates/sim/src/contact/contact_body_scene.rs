@@ -3,7 +3,7 @@
 use super::contact_set::select_contacts;
 use super::sequential_impulses::{solve, Law, Row, Side};
 use super::support_point::{Near, Touch};
-use super::{angular_term, contact_impulse, torsional_impulse, world_inertia_inv, Detection};
+use super::{angular_term, contact_impulse, hold_tilt_derivatives, torsional_impulse, world_inertia_inv, Detection};
 use crate::config::ContactModel;
 use crate::sdf::{Sdf, Shape};
 use crate::{BodyState, RigidBody};
@@ -80,12 +80,24 @@ pub(crate) fn contact_body_scene<S: Real>(
             let k = Mat3::identity()
                 .scale(S::cst(1.0 / body.mass))
                 .sub(&angular_term(r, &iw_inv));
+            let resting = -vc.dot(n).re() < det.restitution_threshold;
             if let Some(j) = contact_impulse(vc, n, &k, restitution, friction, det) {
                 st.v += j * S::cst(1.0 / body.mass);
                 st.omega += iw_inv.mul_vec(r.cross(j));
                 let radius = near.patch_radius(&colliding);
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
+                if resting {
+                    let patch: Vec<Vec3<f64>> = colliding.iter().map(|c| c.at).collect();
+                    hold_tilt_derivatives(
+                        &mut st.omega,
+                        n.re(),
+                        &patch,
+                        st.pose.t.re(),
+                        &iw_inv.re(),
+                        j.dot(n).re(),
+                    );
+                }
                 hit = 1;
             }
         }
