@@ -7,9 +7,9 @@
 //!    ([`first_contacts`]);
 //! 2. the launches (and the scene's values) on the frames before the first
 //!    collision, where no pair value matters;
-//! 3. each body's state after the first collision and the scene's values,
+//! 3. each body's state after the first collision and the scene's friction,
 //!    on the frames from there to the next collision (how the bodies slide
-//!    and settle tells the board's values better than a short launch);
+//!    and settle tells the board's friction better than a short launch);
 //! 4. for each pair that meets, in order, its restitution and friction from
 //!    a grid of starts, with the scene's values held, each a fit over the
 //!    whole video whose first window ends just past the collision (the
@@ -351,8 +351,15 @@ pub fn fit_colliding_bodies(
                 ..observed.span(b, from, to)
             })
             .collect();
+        // The board's restitution is held: these frames slide and settle, nothing in them bounces, so no
+        // loss there tells it, and a fit left free wanders to a bound (a toy that starts half a millimetre
+        // over the board then hops through the whole video).
+        let sliding = PhysicsFitConfig {
+            fit_restitution: false,
+            ..no_pairs.clone()
+        };
         let label = format!("after the first collision, frames {from}-{}", to - 1);
-        let (fitted, _) = run(label, no_pairs.clone(), after, obs, StartsOn::Scene, grid)?;
+        let (fitted, _) = run(label, sliding, after, obs, StartsOn::Scene, grid)?;
         world.scene_contact = fitted.scene_contact;
     }
     // Each pair where its bodies meet, with the scene's values held: the pair's alone explain the exchange.
