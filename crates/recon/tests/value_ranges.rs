@@ -107,11 +107,14 @@ fn restitution_and_friction(v0: [f64; 3]) -> (ValueRange, ValueRange, String) {
 }
 
 #[test]
-fn a_throw_pins_both_values() {
-    // Measured: restitution 0.600 in 0.45–0.61, friction 0.22 in 0.17–0.41.
+fn a_throw_bounds_both_values() {
+    // Measured: restitution 0.600 in 0.45–0.61, friction 0.22 in 0.17–0.41. With the mean-point model's tilt
+    // hold (2026-11-30) the refits of the other values at each grid value follow the sliding box better, and
+    // the ranges widen: restitution 0.600 in 0.34–0.61, friction 0.22 in 0.17–0.999 (the motion bounds
+    // friction from below only).
     let (r, f, msg) = restitution_and_friction([0.6, 0.0, 0.0]);
-    assert!(r.contains(0.6) && r.hi - r.lo < 0.2, "{msg}");
-    assert!(f.contains(0.3) && f.hi - f.lo < 0.5, "{msg}");
+    assert!(r.contains(0.6) && r.hi - r.lo < 0.3, "{msg}");
+    assert!(f.contains(0.3) && f.lo > 0.1, "{msg}");
 }
 
 #[test]
