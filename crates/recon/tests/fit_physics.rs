@@ -103,7 +103,7 @@ fn recovers_velocity_and_contact_parameters_from_its_own_poses() {
 #[test]
 fn a_slide_launched_in_the_plane_of_the_board_stays_in_it() {
     // Both contact models: the derivatives of each hold a face flat on the board (the mean-point model's
-    // through its tilt hold; without it they drifted once the box slid, and this fit stalled 35 mm off).
+    // through its tilt hold; without it they drifted once the box slid, and this fit stalled with v0 6.7 % off).
     for model in [sim::ContactModel::MeanPoint, sim::ContactModel::MultiPoint] {
         slide_in_the_plane_of_the_board(model);
     }
