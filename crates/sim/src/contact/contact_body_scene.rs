@@ -88,11 +88,10 @@ pub(crate) fn contact_body_scene<S: Real>(
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
                 if resting {
-                    let patch: Vec<Vec3<f64>> = colliding.iter().map(|c| c.at).collect();
                     hold_tilt_derivatives(
                         &mut st.omega,
                         n.re(),
-                        &patch,
+                        &colliding,
                         st.pose.t.re(),
                         &iw_inv.re(),
                         j.dot(n).re(),

@@ -132,12 +132,12 @@ pub(crate) fn torsional_impulse<S: Real>(spin_n: S, inv_inertia_n: S, jn: S, fri
 /// Only a body whose centre of mass stands over the patch is held: one rocking or sliding on a corner,
 /// its centre beside the few points that touch, tilts in its values too.
 ///
-/// `patch`: the colliding points (world), `centre`: the body's centre of mass (world), `n`: the contact
+/// `patch`: the colliding points (their world positions are read), `centre`: the body's centre of mass (world), `n`: the contact
 /// normal, `jn`: the normal impulse of the substep.
 pub(crate) fn hold_tilt_derivatives<S: Real>(
     omega: &mut Vec3<S>,
     n: Vec3<f64>,
-    patch: &[Vec3<f64>],
+    patch: &[contact_set::Colliding],
     centre: Vec3<f64>,
     inertia_inv_world: &Mat3<f64>,
     jn: f64,
@@ -146,11 +146,11 @@ pub(crate) fn hold_tilt_derivatives<S: Real>(
         return;
     }
     let count = patch.len() as f64;
-    let mean = patch.iter().fold(Vec3::zero(), |a, &p| a + p) * (1.0 / count);
+    let mean = patch.iter().fold(Vec3::zero(), |a, p| a + p.at) * (1.0 / count);
     let (t1, t2) = sequential_impulses::tangents(n);
     let (mut c11, mut c22, mut c12) = (0.0, 0.0, 0.0);
-    for &p in patch {
-        let (a, b) = ((p - mean).dot(t1), (p - mean).dot(t2));
+    for p in patch {
+        let (a, b) = ((p.at - mean).dot(t1), (p.at - mean).dot(t2));
         c11 += a * a / count;
         c22 += b * b / count;
         c12 += a * b / count;
