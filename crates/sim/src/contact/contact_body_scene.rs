@@ -1,6 +1,6 @@
 //! One body against the static scene, for one substep.
 
-use super::contact_set::select_contacts;
+use super::contact_set::{patches, select_contacts, Colliding};
 use super::sequential_impulses::{solve, Law, Row, Side};
 use super::support_point::{Near, Touch};
 use super::{angular_term, contact_impulse, hold_tilt_derivatives, torsional_impulse, world_inertia_inv, Detection};
@@ -10,7 +10,7 @@ use crate::{BodyState, RigidBody};
 use geom::{Mat3, Real, Vec3};
 
 /// Apply the contact impulse (if any point collides) and push the body out of
-/// the scene if it has sunk in. Returns how many points pushed (0: none).
+/// the scene if it has sunk in. Returns how many points (multi-point) or patches (mean-point) pushed (0: none).
 pub(crate) fn contact_body_scene<S: Real>(
     body: &RigidBody,
     st: &mut BodyState<S>,
@@ -72,9 +72,18 @@ pub(crate) fn contact_body_scene<S: Real>(
         };
         hit = solve(&mut side, None, &rows, &Law::of(restitution, friction, det));
     } else if !colliding.is_empty() {
-        let r = rot.mul_vec(near.mean(&colliding, local));
-        let (_, g) = scene.distance_grad_local(st.pose.t + r);
-        if let Some(n) = g.try_normalize() {
+        // One averaged point per patch: a face pressed against a wall while it slides on the board is two
+        // contacts. Averaged together their mean lies inside the body, nearer the board, and takes the
+        // board's normal, so the wall's push is lost (the body sinks into the wall until the wall's
+        // points alone collide).
+        let patches = patches(&colliding);
+        let mut patch: Vec<Colliding> = Vec::with_capacity(colliding.len());
+        for members in &patches {
+            patch.clear();
+            patch.extend(members.iter().map(|&i| colliding[i]));
+            let r = rot.mul_vec(near.mean(&patch, local));
+            let (_, g) = scene.distance_grad_local(st.pose.t + r);
+            let Some(n) = g.try_normalize() else { continue };
             let vc = st.v + st.omega.cross(r);
             let iw_inv = world_inertia_inv(&rot, &body.inertia_inv);
             let k = Mat3::identity()
@@ -84,20 +93,20 @@ pub(crate) fn contact_body_scene<S: Real>(
             if let Some(j) = contact_impulse(vc, n, &k, restitution, friction, det) {
                 st.v += j * S::cst(1.0 / body.mass);
                 st.omega += iw_inv.mul_vec(r.cross(j));
-                let radius = near.patch_radius(&colliding);
+                let radius = near.patch_radius(&patch);
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
                 if resting {
                     hold_tilt_derivatives(
                         &mut st.omega,
                         n.re(),
-                        &colliding,
+                        &patch,
                         st.pose.t.re(),
                         &iw_inv.re(),
                         j.dot(n).re(),
                     );
                 }
-                hit = 1;
+                hit += 1;
             }
         }
     }

@@ -1,11 +1,12 @@
-//! Which colliding points a multi-point contact solves (plain numbers: the
-//! choice is discrete, its derivative zero). Colliding points are grouped by
-//! their surface normal (a corner on the board and a face against a wall are
-//! two patches), and each patch is reduced to at most four points that span
-//! its support polygon, as engines reduce a contact manifold: the deepest
-//! point, the one farthest from it, the one farthest from their line, and the
-//! one that adds the most area. A body then rests on its support polygon,
-//! rocks about an edge and tips over one, which a single averaged point cannot.
+//! Colliding points grouped into contact patches by their surface normal (a
+//! corner on the board and a face against a wall are two patches; plain
+//! numbers: the choice is discrete, its derivative zero). The mean-point model
+//! averages each patch; the multi-point model reduces each to at most four
+//! points that span its support polygon, as engines reduce a contact manifold:
+//! the deepest point, the one farthest from it, the one farthest from their
+//! line, and the one that adds the most area. A body then rests on its support
+//! polygon, rocks about an edge and tips over one, which a single averaged
+//! point cannot.
 
 use geom::Vec3;
 
@@ -26,23 +27,41 @@ const SAME_PATCH_COS: f64 = 0.866;
 /// At most this many patches per body pair (the rest are rare and tiny).
 const MAX_PATCHES: usize = 3;
 
-/// The points to solve, as indices into `points`: at most four per patch.
-pub(crate) fn select_contacts(points: &[Colliding], out: &mut Vec<usize>) {
-    out.clear();
+/// The colliding points grouped into patches, deepest first, as indices into `points` (each in their
+/// order there): a patch is the points whose normals lie within 30° of its deepest point's, the deepest
+/// point left over seeds the next, at most [`MAX_PATCHES`] (the rest are rare and tiny).
+pub(crate) fn patches(points: &[Colliding]) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
     let mut left: Vec<usize> = (0..points.len()).collect();
-    for _ in 0..MAX_PATCHES {
-        let Some(&seed) = left
-            .iter()
-            .min_by(|&&a, &&b| points[a].distance.total_cmp(&points[b].distance))
-        else {
+    while out.len() < MAX_PATCHES {
+        let Some(seed) = deepest(points, &left) else {
             break;
         };
         let n0 = points[seed].normal;
         let (patch, rest): (Vec<usize>, Vec<usize>) =
             left.iter().partition(|&&i| points[i].normal.dot(n0) >= SAME_PATCH_COS);
-        reduce_patch(points, &patch, seed, out);
+        out.push(patch);
         left = rest;
     }
+    out
+}
+
+/// The points to solve, as indices into `points`: at most four per patch.
+pub(crate) fn select_contacts(points: &[Colliding], out: &mut Vec<usize>) {
+    out.clear();
+    for patch in patches(points) {
+        if let Some(seed) = deepest(points, &patch) {
+            reduce_patch(points, &patch, seed, out);
+        }
+    }
+}
+
+/// The deepest of `among` (the first of equals, so a patch's deepest is the point that seeded it).
+fn deepest(points: &[Colliding], among: &[usize]) -> Option<usize> {
+    among
+        .iter()
+        .copied()
+        .min_by(|&a, &b| points[a].distance.total_cmp(&points[b].distance))
 }
 
 /// Up to four points of one patch spanning its support polygon (`seed`: the deepest).
