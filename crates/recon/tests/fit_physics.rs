@@ -294,15 +294,15 @@ fn a_multi_start_tells_every_start_and_keeps_the_first_of_the_lowest_loss() {
     assert_eq!(multi.best.full_loss(), lowest);
 }
 
-/// Poses with noise as GA leaves it (0.3 mm, 0.3°).
-fn seen(true_poses: &[Pose<f64>]) -> Vec<Pose<f64>> {
+/// Poses with noise as GA leaves them: `sigma` millimetres and degrees.
+fn seen(true_poses: &[Pose<f64>], sigma: f64) -> Vec<Pose<f64>> {
     let mut rng = geom::SplitMix64::new(11);
     true_poses
         .iter()
         .map(|p| {
             Pose::new(
-                geom::Quat::exp(rng.vec(0.3f64.to_radians())) * p.q,
-                p.t + rng.vec(0.0003),
+                geom::Quat::exp(rng.vec(sigma.to_radians())) * p.q,
+                p.t + rng.vec(sigma * 1e-3),
             )
         })
         .collect()
@@ -318,18 +318,27 @@ fn a_launch_the_contacts_bent_is_taken_from_the_flight() {
         fit_initial_pose: true,
         ..PhysicsFitConfig::default()
     };
+    // The toss up to just after it meets the wall (it lands at frame 6, hops, slides and meets the wall at
+    // 9), seen with 0.1 mm / 0.1° of noise. Its tumble off the wall turns on the last tenth of a degree
+    // (0.3° in the first pose moves its end by 8 cm): seen to its end, even with the very model that made
+    // it, the fit over every frame follows the noise with a launch that misses the flight (statistic 589
+    // against 26 at 0.3 mm / 0.3°, 71 at 0.03 mm / 0.03°), and the check takes the launch from the flight
+    // (0.1 % off), as it should.
+    let frames = 12;
     for other_model in [false, true] {
         let mut world = tabletop(v0, w0, truth);
+        world.config.frames = frames;
         if other_model {
             world.config.contact_model = sim::ContactModel::MultiPoint;
         }
         let landing = recon::first_contact_frame(&world, &[0]).expect("the toss lands");
-        let observed = vec![recon::Observed::new(0, seen(&poses_of(&world)), None)];
+        let observed = vec![recon::Observed::new(0, seen(&poses_of(&world), 0.1), None)];
         let guess = ContactParams {
             restitution: 0.25,
             friction: 0.45,
         };
-        let start = tabletop([0.8, 0.05, 0.3], [0.0, 0.0, 1.0], guess);
+        let mut start = tabletop([0.8, 0.05, 0.3], [0.0, 0.0, 1.0], guess);
+        start.config.frames = frames;
         let mut fit = PhysicsFit::new_bodies(cfg.clone(), start, observed.clone()).unwrap();
         fit.run();
         let joint = fit.fitted_world();
@@ -426,12 +435,13 @@ fn a_slide_into_the_wall_gives_back_its_restitution() {
         w.config.frames = 24;
         w
     };
-    let (v0, w0) = ([1.2, 0.05, 0.0], [0.0, 0.0, 1.0]);
+    let (v0, w0) = ([1.2, 0.05, 0.0], [0.0, 0.0, 0.3]);
     let world = against_wall(v0, w0, truth);
     let traj = world.simulate(&world.params());
-    let rebound = traj.frames.iter().map(|f| f[0].v.x).fold(0.0, f64::min);
-    assert!(rebound < -0.1, "the box rebounds off the wall: {rebound} m/s");
-    let start = against_wall([0.8, 0.03, 0.0], [0.0, 0.0, 0.5], ContactParams::default());
+    let xs: Vec<f64> = traj.frames.iter().map(|f| f[0].pose.t.x).collect();
+    let back = xs.iter().copied().fold(f64::MIN, f64::max) - xs[xs.len() - 1];
+    assert!(back > 0.002, "the box rebounds off the wall: {:.1} mm back", back * 1e3);
+    let start = against_wall([0.8, 0.03, 0.0], [0.0, 0.0, 0.15], ContactParams::default());
     let obs = recon::Observed {
         start: recon::StartContact::Face {
             normal: [0.0, 0.0, 1.0],
