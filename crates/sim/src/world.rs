@@ -51,7 +51,7 @@ pub struct FrameContacts {
     /// Per body: an impulse against the scene was applied in this frame.
     pub scene: Vec<bool>,
     /// Per body: the most contact points that pushed it against the scene together in one substep (the
-    /// mean-point model applies one impulse: at most 1).
+    /// mean-point model applies one impulse per contact patch: as many as the patches, at most 3).
     pub scene_points: Vec<usize>,
     /// Per pair (order of [`World::pairs`]): an impulse between the two.
     pub pairs: Vec<bool>,

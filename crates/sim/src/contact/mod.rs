@@ -1,5 +1,5 @@
 //! Contact response (DESIGN.md, "The contact model"): which points collide
-//! (Eq. 8), the target velocity at the averaged contact point, and the impulse
+//! (Eq. 8), the target velocity at each contact patch's averaged point, and the impulse
 //! that produces it.
 
 mod contact_body_body;
