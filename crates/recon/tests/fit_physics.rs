@@ -323,7 +323,10 @@ fn a_launch_the_contacts_bent_is_taken_from_the_flight() {
     // (0.3° in the first pose moves its end by 8 cm): seen to its end, even with the very model that made
     // it, the fit over every frame follows the noise with a launch that misses the flight (statistic 589
     // against 26 at 0.3 mm / 0.3°, 71 at 0.03 mm / 0.03°), and the check takes the launch from the flight
-    // (0.1 % off), as it should.
+    // (0.1 % off), as it should. The noise is a third of GA's: at 0.3 mm / 0.3° these 12 frames are called
+    // bent with the same model too (statistic 92), and over 9 frames (before the wall) the other model is
+    // not told (25 against 26); at GA's noise the check tells a bend only where the contacts differ by more
+    // than the chaos amplifies the noise.
     let frames = 12;
     for other_model in [false, true] {
         let mut world = tabletop(v0, w0, truth);
@@ -440,7 +443,10 @@ fn a_slide_into_the_wall_gives_back_its_restitution() {
     let traj = world.simulate(&world.params());
     let xs: Vec<f64> = traj.frames.iter().map(|f| f[0].pose.t.x).collect();
     let back = xs.iter().copied().fold(f64::MIN, f64::max) - xs[xs.len() - 1];
-    assert!(back > 0.002, "the box rebounds off the wall: {:.1} mm back", back * 1e3);
+    // Face-on it rebounds 5.1 mm. Met corner first (ω0 1.0 rad/s, turned 14°) it rebounded 2.4 mm, and
+    // the multi-start fit ended at restitution 0.467 with loss 0.014 where the truth's is 0: the corner hit
+    // tells restitution little, and the fit does not reach the truth there.
+    assert!(back > 0.004, "the box rebounds off the wall: {:.1} mm back", back * 1e3);
     let start = against_wall([0.8, 0.03, 0.0], [0.0, 0.0, 0.15], ContactParams::default());
     let obs = recon::Observed {
         start: recon::StartContact::Face {

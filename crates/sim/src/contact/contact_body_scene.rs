@@ -77,15 +77,21 @@ pub(crate) fn contact_body_scene<S: Real>(
         // board's normal, so the wall's push is lost (the body sinks into the wall until the wall's
         // points alone collide).
         let patches = patches(&colliding);
-        let mut patch: Vec<Colliding> = Vec::with_capacity(colliding.len());
+        let iw_inv = world_inertia_inv(&rot, &body.inertia_inv);
+        let mut gathered: Vec<Colliding> = Vec::new();
         for members in &patches {
-            patch.clear();
-            patch.extend(members.iter().map(|&i| colliding[i]));
-            let r = rot.mul_vec(near.mean(&patch, local));
+            // One patch (a body on the board) is every colliding point: no copy.
+            let patch: &[Colliding] = if patches.len() == 1 {
+                &colliding
+            } else {
+                gathered.clear();
+                gathered.extend(members.iter().map(|&i| colliding[i]));
+                &gathered
+            };
+            let r = rot.mul_vec(near.mean(patch, local));
             let (_, g) = scene.distance_grad_local(st.pose.t + r);
             let Some(n) = g.try_normalize() else { continue };
             let vc = st.v + st.omega.cross(r);
-            let iw_inv = world_inertia_inv(&rot, &body.inertia_inv);
             let k = Mat3::identity()
                 .scale(S::cst(1.0 / body.mass))
                 .sub(&angular_term(r, &iw_inv));
@@ -93,14 +99,14 @@ pub(crate) fn contact_body_scene<S: Real>(
             if let Some(j) = contact_impulse(vc, n, &k, restitution, friction, det) {
                 st.v += j * S::cst(1.0 / body.mass);
                 st.omega += iw_inv.mul_vec(r.cross(j));
-                let radius = near.patch_radius(&patch);
+                let radius = near.patch_radius(patch);
                 let tau = torsional_impulse(st.omega.dot(n), n.dot(iw_inv.mul_vec(n)), j.dot(n), friction, radius);
                 st.omega += iw_inv.mul_vec(n * tau);
                 if resting {
                     hold_tilt_derivatives(
                         &mut st.omega,
                         n.re(),
-                        &patch,
+                        patch,
                         st.pose.t.re(),
                         &iw_inv.re(),
                         j.dot(n).re(),
