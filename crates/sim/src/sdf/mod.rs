@@ -6,11 +6,13 @@
 //! into the impulse.
 
 mod carve;
+mod planes;
 mod sdf_grid;
 mod sdf_mesh;
 mod shape;
 mod shapes;
 
+pub use planes::{Crease, PlaneReport, PlaneSettings, ScenePlane};
 pub use sdf_grid::{GridError, SdfGrid};
 pub use sdf_mesh::{MeshDistance, MeshSdfError};
 pub use shape::Shape;

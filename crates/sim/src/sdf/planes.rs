@@ -1,0 +1,581 @@
+//! A scene grid's planes, made exact. A tabletop is mostly planes (the board,
+//! a wall's faces, a box's top), and a NeuS reconstruction is wrong on them
+//! exactly where bodies touch them: rough by a fraction of a millimetre (which
+//! tilts contact normals by degrees), and rounded into a fillet 10–15 mm wide
+//! where two planes meet in a concave crease (the foot of a wall on the
+//! board), which kicks a body sliding into the corner up off it instead of
+//! letting it meet the wall. Blurring the grid takes the roughness away but
+//! rounds the crease further.
+//!
+//! So the planes are found on the grid's zero level (RANSAC on oriented
+//! points: each point's own normal proposes a plane), and
+//! - near each plane, over its footprint, where the field agrees with the
+//!   plane, the value is the plane's distance (snapped);
+//! - along a concave crease between two planes, in the wedge of free space
+//!   between them, the value is at least the sharp corner's distance
+//!   `min(d_a, d_b)` (the fillet taken away), in each stretch of the crease
+//!   that both planes reach and where nothing but a fillet stands in the
+//!   corner;
+//! - every other node keeps the field, blurred (curved surfaces keep the
+//!   blur's smoothing).
+//!
+//! A prior of man-made scenes, as plane priors in indoor reconstruction
+//! (e.g. Manhattan-SDF, Guo et al., CVPR 2022); `bake --no-planes` turns it off.
+
+use super::SdfGrid;
+use geom::{symmetric_eigen, SplitMix64, Vec3};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, BTreeSet};
+
+type V = Vec3<f64>;
+
+/// What counts as a plane, and how far a crease's fillet reaches.
+#[derive(Clone, Debug)]
+pub struct PlaneSettings {
+    /// Largest distance of a surface point from its plane, m (a reconstruction's roughness).
+    pub tolerance: f64,
+    /// Largest angle between a surface point's normal and its plane's, degrees.
+    pub max_angle_deg: f64,
+    /// Smallest plane kept, m² of surface.
+    pub min_area: f64,
+    /// Narrowest plane kept, m (the width of a uniform strip with its points' spread across): a fillet's
+    /// flattest band is a strip 10–16 mm wide, and taken for a plane it would make a chamfer.
+    pub min_width: f64,
+    /// How far from a concave crease the field is made sharp, m: wider than the fillet NeuS leaves there
+    /// (10–15 mm measured on the tabletop's wall).
+    pub crease_reach: f64,
+}
+
+impl Default for PlaneSettings {
+    fn default() -> Self {
+        Self {
+            tolerance: 1.2e-3,
+            max_angle_deg: 12.0,
+            min_area: 25e-4,
+            min_width: 0.025,
+            crease_reach: 0.02,
+        }
+    }
+}
+
+/// A plane found in the grid: `normal · x = offset`, the normal pointing into free space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScenePlane {
+    pub normal: V,
+    pub offset: f64,
+    /// Surface points on it.
+    pub points: usize,
+}
+
+/// A concave crease between two planes, made sharp.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Crease {
+    /// Indices into [`PlaneReport::planes`].
+    pub planes: [usize; 2],
+    /// Length of the crease made sharp, m.
+    pub length: f64,
+    /// Length left as it was because something other than a fillet stands in the corner there, m.
+    pub blocked: f64,
+}
+
+/// What [`SdfGrid::with_planes`] found and changed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PlaneReport {
+    pub planes: Vec<ScenePlane>,
+    pub creases: Vec<Crease>,
+    /// Nodes set to a plane's distance.
+    pub snapped: usize,
+    /// Nodes raised in a crease's wedge.
+    pub sharpened: usize,
+    /// The largest raise there, m.
+    pub largest_raise: f64,
+}
+
+/// A point of the zero level with the field's unit normal there.
+#[derive(Clone, Copy, Debug)]
+struct Oriented {
+    p: V,
+    n: V,
+}
+
+/// A plane with the surface points on it and their footprint.
+struct Found {
+    normal: V,
+    offset: f64,
+    members: Vec<usize>,
+    footprint: Footprint,
+}
+
+impl Found {
+    fn distance(&self, x: V) -> f64 {
+        self.normal.dot(x) - self.offset
+    }
+}
+
+/// The cells of a plane (in its own 2-D basis) that its surface points cover, grown by one cell.
+struct Footprint {
+    origin: V,
+    e1: V,
+    e2: V,
+    lo: [f64; 2],
+    cell: f64,
+    dims: [usize; 2],
+    covered: Vec<bool>,
+}
+
+impl Footprint {
+    fn of(normal: V, points: &[V], cell: f64) -> Self {
+        let origin = points[0];
+        let helper = if normal.x.abs() < 0.9 {
+            V::new(1.0, 0.0, 0.0)
+        } else {
+            V::new(0.0, 1.0, 0.0)
+        };
+        let e1 = normal.cross(helper).normalize_or(V::new(1.0, 0.0, 0.0));
+        let e2 = normal.cross(e1);
+        let uv: Vec<[f64; 2]> = points
+            .iter()
+            .map(|&p| [(p - origin).dot(e1), (p - origin).dot(e2)])
+            .collect();
+        let lo = [0, 1].map(|a| uv.iter().map(|c| c[a]).fold(f64::INFINITY, f64::min) - 2.0 * cell);
+        let hi = [0, 1].map(|a| uv.iter().map(|c| c[a]).fold(f64::NEG_INFINITY, f64::max) + 2.0 * cell);
+        let dims = [0, 1].map(|a| ((hi[a] - lo[a]) / cell).ceil() as usize + 1);
+        let mut covered = vec![false; dims[0] * dims[1]];
+        for c in &uv {
+            let (i, j) = (((c[0] - lo[0]) / cell) as usize, ((c[1] - lo[1]) / cell) as usize);
+            for dj in 0..3 {
+                for di in 0..3 {
+                    // One cell all round (the points sit a node apart; the footprint closes the gaps).
+                    let (ii, jj) = ((i + di).saturating_sub(1), (j + dj).saturating_sub(1));
+                    if ii < dims[0] && jj < dims[1] {
+                        covered[ii + dims[0] * jj] = true;
+                    }
+                }
+            }
+        }
+        Self {
+            origin,
+            e1,
+            e2,
+            lo,
+            cell,
+            dims,
+            covered,
+        }
+    }
+
+    fn contains(&self, x: V) -> bool {
+        let d = x - self.origin;
+        let (u, v) = (
+            (d.dot(self.e1) - self.lo[0]) / self.cell,
+            (d.dot(self.e2) - self.lo[1]) / self.cell,
+        );
+        u >= 0.0
+            && v >= 0.0
+            && (u as usize) < self.dims[0]
+            && (v as usize) < self.dims[1]
+            && self.covered[u as usize + self.dims[0] * v as usize]
+    }
+}
+
+/// How far from both planes, in crease reaches, the zero level or the solid may stand in a crease's wedge
+/// and still be a fillet: a fillet's middle stands 0.29 of its radius off each plane, and the reach is the
+/// largest fillet.
+const STANDING: f64 = 0.3;
+
+/// A concave crease's line, and the stretches of it (bins along the line) to make sharp.
+struct CreaseLine {
+    planes: [usize; 2],
+    point: V,
+    direction: V,
+    bin: f64,
+    bins: BTreeSet<i64>,
+    blocked: usize,
+}
+
+impl CreaseLine {
+    /// Position along the line and distance from it.
+    fn coordinates(&self, x: V) -> (f64, f64) {
+        let q = x - self.point;
+        let t = q.dot(self.direction);
+        (t, (q - self.direction * t).norm())
+    }
+}
+
+impl SdfGrid {
+    /// This grid with its planes snapped and their concave creases made sharp, and every node no plane
+    /// claims blurred by a Gaussian of `blur` spacings (as [`SdfGrid::smoothed`]); see the module's text.
+    pub fn with_planes(&self, settings: &PlaneSettings, blur: f64) -> (SdfGrid, PlaneReport) {
+        let h = self.spacing();
+        let points = surface_points(self);
+        let found = find_planes(&points, settings, h);
+        let mut values: Vec<f64> = self.values().iter().map(|&v| v as f64).collect();
+        let mut claimed = vec![false; values.len()];
+        let mut report = PlaneReport {
+            planes: found
+                .iter()
+                .map(|f| ScenePlane {
+                    normal: f.normal,
+                    offset: f.offset,
+                    points: f.members.len(),
+                })
+                .collect(),
+            ..Default::default()
+        };
+
+        // Snap: within three spacings of a plane, over its footprint, where the field is within twice the
+        // tolerance of it (the nearest such plane when several are).
+        let (band, slack) = (3.0 * h, 2.0 * settings.tolerance);
+        let snapped: Vec<Option<f64>> = (0..values.len())
+            .into_par_iter()
+            .map(|idx| {
+                let (x, v) = (self.node(idx), values[idx]);
+                found
+                    .iter()
+                    .map(|f| f.distance(x))
+                    .zip(&found)
+                    .filter(|(d, f)| d.abs() < band && (v - d).abs() < slack && f.footprint.contains(x))
+                    .map(|(d, _)| d)
+                    .min_by(|a, b| (v - a).abs().total_cmp(&(v - b).abs()))
+            })
+            .collect();
+        for (idx, s) in snapped.into_iter().enumerate() {
+            if let Some(d) = s {
+                values[idx] = d;
+                claimed[idx] = true;
+                report.snapped += 1;
+            }
+        }
+
+        // Sharpen each concave crease: in the wedge (both distances above minus a spacing), within the reach,
+        // at least the corner's distance, eased in over the reach's outer quarter.
+        let reach = settings.crease_reach;
+        for mut line in concave_creases(&found, &points, settings) {
+            let (a, b) = (&found[line.planes[0]], &found[line.planes[1]]);
+            // Where the field holds solid in the wedge further from both planes than a fillet's middle stands
+            // (0.29 of its radius; the reach is the largest fillet), something stands in the corner: its
+            // stretch is left alone.
+            let mut standing = BTreeSet::new();
+            for (idx, &v) in values.iter().enumerate() {
+                if v < 0.0 {
+                    let x = self.node(idx);
+                    let (t, r) = line.coordinates(x);
+                    if r < reach && a.distance(x).min(b.distance(x)) > STANDING * reach {
+                        standing.insert((t / line.bin).floor() as i64);
+                    }
+                }
+            }
+            let before = line.bins.len();
+            line.bins.retain(|k| !standing.contains(k));
+            line.blocked += before - line.bins.len();
+            let raised: Vec<(usize, f64)> = (0..values.len())
+                .into_par_iter()
+                .filter_map(|idx| {
+                    let x = self.node(idx);
+                    let (t, r) = line.coordinates(x);
+                    let (da, db) = (a.distance(x), b.distance(x));
+                    if r >= reach || da <= -h || db <= -h || !line.bins.contains(&((t / line.bin).floor() as i64)) {
+                        return None;
+                    }
+                    let weight = ((reach - r) / (0.25 * reach)).clamp(0.0, 1.0);
+                    let v = values[idx];
+                    Some((idx, v + weight * (v.max(da.min(db)) - v)))
+                })
+                .collect();
+            for (idx, v) in raised {
+                if v > values[idx] {
+                    report.sharpened += 1;
+                    report.largest_raise = report.largest_raise.max(v - values[idx]);
+                }
+                values[idx] = v;
+                claimed[idx] = true;
+            }
+            report.creases.push(Crease {
+                planes: line.planes,
+                length: line.bins.len() as f64 * line.bin,
+                blocked: line.blocked as f64 * line.bin,
+            });
+        }
+
+        let blurred = self.smoothed(blur);
+        let out = values
+            .iter()
+            .zip(&claimed)
+            .zip(blurred.values())
+            .map(|((&v, &c), &b)| if c { v as f32 } else { b })
+            .collect();
+        let grid = SdfGrid::from_values(self.origin(), h, self.dims(), out).expect("the same grid's dimensions");
+        (grid, report)
+    }
+
+    /// The position of node `idx` (x fastest).
+    fn node(&self, idx: usize) -> V {
+        let ([nx, ny, _], o, h) = (self.dims(), self.origin(), self.spacing());
+        let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
+        V::new(o[0] + i as f64 * h, o[1] + j as f64 * h, o[2] + k as f64 * h)
+    }
+}
+
+/// The zero level's points: each node within 0.75 spacings of it moved along the grid's gradient (central
+/// differences) onto it, with the unit gradient as normal. Nodes where the gradient is short (under 0.5; the
+/// field is no distance there) give none.
+fn surface_points(g: &SdfGrid) -> Vec<Oriented> {
+    let ([nx, ny, nz], h) = (g.dims(), g.spacing());
+    let value = |i: usize, j: usize, k: usize| g.values()[i + nx * (j + ny * k)] as f64;
+    let slope = |lo: f64, hi: f64, steps: usize| (hi - lo) / (steps as f64 * h);
+    (0..nz)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let mut out = Vec::new();
+            for j in 0..ny {
+                for i in 0..nx {
+                    let v = value(i, j, k);
+                    if v.abs() >= 0.75 * h {
+                        continue;
+                    }
+                    let axis = |idx: usize, n: usize, at: &dyn Fn(usize) -> f64| {
+                        let (lo, hi) = (idx.saturating_sub(1), (idx + 1).min(n - 1));
+                        slope(at(lo), at(hi), hi - lo)
+                    };
+                    let gr = V::new(
+                        axis(i, nx, &|a| value(a, j, k)),
+                        axis(j, ny, &|a| value(i, a, k)),
+                        axis(k, nz, &|a| value(i, j, a)),
+                    );
+                    let len = gr.norm();
+                    if len < 0.5 {
+                        continue;
+                    }
+                    let n = gr * (1.0 / len);
+                    let x = g.node(i + nx * (j + ny * k));
+                    out.push(Oriented {
+                        p: x - n * (v / len),
+                        n,
+                    });
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// The least-squares plane through `members` (the normal oriented with their mean normal).
+fn fit_plane(points: &[Oriented], members: &[usize]) -> (V, f64) {
+    let m = members.len() as f64;
+    let centre = members.iter().fold(V::zero(), |s, &i| s + points[i].p) * (1.0 / m);
+    let mean_normal = members.iter().fold(V::zero(), |s, &i| s + points[i].n);
+    let mut cov = [[0.0; 3]; 3];
+    for &i in members {
+        let d = (points[i].p - centre).to_array();
+        for (r, row) in cov.iter_mut().enumerate() {
+            for (c, e) in row.iter_mut().enumerate() {
+                *e += d[r] * d[c];
+            }
+        }
+    }
+    let (values, vectors) = symmetric_eigen(cov);
+    let smallest = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+    let mut normal = V::new(vectors[0][smallest], vectors[1][smallest], vectors[2][smallest]);
+    if normal.dot(mean_normal) < 0.0 {
+        normal = -normal;
+    }
+    (normal, normal.dot(centre))
+}
+
+/// The width across the plane of `members` (normal `normal`): of the uniform strip with their spread
+/// (√12 standard deviations) along the in-plane direction they spread least.
+fn narrowest_width(points: &[Oriented], members: &[usize], normal: V) -> f64 {
+    let m = members.len() as f64;
+    let centre = members.iter().fold(V::zero(), |s, &i| s + points[i].p) * (1.0 / m);
+    let mut cov = [[0.0; 3]; 3];
+    for &i in members {
+        let d = points[i].p - centre;
+        let d = (d - normal * d.dot(normal)).to_array();
+        for (r, row) in cov.iter_mut().enumerate() {
+            for (c, e) in row.iter_mut().enumerate() {
+                *e += d[r] * d[c] / m;
+            }
+        }
+    }
+    // The in-plane spread: the two largest eigenvalues (the third, along the normal, is zero).
+    let (mut values, _) = symmetric_eigen(cov);
+    values.sort_by(f64::total_cmp);
+    (12.0 * values[1].max(0.0)).sqrt()
+}
+
+/// Planes by RANSAC on oriented points: each round, 300 of the points left each propose the plane through
+/// them with their normal; the one with the most points within the tolerance and angle (counted on a sample
+/// of 20,000 of the points left) wins, is refitted by
+/// least squares until its points stop changing, and its points leave; it is kept if it is at least the narrowest width across. Until
+/// the best covers less than the smallest area.
+fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
+    const PROPOSALS: usize = 300;
+    /// Points each proposal is scored on (the winner's points are then counted over all of them).
+    const SCORED: usize = 20_000;
+    /// Enough for a room's worth of faces; a reconstruction's fog beyond the board can make dozens of facets.
+    const MAX_PLANES: usize = 64;
+    let cos_max = s.max_angle_deg.to_radians().cos();
+    let min_points = ((s.min_area / (h * h)).ceil() as usize).max(16);
+    let mut left: Vec<usize> = (0..points.len()).collect();
+    let mut rng = SplitMix64::new(0x504c_414e_4553);
+    let mut found = Vec::new();
+    let on = |normal: V, offset: f64, i: usize| {
+        let q = points[i];
+        (normal.dot(q.p) - offset).abs() < s.tolerance && normal.dot(q.n) > cos_max
+    };
+    while left.len() >= min_points && found.len() < MAX_PLANES {
+        let mut pick = || left[(rng.next_u64() % left.len() as u64) as usize];
+        let proposals: Vec<usize> = (0..PROPOSALS).map(|_| pick()).collect();
+        let scored: Vec<usize> = if left.len() <= SCORED {
+            left.clone()
+        } else {
+            (0..SCORED).map(|_| pick()).collect()
+        };
+        let Some((_, seed)) = proposals
+            .par_iter()
+            .map(|&c| {
+                let (n, o) = (points[c].n, points[c].n.dot(points[c].p));
+                (scored.iter().filter(|&&i| on(n, o, i)).count(), c)
+            })
+            .max_by_key(|&(count, c)| (count, std::cmp::Reverse(c)))
+        else {
+            break;
+        };
+        let (mut normal, mut offset) = (points[seed].n, points[seed].n.dot(points[seed].p));
+        let mut members: Vec<usize> = left.iter().copied().filter(|&i| on(normal, offset, i)).collect();
+        // Refit until the points on it stop changing (the plane then no longer depends on its proposal).
+        for _ in 0..8 {
+            if members.len() < 3 {
+                break;
+            }
+            (normal, offset) = fit_plane(points, &members);
+            let again: Vec<usize> = left.iter().copied().filter(|&i| on(normal, offset, i)).collect();
+            if again == members {
+                break;
+            }
+            members = again;
+        }
+        if members.len() < min_points {
+            break;
+        }
+        let taken: BTreeSet<usize> = members.iter().copied().collect();
+        left.retain(|i| !taken.contains(i));
+        if narrowest_width(points, &members, normal) < s.min_width {
+            // A strip (a fillet's flattest band, a cylinder's side): its points leave, no plane is made.
+            continue;
+        }
+        let on_plane: Vec<V> = members.iter().map(|&i| points[i].p).collect();
+        found.push(Found {
+            normal,
+            offset,
+            footprint: Footprint::of(normal, &on_plane, h),
+            members,
+        });
+    }
+    found
+}
+
+/// The concave creases between the planes: pairs at least 30° apart whose points each lie, near the line
+/// where the planes meet, on the other's free side (a convex edge has them behind), with the stretches of the
+/// line (bins of half the reach) that both planes' points come within 1.5 reaches of (a plane's points
+/// stop where the fillet begins, which may be most of the reach away). A stretch where the
+/// zero level in the wedge stands further than [`STANDING`] reaches from both planes holds something other
+/// than a fillet and is left alone.
+fn concave_creases(found: &[Found], points: &[Oriented], s: &PlaneSettings) -> Vec<CreaseLine> {
+    let reach = s.crease_reach;
+    let bin = 0.5 * reach;
+    let mut lines = Vec::new();
+    for ia in 0..found.len() {
+        for ib in ia + 1..found.len() {
+            let (a, b) = (&found[ia], &found[ib]);
+            if a.normal.dot(b.normal).abs() > 30f64.to_radians().cos() {
+                continue;
+            }
+            let direction = a.normal.cross(b.normal).normalize_or(V::new(1.0, 0.0, 0.0));
+            // The point of the line nearest the origin: on both planes and on `direction · x = 0`.
+            let denom = a.normal.dot(b.normal.cross(direction));
+            let point = (b.normal.cross(direction) * a.offset + direction.cross(a.normal) * b.offset) * (1.0 / denom);
+            let mut line = CreaseLine {
+                planes: [ia, ib],
+                point,
+                direction,
+                bin,
+                bins: BTreeSet::new(),
+                blocked: 0,
+            };
+            // Each plane's points near the line: their bins, and how far they stand on the other's side.
+            let near = |f: &Found, other: &Found| -> (BTreeSet<i64>, Vec<f64>) {
+                let mut bins = BTreeSet::new();
+                let mut sides = Vec::new();
+                for &i in &f.members {
+                    let (t, r) = line.coordinates(points[i].p);
+                    if r < 1.5 * reach {
+                        bins.insert((t / bin).floor() as i64);
+                        sides.push(other.distance(points[i].p));
+                    }
+                }
+                (bins, sides)
+            };
+            let ((bins_a, mut side_a), (bins_b, mut side_b)) = (near(a, b), near(b, a));
+            if side_a.len() < 4 || side_b.len() < 4 || median(&mut side_a) <= 0.0 || median(&mut side_b) <= 0.0 {
+                continue;
+            }
+            let mut bins: BTreeSet<i64> = bins_a.intersection(&bins_b).copied().collect();
+            // What stands in the wedge, per stretch.
+            let mut standing: BTreeMap<i64, f64> = BTreeMap::new();
+            for q in points {
+                let (t, r) = line.coordinates(q.p);
+                let (da, db) = (a.distance(q.p), b.distance(q.p));
+                if r < reach && da > s.tolerance && db > s.tolerance {
+                    let e = standing.entry((t / bin).floor() as i64).or_insert(0.0);
+                    *e = e.max(da.min(db));
+                }
+            }
+            let before = bins.len();
+            bins.retain(|k| standing.get(k).is_none_or(|&d| d <= STANDING * reach));
+            line.blocked = before - bins.len();
+            if !bins.is_empty() || line.blocked > 0 {
+                line.bins = bins;
+                lines.push(line);
+            }
+        }
+    }
+    lines
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+impl std::fmt::Display for PlaneReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} found", self.planes.len())?;
+        // The largest few (a fog's facets can make dozens).
+        const SHOWN: usize = 8;
+        for p in self.planes.iter().take(SHOWN) {
+            let [x, y, z] = p.normal.to_array();
+            write!(
+                f,
+                "; ({x:.3}, {y:.3}, {z:.3})·x = {:.4} m, {} points",
+                p.offset, p.points
+            )?;
+        }
+        if self.planes.len() > SHOWN {
+            write!(f, "; {} more", self.planes.len() - SHOWN)?;
+        }
+        let length: f64 = self.creases.iter().map(|c| c.length).sum();
+        let blocked: f64 = self.creases.iter().map(|c| c.blocked).sum();
+        write!(
+            f,
+            "; {} concave creases made sharp over {:.2} m ({:.2} m left: something stands in the corner); {} nodes \
+             snapped to a plane, {} raised at a crease by up to {:.2} mm",
+            self.creases.len(),
+            length,
+            blocked,
+            self.snapped,
+            self.sharpened,
+            self.largest_raise * 1e3
+        )
+    }
+}
