@@ -226,22 +226,22 @@ impl SdfGrid {
         // Snap: within three spacings of a plane, over its footprint, where the field is within twice the
         // tolerance of it (the nearest such plane when several are).
         let (band, slack) = (3.0 * h, 2.0 * settings.tolerance);
-        let snapped: Vec<Option<f64>> = (0..values.len())
+        let snapped_to: Vec<Option<usize>> = (0..values.len())
             .into_par_iter()
             .map(|idx| {
                 let (x, v) = (self.node(idx), values[idx]);
                 found
                     .iter()
-                    .map(|f| f.distance(x))
-                    .zip(&found)
-                    .filter(|(d, f)| d.abs() < band && (v - d).abs() < slack && f.footprint.contains(x))
-                    .map(|(d, _)| d)
-                    .min_by(|a, b| (v - a).abs().total_cmp(&(v - b).abs()))
+                    .enumerate()
+                    .map(|(k, f)| (k, f.distance(x)))
+                    .filter(|&(k, d)| d.abs() < band && (v - d).abs() < slack && found[k].footprint.contains(x))
+                    .min_by(|a, b| (v - a.1).abs().total_cmp(&(v - b.1).abs()))
+                    .map(|(k, _)| k)
             })
             .collect();
-        for (idx, s) in snapped.into_iter().enumerate() {
-            if let Some(d) = s {
-                values[idx] = d;
+        for (idx, k) in snapped_to.iter().enumerate() {
+            if let Some(k) = *k {
+                values[idx] = found[k].distance(self.node(idx));
                 claimed[idx] = true;
                 report.snapped += 1;
             }
@@ -278,7 +278,13 @@ impl SdfGrid {
                         return None;
                     }
                     let weight = ((reach - r) / (0.25 * reach)).clamp(0.0, 1.0);
-                    let v = values[idx];
+                    // A node snapped to one of the two planes is no further than the other plane either (it
+                    // may be nearer than the one it was snapped to); any node is raised to the corner's distance.
+                    let v = match snapped_to[idx] {
+                        Some(k) if k == line.planes[0] => values[idx].min(db),
+                        Some(k) if k == line.planes[1] => values[idx].min(da),
+                        _ => values[idx],
+                    };
                     Some((idx, v + weight * (v.max(da.min(db)) - v)))
                 })
                 .collect();
