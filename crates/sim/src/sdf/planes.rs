@@ -194,6 +194,23 @@ struct CreaseLine {
 }
 
 impl CreaseLine {
+    /// For each stretch, the run of consecutive stretches it is in: where the run starts and ends along the line.
+    fn runs(&self) -> BTreeMap<i64, (f64, f64)> {
+        let mut out = BTreeMap::new();
+        let bins: Vec<i64> = self.bins.iter().copied().collect();
+        let mut start = 0;
+        for i in 0..bins.len() {
+            if i + 1 == bins.len() || bins[i + 1] != bins[i] + 1 {
+                let span = (bins[start] as f64 * self.bin, (bins[i] + 1) as f64 * self.bin);
+                for &k in &bins[start..=i] {
+                    out.insert(k, span);
+                }
+                start = i + 1;
+            }
+        }
+        out
+    }
+
     /// Position along the line and distance from it.
     fn coordinates(&self, x: V) -> (f64, f64) {
         let q = x - self.point;
@@ -209,8 +226,8 @@ impl SdfGrid {
         let h = self.spacing();
         let points = surface_points(self);
         let found = find_planes(&points, settings, h);
-        let mut values: Vec<f64> = self.values().iter().map(|&v| v as f64).collect();
-        let mut claimed = vec![false; values.len()];
+        let raw: Vec<f64> = self.values().iter().map(|&v| v as f64).collect();
+        let blurred: Vec<f64> = self.smoothed(blur).values().iter().map(|&v| v as f64).collect();
         let mut report = PlaneReport {
             planes: found
                 .iter()
@@ -224,77 +241,107 @@ impl SdfGrid {
         };
 
         // Snap: within three spacings of a plane, over its footprint, where the field is within twice the
-        // tolerance of it (the nearest such plane when several are).
-        let (band, slack) = (3.0 * h, 2.0 * settings.tolerance);
-        let snapped_to: Vec<Option<usize>> = (0..values.len())
+        // tolerance of it (the nearest such plane when several are; not where the two disagree on the side,
+        // as at the base of a body standing on the plane), the blurred field eased into the plane's distance,
+        // all of the way where the field is within the tolerance.
+        let (band, tol) = (3.0 * h, settings.tolerance);
+        let slack = 2.0 * tol;
+        let snapped_to: Vec<Option<usize>> = (0..raw.len())
             .into_par_iter()
             .map(|idx| {
-                let (x, v) = (self.node(idx), values[idx]);
+                let (x, v) = (self.node(idx), raw[idx]);
                 found
                     .iter()
                     .enumerate()
                     .map(|(k, f)| (k, f.distance(x)))
-                    .filter(|&(k, d)| d.abs() < band && (v - d).abs() < slack && found[k].footprint.contains(x))
+                    .filter(|&(k, d)| {
+                        d.abs() < band
+                            && (v - d).abs() < slack
+                            && !(v * d < 0.0 && v.abs().max(d.abs()) > tol)
+                            && found[k].footprint.contains(x)
+                    })
                     .min_by(|a, b| (v - a.1).abs().total_cmp(&(v - b.1).abs()))
                     .map(|(k, _)| k)
             })
             .collect();
-        for (idx, k) in snapped_to.iter().enumerate() {
-            if let Some(k) = *k {
-                values[idx] = found[k].distance(self.node(idx));
-                claimed[idx] = true;
-                report.snapped += 1;
-            }
-        }
+        let base: Vec<f64> = (0..raw.len())
+            .into_par_iter()
+            .map(|idx| match snapped_to[idx] {
+                Some(k) => {
+                    let d = found[k].distance(self.node(idx));
+                    let weight = ((slack - (raw[idx] - d).abs()) / (slack - tol)).clamp(0.0, 1.0);
+                    blurred[idx] + weight * (d - blurred[idx])
+                }
+                None => blurred[idx],
+            })
+            .collect();
+        report.snapped = snapped_to.iter().filter(|k| k.is_some()).count();
 
-        // Sharpen each concave crease: in the wedge (both distances above minus a spacing), within the reach,
-        // at least the corner's distance, eased in over the reach's outer quarter.
+        // Sharpen each concave crease, from the snapped field (so the order of the creases does not matter):
+        // in the wedge (both distances above minus a spacing), within the reach, at least the corner's
+        // distance, eased in over the reach's outer quarter and over half a stretch at the ends of a run of
+        // stretches. The raises combine by their maximum; then a node snapped to one of a crease's planes is
+        // capped at the other plane's distance (which may be nearer than its own), unless the field has free
+        // space behind that plane there (its end, an overhang): no solid is added where the field has none.
         let reach = settings.crease_reach;
+        let mut values = base.clone();
+        let mut capped = vec![f64::INFINITY; raw.len()];
         for mut line in concave_creases(&found, &points, settings) {
             let (a, b) = (&found[line.planes[0]], &found[line.planes[1]]);
-            // Where the field holds solid in the wedge further from both planes than a fillet's middle stands
-            // (0.29 of its radius; the reach is the largest fillet), something stands in the corner: its
-            // stretch is left alone.
-            let mut standing = BTreeSet::new();
-            for (idx, &v) in values.iter().enumerate() {
-                if v < 0.0 {
+            // Where the snapped field holds solid in the wedge further from both planes than a fillet's middle
+            // stands (0.29 of its radius; the reach is the largest fillet), or beyond the reach at all (a mat,
+            // a cable along the corner: no fillet reaches there), something stands in the corner: its stretch is
+            // left alone.
+            let standing: BTreeSet<i64> = self
+                .nodes_near(&line, 1.5 * reach)
+                .into_iter()
+                .filter_map(|idx| {
                     let x = self.node(idx);
                     let (t, r) = line.coordinates(x);
-                    if r < reach && a.distance(x).min(b.distance(x)) > STANDING * reach {
-                        standing.insert((t / line.bin).floor() as i64);
-                    }
-                }
-            }
+                    let corner = a.distance(x).min(b.distance(x));
+                    let fills = if r < reach {
+                        corner > STANDING * reach
+                    } else {
+                        corner > slack
+                    };
+                    (base[idx] < 0.0 && fills).then_some((t / line.bin).floor() as i64)
+                })
+                .collect();
             let before = line.bins.len();
             line.bins.retain(|k| !standing.contains(k));
             line.blocked += before - line.bins.len();
-            let raised: Vec<(usize, f64)> = (0..values.len())
+            let runs = line.runs();
+            let changes: Vec<(usize, f64, Option<f64>)> = self
+                .nodes_near(&line, reach)
                 .into_par_iter()
                 .filter_map(|idx| {
                     let x = self.node(idx);
                     let (t, r) = line.coordinates(x);
                     let (da, db) = (a.distance(x), b.distance(x));
-                    if r >= reach || da <= -h || db <= -h || !line.bins.contains(&((t / line.bin).floor() as i64)) {
+                    let run = runs.get(&((t / line.bin).floor() as i64))?;
+                    if r >= reach || da <= -h || db <= -h {
                         return None;
                     }
-                    let weight = ((reach - r) / (0.25 * reach)).clamp(0.0, 1.0);
-                    // A node snapped to one of the two planes is no further than the other plane either (it
-                    // may be nearer than the one it was snapped to); any node is raised to the corner's distance.
-                    let v = match snapped_to[idx] {
-                        Some(k) if k == line.planes[0] => values[idx].min(db),
-                        Some(k) if k == line.planes[1] => values[idx].min(da),
-                        _ => values[idx],
+                    let along = ((t - run.0).min(run.1 - t) / (0.5 * line.bin)).clamp(0.0, 1.0);
+                    let weight = ((reach - r) / (0.25 * reach)).clamp(0.0, 1.0) * along;
+                    let v = base[idx];
+                    let other = match snapped_to[idx] {
+                        Some(k) if k == line.planes[0] => Some(db),
+                        Some(k) if k == line.planes[1] => Some(da),
+                        _ => None,
                     };
-                    Some((idx, v + weight * (v.max(da.min(db)) - v)))
+                    let raised = v.max(da.min(db));
+                    let cap = other
+                        .filter(|&d| !(d < 0.0 && raw[idx] > 0.0))
+                        .map(|d| v + weight * (raised.min(d) - v));
+                    Some((idx, v + weight * (raised - v), cap))
                 })
                 .collect();
-            for (idx, v) in raised {
-                if v > values[idx] {
-                    report.sharpened += 1;
-                    report.largest_raise = report.largest_raise.max(v - values[idx]);
+            for (idx, raise, cap) in changes {
+                values[idx] = values[idx].max(raise);
+                if let Some(c) = cap {
+                    capped[idx] = capped[idx].min(c);
                 }
-                values[idx] = v;
-                claimed[idx] = true;
             }
             report.creases.push(Crease {
                 planes: line.planes,
@@ -302,16 +349,41 @@ impl SdfGrid {
                 blocked: line.blocked as f64 * line.bin,
             });
         }
-
-        let blurred = self.smoothed(blur);
-        let out = values
-            .iter()
-            .zip(&claimed)
-            .zip(blurred.values())
-            .map(|((&v, &c), &b)| if c { v as f32 } else { b })
-            .collect();
+        for ((v, &c), &b) in values.iter_mut().zip(&capped).zip(&base) {
+            *v = v.min(c);
+            if *v > b + 1e-9 {
+                report.sharpened += 1;
+                report.largest_raise = report.largest_raise.max(*v - b);
+            }
+        }
+        let out = values.into_iter().map(|v| v as f32).collect();
         let grid = SdfGrid::from_values(self.origin(), h, self.dims(), out).expect("the same grid's dimensions");
         (grid, report)
+    }
+
+    /// The nodes within `radius` of a crease's stretches (of the box around them).
+    fn nodes_near(&self, line: &CreaseLine, radius: f64) -> Vec<usize> {
+        let (Some(&first), Some(&last)) = (line.bins.first(), line.bins.last()) else {
+            return Vec::new();
+        };
+        let ends = [first as f64 * line.bin, (last + 1) as f64 * line.bin].map(|t| line.point + line.direction * t);
+        let ([nx, ny, nz], o, h) = (self.dims(), self.origin(), self.spacing());
+        let range = |axis: usize, n: usize| {
+            let (p, q) = (ends[0][axis], ends[1][axis]);
+            let lo = ((p.min(q) - radius - o[axis]) / h).floor().max(0.0) as usize;
+            let hi = (((p.max(q) + radius - o[axis]) / h).ceil().max(0.0) as usize).min(n - 1);
+            lo..=hi
+        };
+        let (ri, rj, rk) = (range(0, nx), range(1, ny), range(2, nz));
+        let mut out = Vec::new();
+        for k in rk {
+            for j in rj.clone() {
+                for i in ri.clone() {
+                    out.push(i + nx * (j + ny * k));
+                }
+            }
+        }
+        out
     }
 
     /// The position of node `idx` (x fastest).
@@ -336,7 +408,7 @@ fn surface_points(g: &SdfGrid) -> Vec<Oriented> {
             for j in 0..ny {
                 for i in 0..nx {
                     let v = value(i, j, k);
-                    if v.abs() >= 0.75 * h {
+                    if !(v.abs() < 0.75 * h) {
                         continue;
                     }
                     let axis = |idx: usize, n: usize, at: &dyn Fn(usize) -> f64| {
@@ -421,7 +493,8 @@ fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
     /// Enough for a room's worth of faces; a reconstruction's fog beyond the board can make dozens of facets.
     const MAX_PLANES: usize = 64;
     let cos_max = s.max_angle_deg.to_radians().cos();
-    let min_points = ((s.min_area / (h * h)).ceil() as usize).max(16);
+    // About one and a half surface points per spacing² of surface (the nodes within 0.75 spacings of it).
+    let min_points = ((1.5 * s.min_area / (h * h)).ceil() as usize).max(16);
     let mut left: Vec<usize> = (0..points.len()).collect();
     let mut rng = SplitMix64::new(0x504c_414e_4553);
     let mut found = Vec::new();
@@ -429,7 +502,10 @@ fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
         let q = points[i];
         (normal.dot(q.p) - offset).abs() < s.tolerance && normal.dot(q.n) > cos_max
     };
-    while left.len() >= min_points && found.len() < MAX_PLANES {
+    // Rounds whose winner is a strip make no plane: a bound on them too (a curved surface is all strips).
+    let mut rounds = 0;
+    while left.len() >= min_points && found.len() < MAX_PLANES && rounds < 4 * MAX_PLANES {
+        rounds += 1;
         let mut pick = || left[(rng.next_u64() % left.len() as u64) as usize];
         let proposals: Vec<usize> = (0..PROPOSALS).map(|_| pick()).collect();
         let scored: Vec<usize> = if left.len() <= SCORED {
