@@ -133,14 +133,11 @@ pub struct BakeArgs {
     /// Default 1.5 for scene fields, 0 for objects and meshes.
     #[arg(long)]
     pub smooth: Option<f64>,
-    /// Make the grid's planes exact also for an object or a mesh (the default for scene fields): the planes
-    /// found on its zero level snapped, their concave creases made sharp, only the other nodes blurred (see
-    /// "The scene's planes" in the README).
-    #[arg(long, conflicts_with = "no_planes")]
-    pub planes: bool,
-    /// Leave a scene field's planes as the field has them (only the blur).
+    /// Make the grid's planes exact: the planes found on its zero level snapped, their concave creases made
+    /// sharp, only the other nodes blurred (see "The scene's planes" in the README: a 3,000-step scene's wall
+    /// foot; not yet the default, since a 1,500-step scene's board relief comes out as steps).
     #[arg(long)]
-    pub no_planes: bool,
+    pub planes: bool,
     /// How far from a concave crease between two planes the field is made sharp, m: wider than the fillet
     /// NeuS leaves there (10–15 mm measured at the tabletop wall's foot).
     #[arg(long, default_value_t = PlaneSettings::default().crease_reach)]
@@ -206,12 +203,9 @@ fn field_grid(
 }
 
 /// A scene run's grid for the simulator, as `bake` makes it by default (the board region, 128 nodes along
-/// its longest side, the solid below z = 0, its planes made exact and the rest smoothed over 1.5 spacings).
+/// its longest side, the solid below z = 0, smoothed over 1.5 spacings).
 pub(crate) fn bake_scene(l: &neus::checkpoint::LoadedField, source: &Path) -> Result<SdfGrid> {
-    let (grid, planes) =
-        field_grid(l, source, scene_box(l), 128, Some(0.0))?.with_planes(&PlaneSettings::default(), 1.5);
-    tracing::info!("the scene's planes: {planes}");
-    Ok(grid)
+    Ok(field_grid(l, source, scene_box(l), 128, Some(0.0))?.smoothed(1.5))
 }
 
 pub fn bake(a: BakeArgs) -> Result<()> {
@@ -270,7 +264,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             a.crease_reach
         );
     }
-    let (grid, planes) = if !a.no_planes && (a.planes || scene_field) {
+    let (grid, planes) = if a.planes {
         let settings = PlaneSettings {
             crease_reach: a.crease_reach,
             ..Default::default()

@@ -178,10 +178,16 @@ impl Footprint {
     }
 }
 
+/// How near a parallel plane found earlier (larger) a plane may lie, in tolerances, and still be only that
+/// plane's relief: NeuS raises a textured board's squares by up to 1.5–2 mm (a 1,500-step scene's board
+/// measured 0–1.4 mm, found as a second plane 1.7 mm up); a real step (a book, a mat) stands higher.
+const RELIEF: f64 = 3.0;
+
 /// How far from both planes, in crease reaches, the zero level or the solid may stand in a crease's wedge
-/// and still be a fillet: a fillet's middle stands 0.29 of its radius off each plane, and the reach is the
-/// largest fillet.
-const STANDING: f64 = 0.3;
+/// and still be the reconstruction's rounding: a fillet's middle stands 0.29 of its radius off each plane, a
+/// 45° chamfer's half its leg, and the reach is the largest (a 1,500-step scene's wall leans out over its
+/// lowest 10–15 mm, its zero level 8 mm off both planes in places).
+const STANDING: f64 = 0.5;
 
 /// A concave crease's line, and the stretches of it (bins along the line) to make sharp.
 struct CreaseLine {
@@ -546,6 +552,14 @@ fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
             // A strip (a fillet's flattest band, a cylinder's side): its points leave, no plane is made.
             continue;
         }
+        if found
+            .iter()
+            .any(|f: &Found| f.normal.dot(normal) > cos_max && (f.offset - offset).abs() < RELIEF * s.tolerance)
+        {
+            // A plane's relief, not a plane of its own (a textured board's squares reconstructed a millimetre or
+            // two proud): its points leave, and the larger plane's snap flattens them where they are near it.
+            continue;
+        }
         let on_plane: Vec<V> = members.iter().map(|&i| points[i].p).collect();
         found.push(Found {
             normal,
@@ -559,8 +573,10 @@ fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
 
 /// The concave creases between the planes: pairs at least 30° apart whose points each lie, near the line
 /// where the planes meet, on the other's free side (a convex edge has them behind), with the stretches of the
-/// line (bins of half the reach) that both planes' points come within 1.5 reaches of (a plane's points
-/// stop where the fillet begins, which may be most of the reach away). A stretch where the
+/// line (bins of half the reach) where both planes have points within 4 reaches of it (a plane's points stop
+/// where the fillet or a face's lean begins, which on a 1,500-step scene's wall was more than 30 mm up in
+/// places; the raise is the corner's distance, a lower bound of the true one where the two planes are the
+/// nearest solid, so a generous window costs nothing). A stretch where the
 /// zero level in the wedge stands further than [`STANDING`] reaches from both planes holds something other
 /// than a fillet and is left alone.
 fn concave_creases(found: &[Found], points: &[Oriented], s: &PlaneSettings) -> Vec<CreaseLine> {
@@ -585,14 +601,17 @@ fn concave_creases(found: &[Found], points: &[Oriented], s: &PlaneSettings) -> V
                 bins: BTreeSet::new(),
                 blocked: 0,
             };
-            // Each plane's points near the line: their bins, and how far they stand on the other's side.
+            // Each plane's points near the line: the stretches they cover, and how far those within 1.5 reaches
+            // stand on the other's side.
             let near = |f: &Found, other: &Found| -> (BTreeSet<i64>, Vec<f64>) {
                 let mut bins = BTreeSet::new();
                 let mut sides = Vec::new();
                 for &i in &f.members {
                     let (t, r) = line.coordinates(points[i].p);
-                    if r < 1.5 * reach {
+                    if r < 4.0 * reach {
                         bins.insert((t / bin).floor() as i64);
+                    }
+                    if r < 1.5 * reach {
                         sides.push(other.distance(points[i].p));
                     }
                 }
