@@ -62,23 +62,29 @@ fn grid_of(f: impl Fn(Vec3<f64>) -> f64) -> SdfGrid {
     SdfGrid::from_values(LO, SPACING, dims, values).unwrap()
 }
 
-/// The largest |grid − truth| over the nodes `which` picks.
-fn worst(g: &SdfGrid, truth: impl Fn(Vec3<f64>) -> f64, which: impl Fn(Vec3<f64>) -> bool) -> f64 {
+/// Each node's position with its value in `g` and in `other` (a grid of the same dimensions).
+fn nodes<'a>(g: &'a SdfGrid, other: &'a SdfGrid) -> impl Iterator<Item = (Vec3<f64>, f64, f64)> + 'a {
     let [nx, ny, _] = g.dims();
     g.values()
         .iter()
+        .zip(other.values())
         .enumerate()
-        .map(|(idx, &v)| {
+        .map(move |(idx, (&v, &w))| {
             let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
             let p = Vec3::new(
                 LO[0] + i as f64 * SPACING,
                 LO[1] + j as f64 * SPACING,
                 LO[2] + k as f64 * SPACING,
             );
-            (p, v as f64)
+            (p, v as f64, w as f64)
         })
-        .filter(|&(p, _)| which(p))
-        .map(|(p, v)| (v - truth(p)).abs())
+}
+
+/// The largest |grid − truth| over the nodes `which` picks.
+fn worst(g: &SdfGrid, truth: impl Fn(Vec3<f64>) -> f64, which: impl Fn(Vec3<f64>) -> bool) -> f64 {
+    nodes(g, g)
+        .filter(|&(p, _, _)| which(p))
+        .map(|(p, v, _)| (v - truth(p)).abs())
         .fold(0.0, f64::max)
 }
 
@@ -162,23 +168,7 @@ fn what_stands_in_the_corner_and_what_is_curved_are_kept() {
     // middle is the blurred field's.
     let blurred = raw.smoothed(1.5);
     let inside = |p: Vec3<f64>| block(p) < -2.5e-3;
-    let opened = {
-        let [nx, ny, _] = g.dims();
-        g.values()
-            .iter()
-            .zip(blurred.values())
-            .enumerate()
-            .filter(|&(idx, (&v, &b))| {
-                let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
-                let p = Vec3::new(
-                    LO[0] + i as f64 * SPACING,
-                    LO[1] + j as f64 * SPACING,
-                    LO[2] + k as f64 * SPACING,
-                );
-                inside(p) && v > b
-            })
-            .count()
-    };
+    let opened = nodes(&g, &blurred).filter(|&(p, v, b)| inside(p) && v > b).count();
     assert_eq!(opened, 0, "nodes inside the block opened beyond the blur");
     let centre = [FACE - 0.0125, 0.05, 0.0125];
     assert_eq!(at(centre), {
@@ -195,23 +185,8 @@ fn what_stands_in_the_corner_and_what_is_curved_are_kept() {
     );
     // The ball, beyond the board's snapping band (three spacings), is the blurred field's, node for node;
     // nearer the board, its inside stays inside.
-    let differ = |which: &dyn Fn(Vec3<f64>, f64, f64) -> bool| {
-        let [nx, ny, _] = g.dims();
-        g.values()
-            .iter()
-            .zip(blurred.values())
-            .enumerate()
-            .filter(|&(idx, (&v, &b))| {
-                let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
-                let p = Vec3::new(
-                    LO[0] + i as f64 * SPACING,
-                    LO[1] + j as f64 * SPACING,
-                    LO[2] + k as f64 * SPACING,
-                );
-                which(p, v as f64, b as f64)
-            })
-            .count()
-    };
+    let differ =
+        |which: &dyn Fn(Vec3<f64>, f64, f64) -> bool| nodes(&g, &blurred).filter(|&(p, v, b)| which(p, v, b)).count();
     let on_ball = |p: Vec3<f64>| ball(p).abs() < 0.005 && p.z > 3.0 * SPACING;
     assert_eq!(differ(&|p, v, b| on_ball(p) && v != b), 0, "the ball changed");
     assert_eq!(
@@ -238,22 +213,8 @@ fn no_solid_is_added_where_the_field_has_none() {
     );
     // Within the tolerance a plane may move the zero level (the snap): no more.
     let tolerance = PlaneSettings::default().tolerance;
-    let [nx, ny, _] = g.dims();
-    let added: Vec<_> = g
-        .values()
-        .iter()
-        .zip(raw.values())
-        .enumerate()
-        .filter_map(|(idx, (&v, &r))| {
-            let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
-            let p = Vec3::new(
-                LO[0] + i as f64 * SPACING,
-                LO[1] + j as f64 * SPACING,
-                LO[2] + k as f64 * SPACING,
-            );
-            let (v, r) = (v as f64, r as f64);
-            (r > 0.0 && sharp(p) > 0.0 && v < -tolerance).then_some((p, v, r))
-        })
+    let added: Vec<_> = nodes(&g, &raw)
+        .filter(|&(p, v, r)| r > 0.0 && sharp(p) > 0.0 && v < -tolerance)
         .collect();
     assert!(
         added.is_empty(),
@@ -327,4 +288,34 @@ fn a_grid_without_planes_is_only_blurred() {
     let (g, report) = raw.with_planes(&PlaneSettings::default(), 1.5);
     assert!(report.planes.is_empty(), "{report}");
     assert_eq!(g, raw.smoothed(1.5));
+}
+
+/// A board whose texture NeuS read as relief (flat-topped squares 2 mm proud, as a 1,500-step scene's board)
+/// is one plane, not two: the squares are its relief, not a second plane to snap to (snapped to two planes
+/// 1.7 mm apart, the board became steps).
+#[test]
+fn a_board_with_raised_squares_is_one_plane() {
+    let relief = |p: Vec3<f64>| {
+        let s = (p.x * std::f64::consts::PI / 0.02).sin() * (p.y * std::f64::consts::PI / 0.02).sin();
+        1.0e-3 * (1.0 + (4.0 * s).tanh())
+    };
+    let raw = grid_of(|p| reconstructed(p) - relief(p));
+    let (g, report) = raw.with_planes(&PlaneSettings::default(), 1.5);
+    let boards: Vec<_> = report
+        .planes
+        .iter()
+        .filter(|p| p.normal.z > 0.99 && p.offset.abs() < 0.01)
+        .collect();
+    assert_eq!(boards.len(), 1, "{report}");
+    // Above the relief the snap eases the squares only part of the way to the plane (0.8 mm of the 2 left,
+    // measured): why the planes are not yet `bake`'s default. Here only that it is no worse than the field.
+    let off = boards[0].offset;
+    let above = |p: Vec3<f64>| p.z > 0.003 && p.z < 0.008 && p.x.abs() < 0.1 && p.y.abs() < 0.1;
+    let (before, after) = (worst(&raw, |p| p.z - off, above), worst(&g, |p| p.z - off, above));
+    assert!(
+        after <= before,
+        "the board {:.2} mm off its plane, the field {:.2}",
+        after * 1e3,
+        before * 1e3
+    );
 }
