@@ -443,20 +443,26 @@ fn surface_points(g: &SdfGrid) -> Vec<Oriented> {
         .collect()
 }
 
-/// The least-squares plane through `members` (the normal oriented with their mean normal).
-fn fit_plane(points: &[Oriented], members: &[usize]) -> (V, f64) {
+/// The centre of `members` and the covariance of their offsets from it, each offset first mapped by `map`.
+fn scatter(points: &[Oriented], members: &[usize], map: impl Fn(V) -> V) -> (V, [[f64; 3]; 3]) {
     let m = members.len() as f64;
     let centre = members.iter().fold(V::zero(), |s, &i| s + points[i].p) * (1.0 / m);
-    let mean_normal = members.iter().fold(V::zero(), |s, &i| s + points[i].n);
     let mut cov = [[0.0; 3]; 3];
     for &i in members {
-        let d = (points[i].p - centre).to_array();
+        let d = map(points[i].p - centre).to_array();
         for (r, row) in cov.iter_mut().enumerate() {
             for (c, e) in row.iter_mut().enumerate() {
-                *e += d[r] * d[c];
+                *e += d[r] * d[c] / m;
             }
         }
     }
+    (centre, cov)
+}
+
+/// The least-squares plane through `members` (the normal oriented with their mean normal).
+fn fit_plane(points: &[Oriented], members: &[usize]) -> (V, f64) {
+    let (centre, cov) = scatter(points, members, |d| d);
+    let mean_normal = members.iter().fold(V::zero(), |s, &i| s + points[i].n);
     let (values, vectors) = symmetric_eigen(cov);
     let smallest = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
     let mut normal = V::new(vectors[0][smallest], vectors[1][smallest], vectors[2][smallest]);
@@ -469,18 +475,7 @@ fn fit_plane(points: &[Oriented], members: &[usize]) -> (V, f64) {
 /// The width across the plane of `members` (normal `normal`): of the uniform strip with their spread
 /// (√12 standard deviations) along the in-plane direction they spread least.
 fn narrowest_width(points: &[Oriented], members: &[usize], normal: V) -> f64 {
-    let m = members.len() as f64;
-    let centre = members.iter().fold(V::zero(), |s, &i| s + points[i].p) * (1.0 / m);
-    let mut cov = [[0.0; 3]; 3];
-    for &i in members {
-        let d = points[i].p - centre;
-        let d = (d - normal * d.dot(normal)).to_array();
-        for (r, row) in cov.iter_mut().enumerate() {
-            for (c, e) in row.iter_mut().enumerate() {
-                *e += d[r] * d[c] / m;
-            }
-        }
-    }
+    let (_, cov) = scatter(points, members, |d| d - normal * d.dot(normal));
     // The in-plane spread: the two largest eigenvalues (the third, along the normal, is zero).
     let (mut values, _) = symmetric_eigen(cov);
     values.sort_by(f64::total_cmp);
@@ -489,9 +484,9 @@ fn narrowest_width(points: &[Oriented], members: &[usize], normal: V) -> f64 {
 
 /// Planes by RANSAC on oriented points: each round, 300 of the points left each propose the plane through
 /// them with their normal; the one with the most points within the tolerance and angle (counted on a sample
-/// of 20,000 of the points left) wins, is refitted by
-/// least squares until its points stop changing, and its points leave; it is kept if it is at least the narrowest width across. Until
-/// the best covers less than the smallest area.
+/// of 20,000 of the points left) wins, is refitted by least squares until its points stop changing, and its
+/// points leave; it is kept if it is at least the narrowest width across and not a larger plane's relief.
+/// Until the best covers less than the smallest area.
 fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
     const PROPOSALS: usize = 300;
     /// Points each proposal is scored on (the winner's points are then counted over all of them).
