@@ -101,7 +101,7 @@ pub fn mesh(a: MeshArgs) -> Result<()> {
 
 #[derive(Args)]
 #[command(after_help = "Examples:
-  pganeus bake runs/scene --out scene.sdf --res 256
+  pganeus bake runs/scene --out scene.sdf
   pganeus bake toy.ply --out toy.sdf
   pganeus bake toy.ply --out toy.npz")]
 pub struct BakeArgs {
@@ -112,9 +112,10 @@ pub struct BakeArgs {
     /// node [0, 0, 0], m) and `spacing` (m).
     #[arg(long)]
     pub out: PathBuf,
-    /// Nodes along the longest side.
-    #[arg(long, default_value_t = 128)]
-    pub res: usize,
+    /// Nodes along the longest side. Default 256 for scene fields (as `fit` bakes a scene: 3.5 mm on a 0.9 m
+    /// board; at 128 a wall's foot leans by degrees), 128 for objects and meshes.
+    #[arg(long)]
+    pub res: Option<usize>,
     /// Bounds "xmin,ymin,zmin,xmax,ymax,zmax" in metres (default: an object field's unit-sphere cube; a scene
     /// field's board region: the unit sphere's square in x and y, from 10 % of its radius below the board to as
     /// far above its highest surface; a mesh's box padded by 5 %).
@@ -133,11 +134,14 @@ pub struct BakeArgs {
     /// Default 1.5 for scene fields, 0 for objects and meshes.
     #[arg(long)]
     pub smooth: Option<f64>,
-    /// Make the grid's planes exact: the planes found on its zero level snapped, their concave creases made
-    /// sharp, only the other nodes blurred (see "The scene's planes" in the README: a 3,000-step scene's wall
-    /// foot; not yet the default, since a 1,500-step scene's board relief comes out as steps).
-    #[arg(long)]
+    /// Make the grid's planes exact: the planes found on its zero level snapped (their relief and roughness
+    /// flattened), their concave creases made sharp, only the other nodes blurred (see "The scene's planes"
+    /// in the README). Default for scene fields; this flag asks for it on objects and meshes too.
+    #[arg(long, conflicts_with = "no_planes")]
     pub planes: bool,
+    /// Only blur, also for a scene field.
+    #[arg(long)]
+    pub no_planes: bool,
     /// How far from a concave crease between two planes the field is made sharp, m: wider than the fillet
     /// NeuS leaves there (10–15 mm measured at the tabletop wall's foot).
     #[arg(long, default_value_t = PlaneSettings::default().crease_reach)]
@@ -202,14 +206,17 @@ fn field_grid(
     Ok(SdfGrid::from_values(lo, h, dims, values)?)
 }
 
-/// A scene run's grid for the simulator, as `bake` makes it by default (the board region, 128 nodes along
-/// its longest side, the solid below z = 0, smoothed over 1.5 spacings).
+/// A scene run's grid for the simulator, as `bake` makes it by default (the board region, 256 nodes along
+/// its longest side, the solid below z = 0, its planes made exact, the rest smoothed over 1.5 spacings).
 pub(crate) fn bake_scene(l: &neus::checkpoint::LoadedField, source: &Path) -> Result<SdfGrid> {
-    Ok(field_grid(l, source, scene_box(l), 128, Some(0.0))?.smoothed(1.5))
+    let grid = field_grid(l, source, scene_box(l), 256, Some(0.0))?;
+    let (grid, planes) = grid.with_planes(&PlaneSettings::default(), 1.5);
+    tracing::info!("the scene's planes: {planes}");
+    Ok(grid)
 }
 
 pub fn bake(a: BakeArgs) -> Result<()> {
-    if a.res < 2 {
+    if a.res.is_some_and(|r| r < 2) {
         bail!("--res must be at least 2");
     }
     let is_mesh = a
@@ -233,7 +240,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
         let (lo, hi) = m.bounds();
         let pad = 0.05 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         let (lo, hi) = bounds(lo.map(|v| v - pad), hi.map(|v| v + pad))?;
-        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res - 1) as f64;
+        let h = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max) / (a.res.unwrap_or(128) - 1) as f64;
         let dist = MeshDistance::new(&m)?;
         SdfGrid::bake(&dist, lo, hi, h)?
     } else {
@@ -252,7 +259,8 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             (Some(z), _) => Some(z),
             (None, false) => scene.then_some(0.0),
         };
-        field_grid(&l, &a.source, (lo, hi), a.res, floor)?
+        let res = a.res.unwrap_or(if scene { 256 } else { 128 });
+        field_grid(&l, &a.source, (lo, hi), res, floor)?
     };
     let smooth = a.smooth.unwrap_or(if scene_field { 1.5 } else { 0.0 });
     if !(smooth.is_finite() && smooth >= 0.0) {
@@ -264,7 +272,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             a.crease_reach
         );
     }
-    let (grid, planes) = if a.planes {
+    let (grid, planes) = if a.planes || (scene_field && !a.no_planes) {
         let settings = PlaneSettings {
             crease_reach: a.crease_reach,
             ..Default::default()
