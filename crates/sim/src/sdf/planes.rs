@@ -584,8 +584,9 @@ fn find_planes(points: &[Oriented], s: &PlaneSettings, h: f64) -> Vec<Found> {
     }
     // Each plane's relief: the points parallel to it and near it (within RELIEF tolerances, over its footprint
     // coarsened to cells of four spacings, as a relief's squares make holes in it), its own and those of its
-    // relief, make its footprint and say how far they stand off it. Its normal and level stay its own points' (refitted to all of these, a wall's normal
-    // leans with the rounding at its foot: 1.5° on a 1,500-step scene).
+    // relief, make its footprint and say how far they stand off it. Its normal and level stay its own points'
+    // (refitted to all of these, a wall's normal leans with the rounding at its foot: 1.5° on a 1,500-step
+    // scene).
     for f in &mut found {
         let own: Vec<V> = f.members.iter().map(|&i| points[i].p).collect();
         let coarse = Footprint::of(f.normal, &own, 4.0 * h);
