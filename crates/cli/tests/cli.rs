@@ -924,6 +924,19 @@ fn scene_train_bake_and_simulate_on_the_reconstruction() {
     // A scene's planes are made exact by default: the board (its normal up) among them.
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(said.contains("planes: ") && said.contains(", 1.000)·x = "), "{said}");
+    // `--no-planes` only blurs: another grid, and no planes said.
+    let blurred = d.join("scene_blurred.sdf");
+    let o = bin()
+        .arg("bake")
+        .arg(&run)
+        .arg("--no-planes")
+        .arg("--out")
+        .arg(&blurred)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("planes: "), "{}", text(&o));
+    assert_ne!(std::fs::read(&blurred).unwrap(), std::fs::read(&grid).unwrap());
     let g = sim::sdf::SdfGrid::load(&grid).unwrap();
     let top = g.max_corner();
     // The board region: the sphere's square (±0.45 m) in x, y; in z from 10 % of its radius (4.5 cm) below the
