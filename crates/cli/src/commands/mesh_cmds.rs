@@ -206,10 +206,14 @@ fn field_grid(
     Ok(SdfGrid::from_values(lo, h, dims, values)?)
 }
 
+/// Nodes along a scene grid's longest side by default (3.5 mm on a 0.9 m board; at 128 a wall's foot leans by
+/// degrees).
+const SCENE_RES: usize = 256;
+
 /// A scene run's grid for the simulator, as `bake` makes it by default (the board region, 256 nodes along
 /// its longest side, the solid below z = 0, its planes made exact, the rest smoothed over 1.5 spacings).
 pub(crate) fn bake_scene(l: &neus::checkpoint::LoadedField, source: &Path) -> Result<SdfGrid> {
-    let grid = field_grid(l, source, scene_box(l), 256, Some(0.0))?;
+    let grid = field_grid(l, source, scene_box(l), SCENE_RES, Some(0.0))?;
     let (grid, planes) = grid.with_planes(&PlaneSettings::default(), 1.5);
     tracing::info!("the scene's planes: {planes}");
     Ok(grid)
@@ -259,7 +263,7 @@ pub fn bake(a: BakeArgs) -> Result<()> {
             (Some(z), _) => Some(z),
             (None, false) => scene.then_some(0.0),
         };
-        let res = a.res.unwrap_or(if scene { 256 } else { 128 });
+        let res = a.res.unwrap_or(if scene { SCENE_RES } else { 128 });
         field_grid(&l, &a.source, (lo, hi), res, floor)?
     };
     let smooth = a.smooth.unwrap_or(if scene_field { 1.5 } else { 0.0 });
