@@ -781,8 +781,14 @@ impl PhysicsFit {
     }
 
     /// The fit with its parameters replaced by `world`'s (a world from this fit's world, whose values a later
-    /// step moved).
+    /// step moved), its initial orientations too: a parameter vector holds each as a turn about the world's
+    /// own (none in `world.params()`), and this fit's world took them from the first observed poses, which a
+    /// fit of the initial pose leaves (a kept launch simulated from GA's first orientation, a degree off,
+    /// missed the poses it was fitted to eight times over after its bounces).
     pub(crate) fn with_params_of(mut self, world: &World) -> Self {
+        for (mine, theirs) in self.world.initial.iter_mut().zip(&world.initial) {
+            mine.pose.q = theirs.pose.q;
+        }
         self.params = world.params();
         self.loss = self.loss_at(&self.params.clone());
         self

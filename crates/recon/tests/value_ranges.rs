@@ -147,10 +147,11 @@ fn the_bar_comes_from_the_best_loss_the_profiles_see() {
         ..cfg
     };
     let ranges = recon::contact_value_ranges(&cfg, slow, vec![observed], RangeScan::default(), &|_, _| {}).unwrap();
-    // Measured: restitution 0.26–0.66, friction 0.14–0.72 (the profiles' first refits start from the slow
+    // Measured: restitution 0.31–0.67, friction 0.097–0.83 (the profiles' first refits start from the slow
     // launch: wider than the fitted world's 0.35–0.61 and 0.18–0.999); with the bar from the handed-in world's
-    // misfit, 0.001–0.91 and 0.001–0.999.
+    // misfit, 0.001–0.92 and 0.026–0.999. (Before the handed-in world kept its own initial orientation, the
+    // ranges were simulated from the first observed pose's: 0.26–0.66 and 0.14–0.72.)
     let (r, f) = (range(&ranges, false), range(&ranges, true));
     assert!(r.contains(0.6) && r.lo > 0.15 && r.hi < 0.8, "{ranges:?}");
-    assert!(f.lo > 0.1, "{ranges:?}");
+    assert!(f.lo > 0.05, "{ranges:?}");
 }
