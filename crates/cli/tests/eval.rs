@@ -68,6 +68,27 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     assert_eq!(r["parameters"]["toy"]["v0_error_m_s"].as_f64().unwrap(), 0.0);
     assert_eq!(r["parameters"]["toy"]["restitution_error"].as_f64().unwrap(), 0.0);
 
+    // The launch `fit` fitted to the flight alone is scored beside the kept one: here 3 cm/s faster along x.
+    let mut with_flight = fit.clone();
+    let initial = video["bodies"][0]["initial"].clone();
+    let mut v = initial["v"].clone();
+    v[0] = json!(v[0].as_f64().unwrap() + 0.03);
+    with_flight["bodies"][0]["flight"] =
+        json!({"frames": 4, "bent": true, "v0": v, "omega0": initial["omega"], "statistic": 40.0, "critical": 26.2});
+    let (r, printed) = eval_printing(&with_flight, &d.join("flight"), &truth_path);
+    let p = &r["parameters"]["toy"];
+    assert_eq!(p["v0_error_m_s"].as_f64().unwrap(), 0.0, "the kept launch: {p}");
+    assert!(
+        (p["flight"]["v0_error_m_s"].as_f64().unwrap() - 0.03).abs() < 1e-4,
+        "{p}"
+    );
+    assert!(
+        printed.contains(
+            "the launch fitted to the flight alone (4 frames before the first contact; the kept launch misses it)"
+        ),
+        "{printed}"
+    );
+
     // Every pose 4 mm off: 4 mm in position and ADD, a silhouette IoU below 1.
     let mut shifted = fit.clone();
     for p in shifted["bodies"][0]["poses"].as_array_mut().unwrap() {

@@ -284,6 +284,15 @@ rays_per_step = 256
         assert!(ious.iter().all(|&i| i > 0.9), "IoU {ious:?}");
         let dv = (Vec3::<f64>::cst(b.initial.v) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
         assert!(dv < 0.03, "v0 {:?} is {dv:.3} m/s off", b.initial.v);
+        // The launch fitted to the ball's flight alone (before it lands), beside the kept one.
+        let flight = &b.extra["flight"];
+        let fv: [f64; 3] = serde_json::from_value(flight["v0"].clone()).expect("the flight's launch");
+        let fdv = (Vec3::<f64>::cst(fv) - Vec3::cst(f.truth.bodies[0].initial.v)).norm();
+        eprintln!(
+            "the flight's launch ({} frames, the kept launch bent: {}): {fdv:.4} m/s off",
+            flight["frames"], flight["bent"]
+        );
+        assert!(fdv < 0.05, "the flight's v0 {fv:?} is {fdv:.3} m/s off");
         // Each contact value with the range the motion cannot tell from it: the fitted value inside, and the
         // friction (the ball hardly slides in ten frames: it stays near its start, 0.5, against the true 0.3)
         // left open to the truth.
@@ -326,6 +335,7 @@ rays_per_step = 256
         for key in ["restitution_range", "friction_range"] {
             assert_eq!(resumed.contact.extra[key], fitted.contact.extra[key], "{key}");
         }
+        assert_eq!(resumed.bodies[0].extra["flight"], fitted.bodies[0].extra["flight"]);
         // Other settings into the same folder need --force.
         std::fs::write(d.join("other.toml"), SMALL_FIT.replace("rounds = 1", "rounds = 2")).unwrap();
         let o = fit_cmd_with(&f, &f.video, &object, &d.join("init.json"), &out, &d.join("other.toml"))

@@ -205,22 +205,39 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
         };
         // The velocity of the true body's origin: v + ω × (its offset from the fit's origin, in world axes).
         let offset = entry.poses[0].to_geom().q.rotate(r.to_truth.inverse().t);
-        let omega = Vec3::cst(entry.initial.omega);
-        let v = Vec3::cst(entry.initial.v) + omega.cross(offset);
         let tv = Vec3::cst(truth.initial.v);
-        let dv = (v - tv).norm();
-        // A share of a true speed only where there is one: a body at rest (the block a toy hits) has none.
-        let percent = if tv.norm() > AT_REST_M_S {
-            num(dv / tv.norm(), 100.0, 2)
-        } else {
-            Value::Null
+        let launch = |v: [f64; 3], omega: [f64; 3]| {
+            let omega = Vec3::cst(omega);
+            let v = Vec3::cst(v) + omega.cross(offset);
+            let dv = (v - tv).norm();
+            // A share of a true speed only where there is one: a body at rest (the block a toy hits) has none.
+            let percent = if tv.norm() > AT_REST_M_S {
+                num(dv / tv.norm(), 100.0, 2)
+            } else {
+                Value::Null
+            };
+            let omega_error = num((omega - Vec3::cst(truth.initial.omega)).norm(), 1.0, 3);
+            (v, num(dv, 1.0, 4), percent, omega_error)
         };
+        let (v, dv, percent, omega_error) = launch(entry.initial.v, entry.initial.omega);
         let mut e = json!({
             "v0": v.to_array(), "v0_true": truth.initial.v,
-            "v0_error_m_s": num(dv, 1.0, 4),
+            "v0_error_m_s": dv,
             "v0_error_percent": percent,
-            "omega0_error_rad_s": num((omega - Vec3::cst(truth.initial.omega)).norm(), 1.0, 3),
+            "omega0_error_rad_s": omega_error,
         });
+        // The launch fitted to the flight alone (`fit`'s flight test), beside the kept one.
+        let flight = entry.extra.get("flight");
+        let vec3 = |v: Option<&Value>| -> Option<[f64; 3]> { serde_json::from_value(v?.clone()).ok() };
+        if let (Some(f), Some(fv), Some(fw)) = (
+            flight,
+            vec3(flight.and_then(|f| f.get("v0"))),
+            vec3(flight.and_then(|f| f.get("omega0"))),
+        ) {
+            let (v, dv, percent, omega_error) = launch(fv, fw);
+            e["flight"] = json!({"frames": f["frames"], "bent": f["bent"], "v0": v.to_array(), "v0_error_m_s": dv,
+                "v0_error_percent": percent, "omega0_error_rad_s": omega_error});
+        }
         if video.contact.model == "pganeus" {
             e["restitution"] = json!(fit.contact.restitution);
             e["restitution_true"] = json!(video.contact.restitution);
@@ -520,6 +537,21 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 String::new()
             }
         );
+        if let Some(f) = p.get("flight") {
+            println!(
+                "{body}: the launch fitted to the flight alone ({} frames before the first contact; the kept launch {}): \
+                 v0 off by {} m/s ({} %), omega0 by {} rad/s",
+                f["frames"],
+                if f["bent"].as_bool() == Some(true) {
+                    "misses it"
+                } else {
+                    "stands against it"
+                },
+                f["v0_error_m_s"],
+                f["v0_error_percent"],
+                f["omega0_error_rad_s"]
+            );
+        }
     }
     for p in report["pairs"].as_array().into_iter().flatten() {
         println!("{} and {}: {}", p["bodies"][0], p["bodies"][1], values_text(p));

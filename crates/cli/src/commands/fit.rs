@@ -426,7 +426,7 @@ pub fn run(a: FitArgs) -> Result<()> {
             unreachable!("--no-pa conflicts with --no-ga")
         };
         if wanted.contains(&Stage::Pga) || wanted.contains(&Stage::Ga) {
-            finish(&mut job, &pa, None, &[], &timings, t_start)?;
+            finish(&mut job, &pa, None, &[], None, &timings, t_start)?;
         }
         return Ok(());
     }
@@ -439,10 +439,18 @@ pub fn run(a: FitArgs) -> Result<()> {
     }
     let t = Instant::now();
     let start_world = carve_seen_space(&mut job, start_world, &ga)?;
-    let (final_world, final_ga, rounds, ranges) = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
+    let pga = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
-    timings.insert("pga_rounds".into(), json!(rounds));
-    finish(&mut job, &final_world, Some(&final_ga), &ranges, &timings, t_start)
+    timings.insert("pga_rounds".into(), json!(pga.rounds));
+    finish(
+        &mut job,
+        &pga.world,
+        Some(&pga.ga),
+        &pga.ranges,
+        pga.flight.as_ref(),
+        &timings,
+        t_start,
+    )
 }
 
 /// The video's frame rate: `--fps` when given, else its `capture.json`'s.
@@ -1147,16 +1155,28 @@ pub(super) fn frame_poses(poses: &[pganeus_io::Pose], rows: &[Value]) -> Vec<Fra
         .collect()
 }
 
+/// What stage 4 keeps.
+struct PgaResult {
+    /// The best world.
+    world: World,
+    /// GA's poses to report (those the world was fitted to, but for the frames the refit moved).
+    ga: Vec<FramePose>,
+    /// The GA ↔ PGA rounds kept.
+    rounds: usize,
+    ranges: Vec<ValueRange>,
+    /// The launch over the flight alone and its test ([`launch_from_flight`]), where there is a flight.
+    flight: Option<Value>,
+}
+
 /// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls, then GA's
-/// worst frames again from the kept world's simulation ([`stage_ga_from_pga`]); the best world, GA's poses
-/// to report (those it was fitted to, but for the frames the refit moved) and the rounds kept.
+/// worst frames again from the kept world's simulation ([`stage_ga_from_pga`]).
 fn stage_pga(
     job: &mut Job,
     start: World,
     ga: Vec<FramePose>,
     from_pa: bool,
     start_contact: StartContact,
-) -> Result<(World, Vec<FramePose>, usize, Vec<ValueRange>)> {
+) -> Result<PgaResult> {
     let weights_cfg = job.cfg.pa.weights.clone();
     // The kept round: its world, GA's poses, the image loss of its simulation, and its multi-start's starts
     // with the winner's loss (none for PA's world).
@@ -1254,12 +1274,13 @@ fn stage_pga(
             }
         }
     }
+    let mut flight = None;
     if job.cfg.flight_test {
-        if let Some((held, held_total, held_starts)) =
-            launch_from_flight(job, &world, total, &ranges_ga, start_contact)?
-        {
+        let (held, record) = launch_from_flight(job, &world, total, &ranges_ga, start_contact)?;
+        if let Some((held, held_total, held_starts)) = held {
             (world, total, starts) = (held, held_total, held_starts);
         }
+        flight = record;
     }
     tracing::debug!("PGA: kept image loss {total:.4}");
     let mut ranges = value_ranges(job, &world, &ranges_ga, start_contact)?;
@@ -1267,11 +1288,20 @@ fn stage_pga(
         recon::widen_by_starts(&mut ranges, &starts, recon::StartsOn::Scene, loss);
     }
     report_ranges(&ranges, &mut |row| job.log(row))?;
-    Ok((world, ga, kept, ranges))
+    Ok(PgaResult {
+        world,
+        ga,
+        rounds: kept,
+        ranges,
+        flight,
+    })
 }
 
 /// A multi-start's starts and the winner's loss (a range widens to the values its starts ended at).
 type FitStarts = (Vec<StartResult>, f64);
+
+/// The world with the flight's launch held, its simulation's image loss and its multi-start's starts.
+type HeldLaunch = (World, f64, Option<FitStarts>);
 
 /// The kept world's launch against the flight before its first contact ([`recon::flight`]): where it misses
 /// the flight by more than GA's poses' noise, the world with the flight's launch held and the contact values
@@ -1279,7 +1309,11 @@ type FitStarts = (Vec<StartResult>, f64);
 /// [`recon::CONTACT_STARTS`]; the images choose among the starts within [`PGA_TIE`] as in PGA), kept if its
 /// simulation explains the video better than the kept world's (image loss `kept_total`), with that loss and
 /// its starts (none where the settings fit no contact value: the flight's world as it is); `None` where the
-/// launch stands.
+/// launch stands. Beside it, where there is a flight to test, its record for the trajectory's body entry
+/// (`"flight"`): the launch fitted to the flight alone, the test and whether the held world was kept. The
+/// flight's launch owes nothing to the contact model; the kept one explains the whole video (a launch bent
+/// by contacts the model cannot make, or one the few frames of flight pin less well than all of them: the
+/// note below), so both are reported.
 ///
 /// The images decide, not the test alone: the flight's launch is fitted to a few of GA's poses, whose errors
 /// are not independent from frame to frame (a depth that drifts over the flight), so the test flags a
@@ -1291,15 +1325,19 @@ fn launch_from_flight(
     kept_total: f64,
     ga: &[FramePose],
     start_contact: StartContact,
-) -> Result<Option<(World, f64, Option<FitStarts>)>> {
+) -> Result<(Option<HeldLaunch>, Option<Value>)> {
     let cfg = pga_config(job);
     let observed = pga_observed(job, ga, start_contact);
     let check = recon::check_flight(&cfg, world, std::slice::from_ref(&observed))
         .map_err(|e| anyhow!("PGA's launch against the flight: {e}"))?;
     let Some(check) = check else {
-        return Ok(None);
+        return Ok((None, None));
     };
     let bent = check.bent();
+    let flight = &check.flight_world.initial[0];
+    let mut record = json!({"frames": check.frames, "statistic": check.statistic, "critical": check.critical,
+        "bent": bent, "v0": flight.v.to_array(), "omega0": flight.omega.to_array(),
+        "pose": {"t": flight.pose.t.to_array(), "q": flight.pose.q.to_array()}});
     tracing::info!(
         "the launch against the flight of {} frames: χ² {:.1} against {:.1} at 1 %: {}",
         check.frames,
@@ -1317,7 +1355,7 @@ fn launch_from_flight(
         "critical": check.critical, "bent": bent, "v0": v(world), "flight_v0": v(&check.flight_world)}),
     )?;
     if !bent {
-        return Ok(None);
+        return Ok((None, Some(record)));
     }
     let starts: &[(f64, f64)] = if job.cfg.pga_multi_start {
         &recon::CONTACT_STARTS
@@ -1351,7 +1389,8 @@ fn launch_from_flight(
     );
     job.log(json!({"stage": "pga_flight", "image_loss": total, "kept": kept,
         "restitution": world.scene_contact[0].restitution, "friction": world.scene_contact[0].friction}))?;
-    Ok(kept.then_some((world, total, fit_starts)))
+    record["held_kept"] = json!(kept);
+    Ok((kept.then_some((world, total, fit_starts)), Some(record)))
 }
 
 /// The image terms of the body's simulated poses in every frame of the video.
@@ -1741,6 +1780,7 @@ fn finish(
     world: &World,
     ga: Option<&[FramePose]>,
     ranges: &[ValueRange],
+    flight: Option<&Value>,
     timings: &Map<String, Value>,
     t_start: Instant,
 ) -> Result<()> {
@@ -1827,6 +1867,9 @@ fn finish(
         *pose = pganeus_io::Pose::from_geom(r);
     }
     t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
+    if let Some(f) = flight {
+        t.bodies[0].extra.insert("flight".into(), f.clone());
+    }
     // The object's mesh beside the trajectory, in the body frame.
     pganeus_io::write_ply(
         &job.out.join("object.ply"),
