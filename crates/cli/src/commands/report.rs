@@ -424,6 +424,29 @@ fn parameter_table(page: &mut Page, traj: &Trajectory, eval: Option<&Value>) {
             with_truth(friction, "friction") + &range_text(traj.contact.extra.get("friction_range")),
             fmt(b.extra.get("mass").and_then(Value::as_f64), 4),
         ]);
+        // The launch fitted to the flight alone (`fit`'s flight test), beside the kept one.
+        if let Some(f) = b.extra.get("flight") {
+            let three = |v: &Value| -> Option<Vec<f64>> {
+                let a: Vec<f64> = v.as_array()?.iter().filter_map(Value::as_f64).collect();
+                (a.len() == 3).then_some(a)
+            };
+            if let (Some(v), Some(w)) = (three(&f["v0"]), three(&f["omega0"])) {
+                let verdict = if f["bent"].as_bool() == Some(true) {
+                    "the kept launch misses it"
+                } else {
+                    "the kept launch stands against it"
+                };
+                rows.push(vec![
+                    format!("{}: the flight alone ({} frames; {verdict})", b.name, f["frames"]),
+                    format!("[{:.3}, {:.3}, {:.3}]", v[0], v[1], v[2]),
+                    fmt(e.and_then(|e| f64_at(&e["flight"], "v0_error_percent")), 1),
+                    format!("[{:.2}, {:.2}, {:.2}]", w[0], w[1], w[2]),
+                    "—".into(),
+                    "—".into(),
+                    "—".into(),
+                ]);
+            }
+        }
     }
     page.heading(3, "Fitted physics");
     page.table(
