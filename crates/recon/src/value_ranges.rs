@@ -111,9 +111,8 @@ impl PhysicsFit {
             })
             .collect();
         // The bar is twice the best loss seen: the fitted one's, or a profile's where its refit of the others
-        // found better (the fitted values handed in were not this objective's optimum: a kept world fitted
-        // with other settings; the fitted loss 8 times a profile's next to it on the backdrop's slide, and
-        // every value within twice that).
+        // found better (the values handed in are not this objective's optimum: a world kept from a fit with
+        // other settings or observations; the test hands in a launch 20 % slow).
         let best = profiles
             .iter()
             .flatten()
