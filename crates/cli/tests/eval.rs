@@ -7,7 +7,7 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{bin, tabletop, text};
+use common::{bin, flight_3_cm_s_fast, tabletop, text};
 
 /// The tabletop preset at 64×48 with four frames per video.
 fn dataset(d: &Path) -> PathBuf {
@@ -70,11 +70,7 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
 
     // The launch `fit` fitted to the flight alone is scored beside the kept one: here 3 cm/s faster along x.
     let mut with_flight = fit.clone();
-    let initial = video["bodies"][0]["initial"].clone();
-    let mut v = initial["v"].clone();
-    v[0] = json!(v[0].as_f64().unwrap() + 0.03);
-    with_flight["bodies"][0]["flight"] =
-        json!({"frames": 4, "bent": true, "v0": v, "omega0": initial["omega"], "statistic": 40.0, "critical": 26.2});
+    with_flight["bodies"][0]["flight"] = flight_3_cm_s_fast(&video);
     let (r, printed) = eval_printing(&with_flight, &d.join("flight"), &truth_path);
     let p = &r["parameters"]["toy"];
     assert_eq!(p["v0_error_m_s"].as_f64().unwrap(), 0.0, "the kept launch: {p}");

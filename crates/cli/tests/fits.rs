@@ -292,7 +292,8 @@ rays_per_step = 256
             "the flight's launch ({} frames, the kept launch bent: {}): {fdv:.4} m/s off",
             flight["frames"], flight["bent"]
         );
-        assert!(fdv < 0.05, "the flight's v0 {fv:?} is {fdv:.3} m/s off");
+        // Measured 0.004 m/s (the kept launch 0.003).
+        assert!(fdv < 0.02, "the flight's v0 {fv:?} is {fdv:.3} m/s off");
         // Each contact value with the range the motion cannot tell from it: the fitted value inside, and the
         // friction (the ball hardly slides in ten frames: it stays near its start, 0.5, against the true 0.3)
         // left open to the truth.

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 mod common;
-use common::{bin, tabletop, text};
+use common::{bin, flight_3_cm_s_fast, tabletop, text};
 
 /// The tabletop preset at 64×48 with six frames per video, and its contact sheet.
 fn dataset(d: &Path) -> PathBuf {
@@ -53,11 +53,7 @@ fn fit_folder(d: &Path, data: &Path) -> PathBuf {
     result["bodies"][0]["object"] = object.clone();
     result["video"] = json!(data.join("drop"));
     result["stages"] = json!({"ga": rows(n, 0.97, 24.0), "simulated": rows(n, 0.98, 25.0)});
-    // The launch fitted to the flight alone: 3 cm/s faster along x than the truth's.
-    let initial = video["bodies"][0]["initial"].clone();
-    let mut v = initial["v"].clone();
-    v[0] = json!(v[0].as_f64().unwrap() + 0.03);
-    result["bodies"][0]["flight"] = json!({"frames": 4, "bent": true, "v0": v, "omega0": initial["omega"]});
+    result["bodies"][0]["flight"] = flight_3_cm_s_fast(&video);
     std::fs::write(fit.join("trajectory.json"), result.to_string()).unwrap();
     for (stage, dz) in [("pa", 0.004), ("ga", -0.002), ("pga", 0.001)] {
         let mut t = shifted(&video, dz);

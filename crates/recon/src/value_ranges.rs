@@ -207,68 +207,6 @@ mod tests {
         }
     }
 
-    /// A world handed in is simulated from its own initial orientation, not from the first observed pose's
-    /// (a fit takes that; PGA fits the initial pose away from GA's first frame, a degree or so): its own
-    /// poses, the first turned 3° and weighed zero, are missed by nothing. Simulated from the first observed
-    /// orientation, as before, every frame missed by about the turn.
-    #[test]
-    fn a_world_handed_in_keeps_its_initial_orientation() {
-        use sim::sdf::{Cuboid, Plane, Shape};
-        use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig};
-        let ground = Shape::Plane(Plane {
-            normal: [0.0, 0.0, 1.0],
-            offset: 0.0,
-        });
-        let config = SimConfig {
-            fps: 30.0,
-            frames: 20,
-            substeps: 20,
-            ..SimConfig::default()
-        };
-        let mut world = World::new(config, ground);
-        let cuboid = Shape::Cuboid(Cuboid {
-            half: [0.025, 0.02, 0.015],
-        });
-        let body = RigidBody::from_shape(
-            "box",
-            &cuboid,
-            MassSpec::Mass(0.1),
-            ContactSampling::Surface { count: 300, seed: 1 },
-        )
-        .unwrap();
-        let c = ContactParams {
-            restitution: 0.6,
-            friction: 0.3,
-        };
-        let state = BodyState::new(
-            [0.0, 0.0, 0.1],
-            [0.96, 0.2, 0.1, 0.17],
-            [0.6, 0.0, 0.0],
-            [1.0, 2.0, 0.0],
-        );
-        world.add_body(body, state, c, c);
-        let poses: Vec<geom::Pose<f64>> = world
-            .simulate(&world.params())
-            .frames
-            .iter()
-            .map(|f| f[0].pose)
-            .collect();
-        let mut seen = poses.clone();
-        seen[0].q = geom::Quat::exp(geom::Vec3::new(0.0, 3f64.to_radians(), 0.0)) * seen[0].q;
-        let mut weights = vec![1.0; seen.len()];
-        weights[0] = 0.0;
-        let cfg = PhysicsFitConfig {
-            fit_initial_pose: false,
-            ..PhysicsFitConfig::default()
-        };
-        let fit = PhysicsFit::new_bodies(cfg, world.clone(), vec![Observed::new(0, seen, Some(weights))])
-            .unwrap()
-            .with_params_of(&world);
-        let turn = geom::rotation_distance(fit.fitted_world().initial[0].pose.q, poses[0].q);
-        assert!(turn < 1e-9, "simulated from another orientation: {turn} rad off");
-        assert!(fit.full_loss() < 1e-9, "its own poses missed: loss {}", fit.full_loss());
-    }
-
     #[test]
     fn starts_within_the_bar_widen_their_own_values_only() {
         let range = |value, lo, hi| ValueRange {

@@ -227,16 +227,13 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
             "omega0_error_rad_s": omega_error,
         });
         // The launch fitted to the flight alone (`fit`'s flight test), beside the kept one.
-        let flight = entry.extra.get("flight");
-        let vec3 = |v: Option<&Value>| -> Option<[f64; 3]> { serde_json::from_value(v?.clone()).ok() };
-        if let (Some(f), Some(fv), Some(fw)) = (
-            flight,
-            vec3(flight.and_then(|f| f.get("v0"))),
-            vec3(flight.and_then(|f| f.get("omega0"))),
-        ) {
-            let (v, dv, percent, omega_error) = launch(fv, fw);
-            e["flight"] = json!({"frames": f["frames"], "bent": f["bent"], "v0": v.to_array(), "v0_error_m_s": dv,
-                "v0_error_percent": percent, "omega0_error_rad_s": omega_error});
+        if let Some(f) = entry.extra.get("flight") {
+            let three = |k: &str| serde_json::from_value::<[f64; 3]>(f[k].clone()).ok();
+            if let (Some(fv), Some(fw)) = (three("v0"), three("omega0")) {
+                let (v, dv, percent, omega_error) = launch(fv, fw);
+                e["flight"] = json!({"frames": f["frames"], "bent": f["bent"], "v0": v.to_array(),
+                    "v0_error_m_s": dv, "v0_error_percent": percent, "omega0_error_rad_s": omega_error});
+            }
         }
         if video.contact.model == "pganeus" {
             e["restitution"] = json!(fit.contact.restitution);

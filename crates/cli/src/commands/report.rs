@@ -426,11 +426,8 @@ fn parameter_table(page: &mut Page, traj: &Trajectory, eval: Option<&Value>) {
         ]);
         // The launch fitted to the flight alone (`fit`'s flight test), beside the kept one.
         if let Some(f) = b.extra.get("flight") {
-            let three = |v: &Value| -> Option<Vec<f64>> {
-                let a: Vec<f64> = v.as_array()?.iter().filter_map(Value::as_f64).collect();
-                (a.len() == 3).then_some(a)
-            };
-            if let (Some(v), Some(w)) = (three(&f["v0"]), three(&f["omega0"])) {
+            let three = |k: &str| serde_json::from_value::<[f64; 3]>(f[k].clone()).ok();
+            if let (Some(v), Some(w)) = (three("v0"), three("omega0")) {
                 let verdict = if f["bent"].as_bool() == Some(true) {
                     "the kept launch misses it"
                 } else {

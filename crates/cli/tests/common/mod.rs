@@ -70,3 +70,12 @@ pub fn not_refused(o: &Output, needles: &[&str]) -> Option<String> {
     let clean = o.status.code() == Some(1) && needles.iter().all(|n| err.contains(n)) && !err.contains("panicked");
     (!clean).then(|| format!("exit {:?}, wanted {needles:?}: {}", o.status.code(), text(o)))
 }
+
+/// A trajectory body's `flight` as `fit` writes it (the launch fitted to the flight alone, 4 frames, bent),
+/// 3 cm/s faster along x than `video`'s first body's true launch.
+pub fn flight_3_cm_s_fast(video: &serde_json::Value) -> serde_json::Value {
+    let initial = &video["bodies"][0]["initial"];
+    let mut v = initial["v"].clone();
+    v[0] = serde_json::json!(v[0].as_f64().unwrap() + 0.03);
+    serde_json::json!({"frames": 4, "bent": true, "v0": v, "omega0": initial["omega"], "statistic": 40.0, "critical": 26.2})
+}
