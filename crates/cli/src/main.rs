@@ -1,9 +1,13 @@
-//! `pganeus`: one subcommand per pipeline stage. Commands parse, report
-//! progress and write files; the work is in the library crates.
+//! `pganeus`: one subcommand per pipeline stage. Commands parse their arguments, call the `pipeline`
+//! library and draw its progress; the method is in the library crates.
 
 mod commands;
+#[cfg(test)]
+mod docs_check;
 
 use clap::{Parser, Subcommand};
+use commands::Bars;
+use pipeline::{demo, eval, render, report_page, surfaces, synth, train};
 
 #[derive(Parser)]
 #[command(
@@ -19,21 +23,21 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// The whole method on the synthetic tabletop scene in one command (synth, train, merge, bake, fit, eval, report.md).
-    Demo(commands::demo::DemoArgs),
+    Demo(demo::DemoArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
-    Synth(commands::synth::SynthArgs),
+    Synth(synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
-    Train(commands::train::TrainArgs),
+    Train(train::TrainArgs),
     /// Render a trained field from a capture's cameras (RGB, depth, normals) and print PSNR.
-    Render(commands::render::RenderArgs),
+    Render(render::RenderArgs),
     /// The zero level of a trained field as a mesh (world coordinates).
-    Mesh(commands::mesh_cmds::MeshArgs),
+    Mesh(surfaces::MeshArgs),
     /// Sample a trained field's or a closed mesh's SDF into a grid file for the simulator.
-    Bake(commands::mesh_cmds::BakeArgs),
+    Bake(surfaces::BakeArgs),
     /// One closed object from reconstructions in two poses (ICP, trim under the board, fuse).
-    Merge(commands::mesh_cmds::MergeArgs),
+    Merge(surfaces::MergeArgs),
     /// Chamfer distance, normal consistency and volume IoU of two meshes, as JSON.
-    CompareMesh(commands::mesh_cmds::CompareMeshArgs),
+    CompareMesh(surfaces::CompareMeshArgs),
     /// Simulate the bodies of a scene file and write trajectory.json.
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
@@ -41,9 +45,9 @@ enum Command {
     /// A body's pose in every frame of a fixed-camera video and the physics that explains it (first pose, PA, GA, PGA).
     Fit(commands::fit::FitArgs),
     /// Score a fit against a scene's truth.json: per-frame position, rotation, ADD(-S), silhouette IoU; launch and contact errors; the object's mesh.
-    Eval(commands::eval::EvalArgs),
+    Eval(eval::EvalArgs),
     /// One self-contained HTML page for a run's folder: inputs, meshes, each fit's motion (video and a novel view), charts (PNG and SVG too), tables.
-    Report(commands::report::ReportArgs),
+    Report(report_page::ReportArgs),
     /// Recover v0, omega0, k_n and mu of a body from a pose sequence (Eq. 11).
     FitPhysics(commands::fit_physics::FitPhysicsArgs),
     /// Time the simulator (forward and with gradients) and print JSON lines.
@@ -73,30 +77,28 @@ fn main() {
 
 /// Runs one subcommand.
 fn dispatch(command: Command) -> anyhow::Result<()> {
+    let bars = Bars::default();
     match command {
-        Command::Demo(a) => commands::demo::run(a, &|argv: &[String]| {
-            let cli = Cli::try_parse_from(argv)
-                .map_err(|e| anyhow::anyhow!("{}", e.to_string().trim().trim_start_matches("error: ")))?;
-            dispatch(cli.command)
-        }),
-        Command::Synth(a) => commands::synth::run(a),
-        Command::Train(a) => commands::train::run(a),
-        Command::Render(a) => commands::render::run(a),
-        Command::Mesh(a) => commands::mesh_cmds::mesh(a),
-        Command::Bake(a) => commands::mesh_cmds::bake(a),
-        Command::CompareMesh(a) => commands::mesh_cmds::compare_mesh(a),
-        Command::Merge(a) => commands::mesh_cmds::merge(a),
-        Command::Simulate(a) => commands::simulate::run(a),
-        Command::Target(a) => commands::target::run(a),
-        Command::Fit(a) => commands::fit::run(a),
-        Command::Eval(a) => commands::eval::run(a),
-        Command::Report(a) => commands::report::run(a),
-        Command::FitPhysics(a) => commands::fit_physics::run(a),
-        Command::BenchSim(a) => commands::bench_sim::run(a),
-        Command::BenchCompose(a) => commands::bench_compose::run(a),
-        Command::BenchContact(a) => commands::bench_contact::run(a),
-        Command::BenchTrain(a) => commands::bench_train::run(a),
+        Command::Demo(a) => demo::run(&a, &demo::Library, &bars).map(|_| ())?,
+        Command::Synth(a) => synth::run(&a, &bars)?,
+        Command::Train(a) => train::run(&a, &bars)?,
+        Command::Render(a) => render::run(&a, &bars)?,
+        Command::Mesh(a) => surfaces::mesh(&a, &bars)?,
+        Command::Bake(a) => surfaces::bake(&a, &bars)?,
+        Command::CompareMesh(a) => surfaces::compare_mesh(&a, &bars)?,
+        Command::Merge(a) => surfaces::merge(&a, &bars)?,
+        Command::Simulate(a) => commands::simulate::run(a)?,
+        Command::Target(a) => commands::target::run(a)?,
+        Command::Fit(a) => commands::fit::run(a, &bars)?,
+        Command::Eval(a) => eval::run(&a, &bars).map(|_| ())?,
+        Command::Report(a) => report_page::run(&a, &bars)?,
+        Command::FitPhysics(a) => commands::fit_physics::run(a)?,
+        Command::BenchSim(a) => commands::bench_sim::run(a)?,
+        Command::BenchCompose(a) => commands::bench_compose::run(a)?,
+        Command::BenchContact(a) => commands::bench_contact::run(a)?,
+        Command::BenchTrain(a) => commands::bench_train::run(a)?,
     }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -9,9 +9,9 @@
 //! to where it first touches the scene (a body resting on the board), and to the
 //! depth where its silhouette has the mask's area (a body in flight).
 
+use crate::clearance::clearance;
 use crate::image_loss::{window_union, FrameTarget, ImageLossWeights};
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
-use crate::video_fit::clearance;
 use geom::{coverage_iou, rotation_distance, silhouette, Pose, Quat, TriMesh, Vec3};
 use neus::compose::ComposedRay;
 use neus::ObjectModel;

@@ -1,6 +1,7 @@
 //! Inverse problems on the differentiable simulator: the PGA step of Eq. 11
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
+mod clearance;
 pub mod colliding_bodies;
 pub mod contact_penalty;
 pub mod exposure_gain;
@@ -11,8 +12,10 @@ pub mod image_loss;
 pub mod image_precision;
 pub mod least_squares;
 pub mod physics_from_video;
+pub mod pick;
 pub mod pose_from_image;
 pub mod poses_from_video;
+pub mod reported_poses;
 pub mod rest;
 pub mod seen_space;
 pub mod target;
@@ -36,10 +39,12 @@ pub use image_precision::ImagePrecision;
 pub use physics_from_video::{
     PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError, VideoPhysicsResult, VideoPhysicsStats,
 };
+pub use pick::{among_ties, better_per_frame, PGA_TIE};
 pub use pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
 pub use poses_from_video::{
     FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom, STILL_LOSS_SLACK,
 };
+pub use reported_poses::{reported_poses, simulation_misses, ReportedPose};
 pub use seen_space::scene_less_seen;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};

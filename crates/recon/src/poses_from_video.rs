@@ -311,13 +311,13 @@ pub struct PosesFromVideo<'a> {
 
 /// The sides of the scene a body touches, from all its points (nearest first, [`PosesFromVideo::points`]):
 /// none when the nearest is farther than `threshold`, else those of the points within
-/// [`crate::video_fit::TOUCHING`] of the nearest. A body on the board beside a wall a few millimetres off
+/// [`crate::clearance::TOUCHING`] of the nearest. A body on the board beside a wall a few millimetres off
 /// touches the board only; one floating a little over the board still has that side.
 fn sides_touched(points: &[NearPoint<f64>], threshold: f64) -> Vec<Vec3<f64>> {
     let Some(first) = points.first().filter(|p| p.distance <= threshold) else {
         return Vec::new();
     };
-    let within = (first.distance + crate::video_fit::TOUCHING).min(threshold);
+    let within = (first.distance + crate::clearance::TOUCHING).min(threshold);
     contact_sides(points.iter().take_while(|p| p.distance <= within).map(|p| p.gradient))
 }
 
@@ -379,7 +379,7 @@ impl<'a> PosesFromVideo<'a> {
                     return (Vec::new(), Vec::new());
                 }
                 let points = points_near_scene(&world.bodies[body], pose, &world.scene, f64::INFINITY);
-                if points.first().is_none_or(|p| p.distance > crate::video_fit::TOUCHING) {
+                if points.first().is_none_or(|p| p.distance > crate::clearance::TOUCHING) {
                     return (Vec::new(), Vec::new());
                 }
                 let threshold = world.config.contact_threshold;

@@ -4,7 +4,7 @@
 //! starts on, where the images cannot tell a slide from a slow hop and the physics says the normal part is
 //! zero). Jacobians over the parameters become Jacobians over the values by the same coefficients.
 
-use crate::fit_physics::{probe_scale, StartContact};
+use serde::{Deserialize, Serialize};
 
 /// One value: the parameters it sets, `p[columns[c]] = Σ coef · x` over the values that share it.
 #[derive(Clone, Debug)]
@@ -170,6 +170,38 @@ pub(crate) fn tangent_basis(normal: [f64; 3]) -> [[f64; 3]; 2] {
     let l1 = t1.iter().map(|v| v * v).sum::<f64>().sqrt();
     let t1 = t1.map(|v| v / l1);
     [t1, cross(n, t1)]
+}
+
+/// How a body touches the scene in the first frame, which decides how its launch is fitted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum StartContact {
+    /// Off the scene (a toss, a drop): v0 and ω0 are free.
+    #[default]
+    Free,
+    /// On the scene at a point or along an edge (a ball, a rocking body): v0 in the plane normal to the
+    /// scene there, ω0 free (a ball rolls, a body rocks). One view cannot tell a slide from a slow hop (from
+    /// a camera above, up and forward look alike), and a body pressed on a surface does not leave it at
+    /// the start.
+    Touching { normal: [f64; 3] },
+    /// Resting on a face: v0 in the plane, ω0 about the normal only. A turn about an axis in the face digs
+    /// one side of it into the scene, which stops it within a substep, so the video cannot tell it (a
+    /// sliding box's fit took a spin of 11 rad/s about such an axis and lost the slide).
+    Face { normal: [f64; 3] },
+}
+
+/// The pattern search's first step for a parameter: 2 mm and 0.02 rad of initial pose, 5 cm/s, 0.5 rad/s,
+/// 0.1 of restitution and friction. Where contacts make the loss rugged (a landing on an edge, a tumble),
+/// Levenberg–Marquardt's local model may not point downhill at any damping; probing each parameter at
+/// these scales (then at halves of them) still finds a lower loss, and the gradient steps resume from there.
+pub(crate) fn probe_scale(k: usize) -> f64 {
+    match k {
+        0..=2 => 0.002,
+        3..=5 => 0.02,
+        6..=8 => 0.05,
+        9..=11 => 0.5,
+        _ => 0.1,
+    }
 }
 
 #[cfg(test)]

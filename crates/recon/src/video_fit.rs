@@ -6,6 +6,7 @@
 //! [`crate::PhysicsFromVideo`] (PA), [`crate::PosesFromVideo`] (GA) and
 //! [`crate::PhysicsFit`] (PGA).
 
+pub use crate::clearance::{clearance, TOUCHING};
 use crate::first_pose_search::FirstPoseSearchConfig;
 use crate::fit_physics::{
     fit_multi_start_bodies, FitError, MultiStart, Observed, PhysicsFitConfig, StartContact, StartsOn, CONTACT_STARTS,
@@ -105,18 +106,6 @@ impl Default for VideoFitConfig {
             carve_scene: true,
         }
     }
-}
-
-/// Closer than this to the scene (m), a body counts as touching it at the start (no free fall in the launch
-/// guess).
-pub const TOUCHING: f64 = 0.002;
-
-/// The lowest signed distance of the body's contact points to the scene at `pose` (m; negative: sunk).
-pub fn clearance(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> f64 {
-    body.contact_points
-        .iter()
-        .map(|p| scene.distance_local(pose.transform_point(*p)))
-        .fold(f64::INFINITY, f64::min)
 }
 
 /// Contact points within this of the lowest one (m) make the support a body rests on.

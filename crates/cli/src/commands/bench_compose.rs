@@ -6,15 +6,15 @@
 //! chunk (what rendering did before the composer kept them). One JSON line per
 //! figure, the best of `--runs`.
 
-use super::checkpoint_of;
-use super::mesh_cmds::world_cameras;
-use super::objects::{load_objects, parse_objects};
-use super::render_trajectory::read_motion;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use geom::Vec3;
 use neus::checkpoint::load_field;
 use neus::compose::{prerender_scene, Behind, ComposedRay, Composer, Layer, RayGradient};
+use pipeline::cameras::world_cameras;
+use pipeline::render_trajectory::read_motion;
+use pipeline::run_folder::checkpoint_of;
+use pipeline::{load_objects, parse_objects};
 use std::path::PathBuf;
 use std::time::Instant;
 

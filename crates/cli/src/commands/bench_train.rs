@@ -2,14 +2,13 @@
 //! with wall time, rays/s, samples/s, held-out PSNR and the Chamfer distance
 //! of the zero level to the true mesh; peak memory at the end.
 
-use super::mesh_cmds::capture_truth;
-use super::render::zero_level_mesh;
-use super::train::{capture_kind, load_config};
 use anyhow::{Context, Result};
 use clap::Args;
 use geom::TriMesh;
 use neus::holdout::holdout;
 use neus::{Dataset, NeusTrainer};
+use pipeline::surfaces::{capture_truth, zero_level_mesh};
+use pipeline::train::{capture_kind, load_config};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -90,7 +89,14 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
             let held_out = holdout(&t);
             let psnr = held_out.psnr;
             let levels = t.config.active_levels(t.step);
-            let m = zero_level_mesh(&t.field, levels, t.data.centre, t.data.radius, a.mesh_res);
+            let m = zero_level_mesh(
+                &t.field,
+                levels,
+                t.data.centre,
+                t.data.radius,
+                a.mesh_res,
+                &super::Bars::default(),
+            );
             let (full, visible) = match region {
                 _ if m.faces.is_empty() => (f64::INFINITY, f64::INFINITY),
                 Some(r) => {

@@ -2,124 +2,70 @@ pub mod bench_compose;
 pub mod bench_contact;
 pub mod bench_sim;
 pub mod bench_train;
-pub mod demo;
-pub mod eval;
 pub mod fit;
-pub mod fit_bodies;
 pub mod fit_physics;
-pub mod mesh_cmds;
-mod objects;
-pub mod render;
-pub mod render_trajectory;
-pub mod report;
 pub mod simulate;
-pub mod synth;
 pub mod target;
-pub mod train;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use pipeline::{Event, Observer};
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+fn style() -> ProgressStyle {
+    ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
+        .expect("valid template")
+        .progress_chars("=> ")
+}
 
 /// A progress bar on stderr (hidden when stderr is not a terminal).
 pub fn progress(len: u64, what: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
+    pb.set_style(style());
     pb.set_message(what.to_string());
     pb
 }
 
-/// `pb` as a library's progress callback `(done, all)` (the total known only once the work starts).
-pub fn follow(pb: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
-    move |done, all| {
-        pb.set_length(all as u64);
-        pb.set_position(done as u64);
-    }
+/// The library's events on a terminal: each task a progress bar on stderr (hidden when stderr is not a
+/// terminal), each note a line on stdout (printed above the bars).
+#[derive(Default)]
+pub struct Bars {
+    multi: MultiProgress,
+    bars: Mutex<HashMap<u64, (ProgressBar, String)>>,
 }
 
-/// A run folder's checkpoint, or the checkpoint file itself.
-pub(crate) fn checkpoint_of(run: &std::path::Path) -> std::path::PathBuf {
-    if run.is_dir() {
-        run.join("checkpoint.safetensors")
-    } else {
-        run.to_path_buf()
-    }
-}
-
-/// Lay `over` on `base` key by key: a nested table (`[field.grid]`, `[ga.pose]`) changes only the keys it
-/// names, so a config file keeps the rest of the defaults it starts from.
-fn merge_tables(base: &mut toml::Table, over: toml::Table) {
-    for (k, v) in over {
-        match (base.get_mut(&k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
-            (_, v) => {
-                base.insert(k, v);
+impl Observer for Bars {
+    fn event(&self, event: Event<'_>) {
+        let mut bars = self.bars.lock().expect("no panic while holding the bars");
+        match event {
+            Event::Started { task, what, steps } => {
+                let pb = self.multi.add(progress(steps, what));
+                bars.insert(task, (pb, what.to_string()));
+            }
+            Event::Progress { task, done, steps } => {
+                if let Some((pb, _)) = bars.get(&task) {
+                    pb.set_length(steps);
+                    pb.set_position(done);
+                }
+            }
+            Event::Status { task, text } => {
+                if let Some((pb, what)) = bars.get(&task) {
+                    pb.set_message(format!("{what}: {text}"));
+                }
+            }
+            Event::Finished { task } => {
+                if let Some((pb, _)) = bars.remove(&task) {
+                    pb.finish_and_clear();
+                    self.multi.remove(&pb);
+                }
+            }
+            Event::Note(text) => {
+                if bars.is_empty() {
+                    println!("{text}");
+                } else {
+                    self.multi.suspend(|| println!("{text}"));
+                }
             }
         }
-    }
-}
-
-/// `base` with a TOML config file's keys laid over it (errors name the file).
-pub fn config_over<T: serde::Serialize + serde::de::DeserializeOwned>(
-    base: &T,
-    file: &std::path::Path,
-) -> anyhow::Result<T> {
-    use anyhow::Context;
-    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    let over: toml::Table = toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
-    let mut merged = toml::Table::try_from(base)?;
-    merge_tables(&mut merged, over);
-    toml::Value::Table(merged)
-        .try_into()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::config_over;
-    use recon::video_fit::VideoFitConfig;
-
-    #[test]
-    fn a_config_file_changes_only_the_keys_it_names() {
-        let dir = std::env::temp_dir().join(format!("pganeus-config-over-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let file = dir.join("fit.toml");
-        std::fs::write(&file, "rounds = 3\n[ga.pose]\niterations = 7\n").unwrap();
-        let base = VideoFitConfig::default();
-        let cfg = config_over(&base, &file).unwrap();
-        assert_eq!(cfg.rounds, 3);
-        assert_eq!(cfg.ga.pose.iterations, 7);
-        // The nested table's other keys keep fit's defaults, not the library type's.
-        assert_eq!(cfg.ga.pose.rays_per_step, base.ga.pose.rays_per_step);
-        assert_eq!(cfg.ga.pose.lr_rotation, base.ga.pose.lr_rotation);
-        assert_eq!(cfg.pa, base.pa);
-        std::fs::write(&file, "[ga.pose]\niteration = 7\n").unwrap();
-        let e = config_over(&base, &file).unwrap_err().to_string();
-        assert!(e.contains("fit.toml") && e.contains("iteration"), "{e}");
-        // Training configs too, nested tables included: a typo is named, not dropped.
-        let train = neus::TrainConfig::preset("fast", neus::CaptureSubject::Object).unwrap();
-        let file = dir.join("train.toml");
-        std::fs::write(&file, "[field.grid]\nlevels = 8\n").unwrap();
-        assert_eq!(config_over(&train, &file).unwrap().field.grid.levels, 8);
-        for typo in [
-            "[field.grid]\nlevelz = 8\n",
-            "[stereo]\nhypotheses = 64\nstrid = 2\n",
-            "[adam]\nlr = 0.1\n",
-        ] {
-            std::fs::write(&file, typo).unwrap();
-            let e = config_over(&train, &file).unwrap_err().to_string();
-            let key = typo
-                .lines()
-                .nth(typo.lines().count() - 1)
-                .unwrap()
-                .split(' ')
-                .next()
-                .unwrap();
-            let key = if typo.starts_with("[adam]") { "adam" } else { key };
-            assert!(e.contains("train.toml") && e.contains(key), "{typo}: {e}");
-        }
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -50,18 +50,8 @@ pub fn tabletop(d: &Path, (width, height): (u32, u32), views: usize, frames: usi
     d.join("data")
 }
 
-/// `from` copied into `to`, folders included.
-pub fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
-}
+#[allow(unused_imports)]
+pub use testkit::copy_dir;
 
 /// Why a command's outcome is not a clean refusal (exit code 1, every needle in its error output, no
 /// panic), or `None` when it is one.

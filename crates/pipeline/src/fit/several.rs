@@ -24,31 +24,16 @@
 //! image loss has nothing to say about the pair; the paper's own multi-body
 //! schedule starts from the tracked poses too.
 
-use super::fit::{
-    check_guess_in_view, check_sim_settings, exposure_at, fit_world, frame_poses, ga_row, load_scene, metric_rows,
-    object_entry, open_output, pose_of, read_guesses, read_video, report_ranges, reported_poses, rigid_body,
-    scene_grid, scene_through, search_first_pose_of, strip, video_fps, write_ranges, FitArgs, FitRecord, RecordInputs,
-    ReportedPose, Stage,
-};
-use super::objects::load_objects;
-use super::render_trajectory::{beside, to8};
-use anyhow::{anyhow, bail, Context, Result};
-use geom::{Pose, Vec3};
-use neus::compose::{render_composed, Behind, ComposedRay, Composer, Layer};
-use neus::ObjectModel;
-use pganeus_io::Image;
+use super::*;
+use crate::images::{beside, strip, to8};
+use crate::objects::load_objects;
+use neus::compose::{render_composed, Behind, Layer};
 use recon::image_loss::Occluder;
 use recon::video_fit::{evaluate_poses, ga_weights_of, lift_out};
 use recon::{
-    colliding_value_ranges, fit_colliding_bodies, FramePose, FrameTarget, ImageLoss, PhysicsFitConfig, PoseFromImage,
-    PosesFromVideo, ValueRange, VideoFitConfig, CONTACT_STARTS,
+    better_per_frame, colliding_value_ranges, fit_colliding_bodies, reported_poses, PhysicsFitConfig, PosesFromVideo,
+    CONTACT_STARTS,
 };
-use serde_json::{json, Map, Value};
-use sim::{BodyState, World};
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::time::Instant;
 
 /// One body of the video.
 struct Body {
@@ -59,7 +44,7 @@ struct Body {
 }
 
 /// Everything the stages read.
-struct Multi {
+struct Multi<'a> {
     bodies: Vec<Body>,
     scene_pre: Vec<ComposedRay>,
     world: World,
@@ -68,49 +53,40 @@ struct Multi {
     video: PathBuf,
     cfg: VideoFitConfig,
     out: PathBuf,
+    observer: &'a dyn Observer,
+    t_start: Instant,
 }
 
-/// `log.jsonl`, one JSON object per line.
-struct Log {
-    file: std::fs::File,
-    path: PathBuf,
+/// A several-body fit's inputs, read and checked.
+pub(super) struct Prepared {
+    bodies: Vec<Body>,
+    fps: f64,
+    guesses: Vec<Option<Pose<f64>>>,
+    scene_field: neus::checkpoint::LoadedField,
+    grid: Option<SdfGrid>,
+    rigid: Vec<RigidBody>,
 }
 
-impl Log {
-    fn write(&mut self, v: Value) -> Result<()> {
-        writeln!(self.file, "{v}").with_context(|| format!("cannot write {}", self.path.display()))
-    }
-}
-
-pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Result<()> {
+/// Every input read and checked, and the record of the fit.
+pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, FitRecord)> {
     if a.no_ga {
-        bail!("--no-ga: with several bodies fit starts from GA's poses (the paper's multi-body schedule); PA alone is for one body");
+        fail!(Settings, "--no-ga: with several bodies fit starts from GA's poses (the paper's multi-body schedule); PA alone is for one body");
     }
-    if a.stages.as_ref().is_some_and(|s| s.contains(&Stage::Pa)) {
-        bail!("--stages pa: with several bodies there is no PA stage (first, ga, pga)");
-    }
-    let cfg: VideoFitConfig = match &a.config {
-        Some(p) => super::config_over(&VideoFitConfig::default(), p)?,
-        None => VideoFitConfig::default(),
-    };
-    if !(a.density.is_finite() && a.density > 0.0) {
-        bail!("--density must be positive, got {}", a.density);
-    }
-    // Every input is read and checked before anything is written.
+    let objects = &a.objects;
     let mut bodies = Vec::new();
     let mut fps_of_capture = None;
     let mut videos = Vec::new();
-    for (name, _) in &objects {
+    for (name, _) in objects {
         let (frames, fps) = read_video(&a.video, name, false, a.frames)?;
         fps_of_capture = fps_of_capture.or(fps);
         videos.push(frames);
     }
-    for ((name, object), frames) in load_objects(&objects)?.into_iter().zip(videos) {
+    for ((name, object), frames) in load_objects(objects)?.into_iter().zip(videos) {
         bodies.push(Body { name, object, frames });
     }
     let n = bodies[0].frames.len();
-    let fps = video_fps(&a, fps_of_capture)?;
-    let guesses: Vec<Option<Pose<f64>>> = if a.init.as_os_str() == "auto" {
+    let fps = video_fps(a, fps_of_capture)?;
+    let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
         vec![None; bodies.len()]
     } else {
         let named: Vec<(&str, &ObjectModel)> = bodies.iter().map(|b| (b.name.as_str(), &*b.object)).collect();
@@ -122,63 +98,55 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
             check_guess_in_view(&cam, g, &b.name, &a.init)?;
         }
     }
-    let (scene_field, grid) = load_scene(&a)?;
+    let (scene_field, grid) = load_scene(a)?;
     let rigid = bodies
         .iter()
-        .zip(&objects)
+        .zip(objects)
         .map(|(b, (_, dir))| rigid_body(&b.name, &b.object, dir, a.density))
         .collect::<Result<Vec<_>>>()?;
-    check_sim_settings(fps, n, &cfg)?;
-    let record = FitRecord {
-        inputs: RecordInputs {
-            video: a.video.clone(),
-            scene: a.scene.clone(),
-            object: objects
-                .iter()
-                .map(|(n, d)| format!("{n}={}", d.display()))
-                .collect::<Vec<_>>()
-                .join(","),
-            init: a.init.clone(),
-            frames: n,
-            fps,
-            no_pa: a.no_pa,
-            no_ga: a.no_ga,
-        },
-        fit: cfg.clone(),
-    };
-    if open_output(&a, &record)? {
-        return Ok(());
-    }
-    let grid = scene_grid(grid, &scene_field, &a)?;
-    let world = fit_world(grid, fps, n, &cfg, rigid)?;
-    let scene_pre = scene_through(&scene_field, &cam);
-    let log_path = a.out.join("log.jsonl");
-    let mut log = Log {
-        file: std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&log_path)
-            .with_context(|| format!("cannot open {}", log_path.display()))?,
-        path: log_path,
-    };
-    let mut m = Multi {
+    check_sim_settings(fps, n, cfg)?;
+    let record = record_of(a, cfg, n, fps);
+    let prepared = Prepared {
         bodies,
+        fps,
+        guesses,
+        scene_field,
+        grid,
+        rigid,
+    };
+    Ok((prepared, record))
+}
+
+/// The stages `ctx.stages` asks for (PA is not one of them: [the module's note](self)).
+pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
+    if ctx.stages.contains(&Stage::Pa) && ctx.stages != Stage::ALL {
+        fail!(
+            Settings,
+            "--stages pa: with several bodies there is no PA stage (first, ga, pga)"
+        );
+    }
+    let (a, t_start) = (ctx.inputs, ctx.t_start);
+    let n = p.bodies[0].frames.len();
+    let cam = p.bodies[0].frames[0].camera;
+    let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
+    let world = fit_world(grid, p.fps, n, ctx.config, p.rigid)?;
+    let scene_pre = scene_through(&p.scene_field, &cam);
+    let mut log = Log::open(ctx.out)?;
+    let guesses = p.guesses;
+    let mut outcome = FitOutcome::default();
+    let mut m = Multi {
+        bodies: p.bodies,
         scene_pre,
         world,
-        fps,
-        capture: a
-            .video
-            .file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "video".into()),
+        fps: p.fps,
+        capture: capture_name(&a.video),
         video: a.video.clone(),
-        cfg,
-        out: a.out.clone(),
+        cfg: ctx.config.clone(),
+        out: ctx.out.to_path_buf(),
+        observer: ctx.observer,
+        t_start,
     };
-    let wanted = a
-        .stages
-        .clone()
-        .unwrap_or_else(|| vec![Stage::First, Stage::Ga, Stage::Pga]);
+    let wanted = ctx.stages;
     let mut timings = Map::new();
     let mut time = |stage: &str, t: Instant| {
         let s = t.elapsed().as_secs_f64();
@@ -196,8 +164,9 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
             f.exposure = exposure;
         }
     }
+    outcome.first_poses = first.clone();
     if !wanted.iter().any(|s| *s > Stage::First) {
-        return Ok(());
+        return Ok(with_read_back(outcome, &log));
     }
     let t = Instant::now();
     let tracked = stage_ga(
@@ -210,7 +179,8 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     )?;
     time("ga_tracked", t);
     if !wanted.contains(&Stage::Pga) {
-        return Ok(());
+        outcome.ga = Some(tracked);
+        return Ok(with_read_back(outcome, &log));
     }
     let t = Instant::now();
     carve_seen_space(&mut m, &mut log, &tracked)?;
@@ -246,48 +216,28 @@ pub fn run(a: FitArgs, objects: Vec<(String, PathBuf)>, t_start: Instant) -> Res
     };
     kept.write_schedule(&m)?;
     if m.cfg.carve_scene {
-        super::fit::save_carved_scene(&kept.world, &m.out)?;
+        save_carved_scene(&kept.world, &m.out)?;
     }
     let t = Instant::now();
     let ranges = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
     time("ranges", t);
-    finish(&m, &kept.world, &stand_ins, losses, &ranges, &timings, t_start)
+    finish(&m, &kept.world, &stand_ins, losses, &ranges, &timings, &mut outcome)?;
+    outcome.ga = Some(stand_ins);
+    outcome.ranges = ranges;
+    outcome.world = Some(kept.world);
+    Ok(with_read_back(outcome, &log))
 }
 
 /// The scene less the space GA (`ga`, per body) saw every body in, for the PGA round after it
-/// ([`super::fit::carved_scene`]; each round's world keeps the scene it was fitted in).
+/// ([`carved_scene`]; each round's world keeps the scene it was fitted in).
 fn carve_seen_space(m: &mut Multi, log: &mut Log, ga: &[Vec<FramePose>]) -> Result<()> {
     let seen: Vec<(usize, &[FramePose])> = ga.iter().enumerate().map(|(b, g)| (b, g.as_slice())).collect();
     let camera = m.bodies[0].frames[0].camera;
-    if let Some((scene, raised)) = super::fit::carved_scene(&m.world, &seen, &camera, &m.cfg) {
+    if let Some((scene, raised)) = carved_scene(&m.world, &seen, &camera, &m.cfg) {
         log.write(json!({"stage": "carve", "nodes_raised": raised}))?;
         m.world.scene = scene;
     }
     Ok(())
-}
-
-/// Per body and frame, the GA pose of `a` or `b` with the lower image loss (a fitted one before one that
-/// was not: a frame without the body's mask).
-fn better_per_frame(a: &[Vec<FramePose>], b: &[Vec<FramePose>]) -> Vec<Vec<FramePose>> {
-    a.iter()
-        .zip(b)
-        .map(|(a, b)| {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| {
-                    let better_b = match (x.fitted, y.fitted) {
-                        (true, true) => y.image.loss < x.image.loss,
-                        (fx, fy) => fy && !fx,
-                    };
-                    if better_b {
-                        y.clone()
-                    } else {
-                        x.clone()
-                    }
-                })
-                .collect()
-        })
-        .collect()
 }
 
 /// Each body's pose in every frame of a simulation.
@@ -348,9 +298,9 @@ fn stage_first(
 ) -> Result<Vec<(Pose<f64>, f64)>> {
     let path = m.out.join("first_pose.json");
     if path.exists() {
-        tracing::info!("first poses: from {}", path.display());
+        log.read_back("first poses", &path);
         let text = std::fs::read_to_string(&path)?;
-        let v: Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let v: Value = serde_json::from_str(&text).with_context(|| format!("{}", path.display()))?;
         return m
             .bodies
             .iter()
@@ -362,10 +312,10 @@ fn stage_first(
                 Ok((pose_of(t, q), e["exposure"].as_f64().unwrap_or(1.0)))
             })
             .collect::<Result<_>>()
-            .map_err(|e: anyhow::Error| anyhow!("{}: {e}", path.display()));
+            .map_err(|e: Error| err!(Input, "{}: {}", path.display(), e.chain()));
     }
     if !run {
-        bail!("stage first has not run: {} is missing", path.display());
+        fail!(Stage, "stage first has not run: {} is missing", path.display());
     }
     let mut starts = Vec::new();
     for (b, (body, guess)) in m.bodies.iter().zip(guesses).enumerate() {
@@ -401,19 +351,20 @@ fn stage_first(
     }
     let m = &*m;
     let cfg = &m.cfg.first_pose;
-    let pb = super::progress((cfg.iterations * m.bodies.len()) as u64, "first poses");
+    let pb = Task::start(m.observer, "first poses", (cfg.iterations * m.bodies.len()) as u64);
     let mut fitted: Vec<(Pose<f64>, f64)> = Vec::new();
     let mut entries = Map::new();
     for (b, body) in m.bodies.iter().enumerate() {
         let occluders = others(m, b, |o| fitted.get(o).map_or(starts[o].0, |f| f.0));
         let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &body.frames[0], starts[b].0) {
             Ok(f) => f.with_occluders(occluders),
-            Err(recon::PoseFitError::EmptyMask) => bail!(
+            Err(recon::PoseFitError::EmptyMask) => fail!(
+                Input,
                 "{}: body {:?}'s mask is empty in frame 0: its first pose cannot be fitted",
                 m.video.display(),
                 body.name
             ),
-            Err(e) => bail!("{}: frame 0: {e}", body.name),
+            Err(e) => fail!(Input, "{}: frame 0: {e}", body.name),
         };
         for i in 0..cfg.iterations {
             let l = fit.step();
@@ -436,7 +387,7 @@ fn stage_first(
         );
         fitted.push((fit.pose, exposure));
     }
-    pb.finish_and_clear();
+    pb.finish();
     let doc = json!({ "bodies": entries });
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     log.write(json!({"stage": "first_pose", "done": true}))?;
@@ -458,6 +409,7 @@ fn auto_guess(m: &Multi, log: &mut Log, b: usize) -> Result<Pose<f64>> {
         &m.video,
         &m.out,
         &mut rows,
+        m.observer,
     );
     for r in rows {
         log.write(r)?;
@@ -480,11 +432,11 @@ fn stage_ga(
     let path = m.out.join(file);
     let n = m.bodies[0].frames.len();
     if path.exists() {
-        tracing::info!("GA: from {}", path.display());
+        log.read_back("GA", &path);
         return read_ga(m, &path, n);
     }
     if !run {
-        bail!("stage ga has not run: {} is missing", path.display());
+        fail!(Stage, "stage ga has not run: {} is missing", path.display());
     }
     let mut world = from.cloned().unwrap_or_else(|| m.world.clone());
     if from.is_none() {
@@ -504,26 +456,30 @@ fn stage_ga(
                     .map(PosesFromVideo::holding_contacts),
                 Some(_) => PosesFromVideo::new(m.cfg.ga.clone(), object, &m.scene_pre, frames, &world, b, &traj),
             }
-            .map_err(|e| anyhow!("GA: {}: {e}", body.name))
+            .with_context(|| format!("GA: {}", body.name))
         })
         .collect::<Result<Vec<_>>>()?;
-    let pb = super::progress(gas.iter().map(|g| g.steps_left()).sum::<usize>() as u64, "GA");
+    let pb = Task::start(
+        m.observer,
+        "GA",
+        gas.iter().map(|g| g.steps_left()).sum::<usize>() as u64,
+    );
     for k in 0..n {
         for b in 0..m.bodies.len() {
             let occluders = others(m, b, |o| gas[o].current_pose(k));
             gas[b].set_occluders(k, occluders);
-            gas[b].step().map_err(|e| anyhow!("GA: {}: {e}", m.bodies[b].name))?;
+            gas[b].step().with_context(|| format!("GA: {}", m.bodies[b].name))?;
             pb.inc(1);
         }
     }
     // The pass back over each body's frames explained worst (the others where the forward pass left them).
     for (b, g) in gas.iter_mut().enumerate() {
         while !g.done() {
-            g.step().map_err(|e| anyhow!("GA: {}: {e}", m.bodies[b].name))?;
+            g.step().with_context(|| format!("GA: {}", m.bodies[b].name))?;
             pb.inc(1);
         }
     }
-    pb.finish_and_clear();
+    pb.finish();
     let results: Vec<Vec<FramePose>> = gas.into_iter().map(|g| g.results).collect();
     for (body, rs) in m.bodies.iter().zip(&results) {
         for (k, r) in rs.iter().enumerate() {
@@ -590,7 +546,7 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
                 .bodies
                 .iter()
                 .find(|b| b.name == body.name)
-                .ok_or_else(|| anyhow!("{}: no body {:?}", path.display(), body.name))?;
+                .ok_or_else(|| err!(Input, "{}: no body {:?}", path.display(), body.name))?;
             let rows = b
                 .extra
                 .get("ga")
@@ -598,7 +554,8 @@ fn read_ga(m: &Multi, path: &Path, frames: usize) -> Result<Vec<Vec<FramePose>>>
                 .cloned()
                 .unwrap_or_default();
             if b.poses.len() != frames || rows.len() != frames {
-                bail!(
+                fail!(
+                    Input,
                     "{}: {}: {} poses for {frames} frames",
                     path.display(),
                     body.name,
@@ -638,7 +595,7 @@ impl PgaRound {
 fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Result<PgaRound> {
     let path = m.out.join(file);
     if path.exists() {
-        tracing::info!("PGA: from {}", path.display());
+        log.read_back("PGA", &path);
         return Ok(PgaRound {
             world: world_from_file(m, &path)?,
             steps: schedule_of(&pganeus_io::read_trajectory(&path)?.extra, &path),
@@ -655,7 +612,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     } else {
         1
     };
-    let pb = super::progress((steps * per_step) as u64, "PGA");
+    let pb = Task::start(m.observer, "PGA", (steps * per_step) as u64);
     let mut rows = Vec::new();
     let fit = fit_colliding_bodies(
         &cfg,
@@ -672,8 +629,8 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
             pb.inc(1);
         },
     )
-    .map_err(|e| anyhow!("PGA: {e}"))?;
-    pb.finish_and_clear();
+    .context("PGA")?;
+    pb.finish();
     for &(p, k) in &fit.contacts {
         let (i, j) = pairs[p];
         tracing::info!("GA: {} and {} meet in frame {k}", m.bodies[i].name, m.bodies[j].name);
@@ -785,17 +742,17 @@ fn value_ranges(
     steps: &[recon::ScheduleStep],
 ) -> Result<Vec<ValueRange>> {
     let t = Instant::now();
-    let pb = super::progress(0, "value ranges");
+    let pb = Task::start(m.observer, "value ranges", 0);
     let mut ranges = colliding_value_ranges(
         &pga_config(m),
         world,
         &pga_observed(m, ga),
         launch_settings(m),
         m.cfg.ranges,
-        &super::follow(&pb),
+        &pb.follow(),
     )
-    .map_err(|e| anyhow!("PGA's value ranges: {e}"))?;
-    pb.finish_and_clear();
+    .context("PGA's value ranges")?;
+    pb.finish();
     for step in steps.iter().filter(|s| s.whole_video) {
         recon::widen_by_starts(&mut ranges, &step.starts, step.on, step.loss);
     }
@@ -813,7 +770,7 @@ fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
             .bodies
             .iter()
             .find(|x| x.name == body.name)
-            .ok_or_else(|| anyhow!("{}: no body {:?}", path.display(), body.name))?;
+            .ok_or_else(|| err!(Input, "{}: no body {:?}", path.display(), body.name))?;
         let i = &e.initial;
         w.initial[b] = BodyState::new(i.t, i.q, i.v, i.omega);
         w.scene_contact[b] = sim::ContactParams {
@@ -841,7 +798,7 @@ fn finish(
     sim_losses: Vec<Vec<ImageLoss>>,
     ranges: &[ValueRange],
     timings: &Map<String, Value>,
-    t_start: Instant,
+    outcome: &mut FitOutcome,
 ) -> Result<()> {
     let n = m.bodies[0].frames.len();
     let nb = m.bodies.len();
@@ -850,6 +807,7 @@ fn finish(
     let camera = m.bodies[0].frames[0].camera;
     let mut reported = Vec::with_capacity(nb);
     let mut source = Vec::with_capacity(nb);
+    let mut sources = Vec::with_capacity(nb);
     for (b, body) in m.bodies.iter().enumerate() {
         // Scored as `sim_losses` were: the other bodies where the simulation puts them.
         let others = others_along(m, b, &sim_poses);
@@ -868,6 +826,13 @@ fn finish(
             world.bodies[b].contact_points.as_slice(),
         );
         let (poses, from) = reported_poses(&sim_poses[b], &sim_losses[b], &ga[b], &camera, body_shape, score)?;
+        sources.push(
+            poses
+                .iter()
+                .zip(&from)
+                .map(|(&pose, &from)| ReportedFrame { pose, from })
+                .collect(),
+        );
         reported.push(poses);
         source.push(from.iter().map(|s| s.name()).collect::<Vec<_>>());
     }
@@ -875,7 +840,7 @@ fn finish(
     let cam = m.bodies[0].frames[0].camera;
     let (w, h) = (cam.width, cam.height);
     std::fs::create_dir_all(m.out.join("render"))?;
-    let pb = super::progress(n as u64, "render");
+    let pb = Task::start(m.observer, "render", n as u64);
     let mut composer = Composer::default();
     let mut rows: Vec<Vec<Value>> = vec![Vec::with_capacity(n); nb];
     let mut strips = Vec::with_capacity(n);
@@ -912,7 +877,7 @@ fn finish(
         strips.push(beside(&input, &rgb));
         pb.inc(1);
     }
-    pb.finish_and_clear();
+    pb.finish();
     pganeus_io::write_apng(&m.out.join("animation.png"), &strips, m.fps)?;
     pganeus_io::write_png(&m.out.join("strip.png"), &strip(&strips, 6))?;
 
@@ -970,9 +935,11 @@ fn finish(
             m.bodies[i].name, m.bodies[j].name, c.restitution, c.friction
         ));
     }
-    println!(
+    outcome.reported = Some(sources);
+    outcome.trajectory = Some(m.out.join("trajectory.json"));
+    outcome.summary = format!(
         "fitted {n} frames of {nb} bodies in {:.1} s; scene restitution {:.3}, friction {:.3}; {}; wrote {}",
-        t_start.elapsed().as_secs_f64(),
+        m.t_start.elapsed().as_secs_f64(),
         world.scene_contact[0].restitution,
         world.scene_contact[0].friction,
         summary.join("; "),

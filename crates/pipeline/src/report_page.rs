@@ -4,9 +4,10 @@
 //! charts of the paths (top view, height), of the per-frame IoU and PSNR of PGA against its ablations (the
 //! paper's Fig. 6 and 10) and of every stage's loss. Charts are also written as PNG and SVG to `plots/`.
 
-use super::mesh_cmds::world_cameras;
-use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
+use crate::cameras::world_cameras;
+use crate::error::{err, fail, Context};
+use crate::Result;
+use crate::{note, Observer};
 use geom::{Camera, Intrinsics, Pose, TriMesh, Vec3};
 use pganeus_io::{Image, Trajectory};
 use report::{face_towards, turntable, Chart, Mark, Page, Paint, Raster, Series};
@@ -14,19 +15,34 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-#[command(after_help = "Examples:
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus report out/demo
-  pganeus report fits/slide --out slide.html")]
+  pganeus report fits/slide --out slide.html")
+)]
 pub struct ReportArgs {
     /// A demo's folder, a folder of fit folders (directly or under `fits/`), or one fit folder.
     pub dir: PathBuf,
     /// The page to write (default: DIR/report.html). Its charts also go to `plots/` beside it, as PNG and SVG.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub out: Option<PathBuf>,
     /// Width of each fit's novel-view animation, pixels.
-    #[arg(long, default_value_t = 320)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 320))]
     pub view_width: u32,
+}
+
+impl ReportArgs {
+    /// The page of `dir`, written to `dir/report.html`.
+    pub fn new(dir: PathBuf) -> ReportArgs {
+        ReportArgs {
+            dir,
+            out: None,
+            view_width: 320,
+        }
+    }
 }
 
 /// The colours of the paper's figures: truth, PA, GA, PGA, and the fit as reported.
@@ -45,7 +61,7 @@ fn read_value(p: &Path) -> Result<Option<Value>> {
             serde_json::from_str(&s).with_context(|| format!("{}: not valid JSON", p.display()))?,
         )),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(anyhow!("{}: {e}", p.display())),
+        Err(e) => Err(err!(Input, "{}: {e}", p.display())),
     }
 }
 
@@ -92,8 +108,8 @@ impl Plots {
                 continue;
             }
             let (w, h) = (480, 320);
-            let svg = chart.svg(w, h).map_err(|e| anyhow!(e))?;
-            let png = chart.png(w, h).map_err(|e| anyhow!(e))?;
+            let svg = chart.svg(w, h).map_err(|e| err!(Stage, "{e}"))?;
+            let png = chart.png(w, h).map_err(|e| err!(Stage, "{e}"))?;
             std::fs::create_dir_all(&self.dir).with_context(|| format!("{}", self.dir.display()))?;
             pganeus_io::write_atomic(&self.dir.join(format!("{name}.svg")), svg.as_bytes())?;
             pganeus_io::write_png(&self.dir.join(format!("{name}.png")), &png)?;
@@ -123,12 +139,12 @@ fn log_lines(p: &Path) -> Vec<Value> {
         .unwrap_or_default()
 }
 
-pub fn run(a: ReportArgs) -> Result<()> {
+pub fn run(a: &ReportArgs, observer: &dyn Observer) -> Result<()> {
     if !a.dir.is_dir() {
-        bail!("{}: not a folder", a.dir.display());
+        fail!(Input, "{}: not a folder", a.dir.display());
     }
     if a.view_width < 16 {
-        bail!("--view-width {}: at least 16 pixels", a.view_width);
+        fail!(Settings, "--view-width {}: at least 16 pixels", a.view_width);
     }
     let out = a.out.clone().unwrap_or_else(|| a.dir.join("report.html"));
     let plots_dir = out.parent().unwrap_or(Path::new(".")).join("plots");
@@ -140,7 +156,8 @@ pub fn run(a: ReportArgs) -> Result<()> {
         .collect();
     let runs = training_runs(&a.dir);
     if fits.is_empty() && sheets.is_empty() && runs.is_empty() {
-        bail!(
+        fail!(
+            Input,
             "{}: nothing to report: no fit folder (trajectory.json), training run (runs/*/log.jsonl) or contact sheet",
             a.dir.display()
         );
@@ -179,7 +196,7 @@ pub fn run(a: ReportArgs) -> Result<()> {
         let name = fit
             .file_name()
             .map_or("fit".into(), |n| n.to_string_lossy().into_owned());
-        fit_section(&mut page, &mut plots, fit, &name, &a).with_context(|| format!("the fit in {}", fit.display()))?;
+        fit_section(&mut page, &mut plots, fit, &name, a).with_context(|| format!("the fit in {}", fit.display()))?;
     }
 
     if let Some(d) = read_value(&a.dir.join("demo.json"))? {
@@ -205,11 +222,14 @@ pub fn run(a: ReportArgs) -> Result<()> {
 
     let images = page.image_count();
     pganeus_io::write_atomic(&out, page.finish().as_bytes())?;
-    println!(
-        "wrote {} ({images} pictures, {} charts also in {})",
-        out.display(),
-        plots.written,
-        plots.dir.display()
+    note(
+        observer,
+        format!(
+            "wrote {} ({images} pictures, {} charts also in {})",
+            out.display(),
+            plots.written,
+            plots.dir.display()
+        ),
     );
     Ok(())
 }
@@ -360,7 +380,7 @@ fn fit_section(page: &mut Page, plots: &mut Plots, fit: &Path, name: &str, a: &R
 }
 
 /// `" in 0.48–0.55"`: the range `fit` wrote beside a contact value (`key`), or nothing.
-pub(super) fn range_text(range: Option<&Value>) -> String {
+pub fn range_text(range: Option<&Value>) -> String {
     match range.and_then(super::eval::range_pair) {
         Some([lo, hi]) => format!(" in {lo:.2}–{hi:.2}"),
         None => String::new(),
@@ -370,7 +390,7 @@ pub(super) fn range_text(range: Option<&Value>) -> String {
 /// A body's rotation error, mean / worst, from an eval summary: up to the shape's symmetries where it has
 /// any, followed by the error as is where the fit chose a twin the shape cannot tell apart (a texture
 /// might).
-pub(super) fn rotation_text(summary: &Value) -> String {
+pub fn rotation_text(summary: &Value) -> String {
     let pair = |k: &str| {
         let s = &summary[k];
         (f64_at(s, "mean"), f64_at(s, "worst"))
@@ -763,12 +783,12 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
         .extra
         .get("video")
         .and_then(Value::as_str)
-        .ok_or_else(|| anyhow!("trajectory.json does not name its video"))?;
-    let video = locate(Path::new(video), &bases).ok_or_else(|| anyhow!("the video {video:?} is not found"))?;
+        .ok_or_else(|| err!(Stage, "trajectory.json does not name its video"))?;
+    let video = locate(Path::new(video), &bases).ok_or_else(|| err!(Stage, "the video {video:?} is not found"))?;
     let capture = pganeus_io::open_capture(&video)?;
     let cam = *world_cameras(&capture)?
         .first()
-        .ok_or_else(|| anyhow!("{}: no camera", video.display()))?;
+        .ok_or_else(|| err!(Input, "{}: no camera", video.display()))?;
     // The scene run the fit rendered against (config.toml), through its extracted surface.
     let config: toml::Value = toml::from_str(
         &std::fs::read_to_string(fit.join("config.toml")).with_context(|| format!("{}/config.toml", fit.display()))?,
@@ -778,8 +798,8 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
         .get("inputs")
         .and_then(|i| i.get("scene"))
         .and_then(|s| s.as_str())
-        .ok_or_else(|| anyhow!("config.toml has no inputs.scene"))?;
-    let scene = locate(Path::new(scene), &bases).ok_or_else(|| anyhow!("the scene {scene:?} is not found"))?;
+        .ok_or_else(|| err!(Stage, "config.toml has no inputs.scene"))?;
+    let scene = locate(Path::new(scene), &bases).ok_or_else(|| err!(Stage, "the scene {scene:?} is not found"))?;
     let scene_mesh = if scene.is_dir() {
         scene.join("preview.ply")
     } else {
@@ -794,7 +814,7 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
             .extra
             .get("object")
             .and_then(|o| o["mesh"].as_str())
-            .ok_or_else(|| anyhow!("body {:?} names no object mesh", b.name))?;
+            .ok_or_else(|| err!(Stage, "body {:?} names no object mesh", b.name))?;
         let m = pganeus_io::read_mesh(&fit.join(mesh))?;
         bodies.push((m, b.poses.iter().map(pganeus_io::Pose::to_geom).collect()));
     }
@@ -829,7 +849,7 @@ fn novel_view(fit: &Path, traj: &Trajectory, eval: Option<&Value>, width: u32) -
     let view = Camera::look_at(eye, centre, Vec3::new(0.0, 0.0, 1.0), k, width, height);
     let n = bodies.iter().map(|(_, p)| p.len()).max().unwrap_or(0);
     if n == 0 {
-        bail!("no frames");
+        fail!(Stage, "no frames");
     }
     let mut frames = Vec::with_capacity(n);
     for f in 0..n {
@@ -862,13 +882,15 @@ fn mesh_radius(m: &TriMesh) -> f64 {
 /// The true bodies (mesh in the truth's body frame, poses of the video) that `eval` scored the fit against.
 fn truth_ghosts(traj: &Trajectory, eval: Option<&Value>, bases: &[&Path]) -> Result<Vec<(TriMesh, Vec<Pose<f64>>)>> {
     let Some(e) = eval else { return Ok(Vec::new()) };
-    let path = e["truth"].as_str().ok_or_else(|| anyhow!("eval.json names no truth"))?;
-    let path = locate(Path::new(path), bases).ok_or_else(|| anyhow!("{path}: not found"))?;
+    let path = e["truth"]
+        .as_str()
+        .ok_or_else(|| err!(Stage, "eval.json names no truth"))?;
+    let path = locate(Path::new(path), bases).ok_or_else(|| err!(Input, "{path}: not found"))?;
     let truth = pganeus_io::read_truth(&path)?;
     let name = e["video"].as_str().unwrap_or(&traj.capture);
     let video = truth
         .video(name)
-        .ok_or_else(|| anyhow!("{}: no video {name:?}", path.display()))?;
+        .ok_or_else(|| err!(Input, "{}: no video {name:?}", path.display()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut out = Vec::new();
     for b in &traj.bodies {

@@ -1,20 +1,47 @@
-//! `pganeus fit` end to end, with one body and with several. One test binary, so that the two long tests
-//! share the two cores.
+//! The fit of one body and of several, end to end, in-process through `pipeline::fit` (the `pganeus fit`
+//! command's contract, its arguments and exit codes, is tested in the CLI's tests). One test binary, so
+//! that the two long tests share the two cores; both are in the slow tier (`cargo test -- --ignored`).
 
-mod common;
-
-use common::text;
 use geom::{Camera, Intrinsics, Vec3};
 use neus::checkpoint::save_field;
 use neus::untrained_field::untrained_field;
 use neus::{CaptureSubject, FieldInit};
+use pipeline::fit::{FitInputs, FitOutcome, FitRun, Stage};
+use pipeline::render::RenderArgs;
+use pipeline::{Quiet, Resume};
+use recon::VideoFitConfig;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn run_ok(cmd: &mut Command) -> Output {
-    let o = cmd.output().unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    o
+/// The bodies of the scene file `scene` simulated into the trajectory file `out` (what `pganeus simulate`
+/// writes).
+fn simulate(scene: &Path, out: &Path) -> pganeus_io::Trajectory {
+    let s = scene_file::SceneFile::load(scene).unwrap();
+    let w = &s.world;
+    let traj = w.simulate(&w.params());
+    let t = scene_file::trajectory_file(&s.name, w, &traj, sim::ENGINE, Default::default());
+    pganeus_io::write_trajectory(out, &t).unwrap();
+    pganeus_io::read_trajectory(out).unwrap()
+}
+
+/// The motion in `trajectory` filmed through the cameras of `cameras` into the capture `out`, each body
+/// `NAME=DIR` of `objects` in the scene run `scene` (what `pganeus render --trajectory` writes).
+fn film(trajectory: &Path, scene: &Path, objects: &[String], cameras: &Path, out: &Path) {
+    let mut a = RenderArgs::new(out.to_path_buf());
+    a.trajectory = Some(trajectory.to_path_buf());
+    a.scene = Some(scene.to_path_buf());
+    a.object = objects.to_vec();
+    a.camera = Some(cameras.to_path_buf());
+    pipeline::render::run(&a, &Quiet).unwrap();
+}
+
+/// The settings `text` over fit's defaults.
+fn settings(text: &str) -> VideoFitConfig {
+    pipeline::run_folder::settings_over(&VideoFitConfig::default(), text, "the test's settings").unwrap()
+}
+
+/// A whole fit of `inputs` with `config` into `out`, resumed where it stopped.
+fn fit(inputs: &FitInputs, config: &VideoFitConfig, out: &Path) -> pipeline::Result<FitOutcome> {
+    FitRun::open(inputs.clone(), config.clone(), out, Resume::Continue)?.run(&Stage::ALL, &Quiet)
 }
 
 /// A 96×72 video camera at `eye` looking at `target`, focal length `focal` image widths.
@@ -54,18 +81,18 @@ fn untrained_runs(d: &Path) -> (PathBuf, PathBuf, geom::TriMesh) {
 }
 
 mod one_body {
-    //! `pganeus fit` end to end on a CI-sized video: a ball (an untrained sphere
-    //! field saved as a run, so nothing is trained here) tossed onto a board (an
-    //! untrained board field as the scene run), simulated by `simulate`, filmed
-    //! by `render --trajectory`, then fitted from a guess 1 cm and 10° off; and
-    //! the bad inputs `fit` must refuse without writing anything.
+    //! The fit of one body end to end on a CI-sized video: a ball (an untrained sphere field saved as a
+    //! run, so nothing is trained here) tossed onto a board (an untrained board field as the scene run),
+    //! simulated, filmed, then fitted from a guess 1 cm and 10° off; and the bad inputs a fit must refuse
+    //! without writing anything.
 
     use geom::{Camera, Pose, Quat, Vec3};
+    use pipeline::fit::{FitInputs, FitRun, Stage};
+    use pipeline::{Quiet, Resume};
+    use recon::VideoFitConfig;
     use std::path::{Path, PathBuf};
-    use std::process::Command;
 
-    use super::common::{bin, copy_dir, text};
-    use super::{camera_file, run_ok, untrained_runs};
+    use super::{camera_file, film, fit, settings, simulate, untrained_runs};
 
     /// The video's camera: 96×72, looking down at the toss from the front.
     fn camera() -> Camera<f64> {
@@ -104,28 +131,15 @@ v = [0.6, 0.1, 0.3]
 omega = [0.0, 4.0, 0.0]
 "#;
         std::fs::write(d.join("toss.toml"), scene_file).unwrap();
-        run_ok(
-            bin()
-                .args(["simulate", "--scene"])
-                .arg(d.join("toss.toml"))
-                .arg("--out")
-                .arg(d.join("truth.json")),
-        );
-        let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
+        let truth = simulate(&d.join("toss.toml"), &d.join("truth.json"));
         let cams = camera_file(d, &camera());
         let video = d.join("toss");
-        run_ok(
-            bin()
-                .args(["render", "--trajectory"])
-                .arg(d.join("truth.json"))
-                .arg("--scene")
-                .arg(&scene)
-                .arg("--object")
-                .arg(format!("ball={}", ball.display()))
-                .arg("--camera")
-                .arg(&cams)
-                .arg("--out")
-                .arg(&video),
+        film(
+            &d.join("truth.json"),
+            &scene,
+            &[format!("ball={}", ball.display())],
+            &cams,
+            &video,
         );
         Fixture {
             d: d.to_path_buf(),
@@ -182,28 +196,15 @@ iterations = 40
 rays_per_step = 256
 "#;
 
-    fn fit_cmd(f: &Fixture, video: &Path, object: &str, init: &Path, out: &Path) -> Command {
-        fit_cmd_with(f, video, object, init, out, &f.d.join("small.toml"))
-    }
-
-    fn fit_cmd_with(f: &Fixture, video: &Path, object: &str, init: &Path, out: &Path, config: &Path) -> Command {
-        let mut c = bin();
-        c.arg("fit")
-            .arg(video)
-            .arg("--scene")
-            .arg(&f.scene)
-            .arg("--object")
-            .arg(object)
-            .arg("--init")
-            .arg(init)
-            .arg("--config")
-            .arg(config)
-            .arg("--out")
-            .arg(out);
-        c
+    /// The fit of `video` with the ball's object `ball` from the guess `init`.
+    fn inputs(f: &Fixture, video: &Path, ball: &Path, init: &Path) -> FitInputs {
+        let mut inputs = FitInputs::new(video, &f.scene, [("ball", ball)]);
+        inputs.init = init.to_path_buf();
+        inputs
     }
 
     #[test]
+    #[ignore = "slow: a ball's toss fitted end to end (first pose, PA, GA, PGA, value ranges), resumed, and 8 bad inputs refused, ~150 s"]
     fn fit_recovers_a_toss_and_refuses_bad_inputs() {
         let d = testkit::scratch_dir("cli", "fit");
         let f = fixture(&d);
@@ -220,11 +221,22 @@ rays_per_step = 256
             p0.t + Vec3::new(0.008, -0.006, 0.0),
         );
         std::fs::write(d.join("init.json"), init_for("ball", off, f.com)).unwrap();
-        let object = format!("ball={}", f.ball.display());
+        let small = settings(SMALL_FIT);
+        let toss = inputs(&f, &f.video, &f.ball, &d.join("init.json"));
         let out = d.join("fit");
         let t = std::time::Instant::now();
-        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
-        eprintln!("{}\nfit took {:.1} s", text(&o), t.elapsed().as_secs_f64());
+        let outcome = fit(&toss, &small, &out).unwrap();
+        eprintln!("{}\nfit took {:.1} s", outcome.summary, t.elapsed().as_secs_f64());
+        // The outcome holds every stage's result: the first pose, PA's world, GA's poses, the kept world and
+        // where each reported pose came from.
+        assert_eq!(outcome.first_poses.len(), 1);
+        assert!(outcome.pa.is_some());
+        assert_eq!(outcome.ga.as_ref().map(|g| g[0].len()), Some(10));
+        assert_eq!(outcome.reported.as_ref().map(|r| r[0].len()), Some(10));
+        assert_eq!(
+            outcome.trajectory.as_deref(),
+            Some(out.join("trajectory.json").as_path())
+        );
         for file in [
             "trajectory.json",
             "pa.json",
@@ -309,6 +321,10 @@ rays_per_step = 256
             fitted.contact.restitution, fitted.contact.friction
         );
         assert!(kn[0] <= fitted.contact.restitution && fitted.contact.restitution <= kn[1]);
+        // The world in the outcome is the one the file reports.
+        let world = outcome.world.as_ref().expect("the kept world");
+        assert_eq!(world.scene_contact[0].restitution, fitted.contact.restitution);
+        assert_eq!(world.initial[0].v.to_array(), fitted.bodies[0].initial.v);
         assert!(mu[0] <= fitted.contact.friction && fitted.contact.friction <= mu[1]);
         assert!(
             mu[0] <= f.truth.contact.friction && f.truth.contact.friction <= mu[1],
@@ -316,14 +332,22 @@ rays_per_step = 256
         );
 
         // Run again: the finished fit is left as it is.
-        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
-        assert!(text(&o).contains("already finished"), "{}", text(&o));
+        let again = fit(&toss, &small, &out).unwrap();
+        assert!(
+            again.finished_before && again.summary.contains("already finished"),
+            "{}",
+            again.summary
+        );
         // A fit stopped before its end (no trajectory.json yet) resumes: every stage is read back, nothing
         // refitted.
         std::fs::remove_file(out.join("trajectory.json")).unwrap();
-        let o = run_ok(&mut fit_cmd(&f, &f.video, &object, &d.join("init.json"), &out));
-        for needle in ["resuming", "first pose: from", "PA: from", "GA: from"] {
-            assert!(text(&o).contains(needle), "{needle}: {}", text(&o));
+        let again = fit(&toss, &small, &out).unwrap();
+        for file in ["first_pose.json", "pa.json", "ga.json"] {
+            assert!(
+                again.read_back.contains(&out.join(file)),
+                "{file}: {:?}",
+                again.read_back
+            );
         }
         // What it finishes with is the uninterrupted fit's, bit for bit (the stage files read back exactly).
         let resumed = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
@@ -337,23 +361,28 @@ rays_per_step = 256
             assert_eq!(resumed.contact.extra[key], fitted.contact.extra[key], "{key}");
         }
         assert_eq!(resumed.bodies[0].extra["flight"], fitted.bodies[0].extra["flight"]);
-        // Other settings into the same folder need --force.
-        std::fs::write(d.join("other.toml"), SMALL_FIT.replace("rounds = 1", "rounds = 2")).unwrap();
-        let o = fit_cmd_with(&f, &f.video, &object, &d.join("init.json"), &out, &d.join("other.toml"))
-            .output()
-            .unwrap();
-        assert!(!o.status.success() && text(&o).contains("--force"), "{}", text(&o));
+        // Other settings into the same folder are refused unless the fit starts over.
+        let other = settings(&SMALL_FIT.replace("rounds = 1", "rounds = 2"));
+        match FitRun::open(toss.clone(), other, &out, Resume::Continue) {
+            Err(e @ pipeline::Error::OutputTaken(_)) => assert!(e.to_string().contains("--force"), "{e}"),
+            Err(e) => panic!("refused for another reason: {}", e.chain()),
+            Ok(_) => panic!("another fit's settings accepted into {}", out.display()),
+        }
 
-        first_pose_without_a_guess(&f, &object, &truth_poses[0]);
-        refusals(&f, &object);
+        first_pose_without_a_guess(&f, &truth_poses[0]);
+        refusals(&f, &small);
         let _ = std::fs::remove_dir_all(&d);
     }
 
     /// `--init auto`: the first stage alone finds the ball in flight (its silhouette's size gives the depth).
-    fn first_pose_without_a_guess(f: &Fixture, object: &str, truth: &Pose<f64>) {
+    fn first_pose_without_a_guess(f: &Fixture, truth: &Pose<f64>) {
         let out = f.d.join("auto");
-        let o = run_ok(fit_cmd(f, &f.video, object, Path::new("auto"), &out).args(["--stages", "first"]));
-        eprintln!("{}", text(&o));
+        let auto = inputs(f, &f.video, &f.ball, Path::new("auto"));
+        let outcome = FitRun::open(auto, settings(SMALL_FIT), &out, Resume::Continue)
+            .unwrap()
+            .run(&[Stage::First], &Quiet)
+            .unwrap();
+        assert!(outcome.ga.is_none() && outcome.world.is_none());
         let found: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("first_pose.json")).unwrap()).unwrap();
         let t: Vec<f64> = found["t"]
@@ -370,20 +399,26 @@ rays_per_step = 256
         assert!(e < 0.004, "--init auto: first pose {:.2} mm off", e * 1e3);
     }
 
-    /// Each bad input: a message with the needle, a non-zero exit and no output folder.
-    fn refusals(f: &Fixture, object: &str) {
+    /// Each bad input: an error whose message has the needle, and no output folder.
+    fn refusals(f: &Fixture, small: &VideoFitConfig) {
         let d = &f.d;
         let good_init = d.join("init.json");
-        let expect = |name: &str, video: &Path, object: &str, init: &Path, needle: &str| {
+        let refused = |name: &str, inputs: FitInputs, config: &VideoFitConfig, needle: &str| {
             let out = d.join(format!("refused_{name}"));
-            let o = fit_cmd(f, video, object, init, &out).output().unwrap();
-            assert!(!o.status.success(), "{name}: accepted\n{}", text(&o));
-            assert!(text(&o).contains(needle), "{name}: {}", text(&o));
+            let e = match fit(&inputs, config, &out) {
+                Err(e) => e.chain(),
+                Ok(_) => panic!("{name}: accepted"),
+            };
+            assert!(e.contains(needle), "{name}: {e}");
             assert!(!out.exists(), "{name}: wrote {}", out.display());
         };
+        let expect = |name: &str, video: &Path, ball: &Path, init: &Path, needle: &str| {
+            refused(name, inputs(f, video, ball, init), small, needle)
+        };
+        let object = f.ball.as_path();
         // A camera that moves.
         let moving = d.join("moving");
-        copy_dir(&f.video, &moving);
+        testkit::copy_dir(&f.video, &moving);
         let npz = moving.join("cameras_sphere.npz");
         let mut cams = pganeus_io::read_cameras_npz(&npz, 10).unwrap();
         cams[4].world_mat[0][3] += 5.0;
@@ -391,13 +426,13 @@ rays_per_step = 256
         expect("moving", &moving, object, &good_init, "fixed camera");
         // No mask folder for the body.
         let unmasked = d.join("unmasked");
-        copy_dir(&f.video, &unmasked);
+        testkit::copy_dir(&f.video, &unmasked);
         std::fs::remove_dir_all(unmasked.join("mask")).unwrap();
         std::fs::remove_dir_all(unmasked.join("mask_ball")).unwrap();
         expect("unmasked", &unmasked, object, &good_init, "no mask_ball/");
         // Masks empty in every frame.
         let empty = d.join("empty");
-        copy_dir(&f.video, &empty);
+        testkit::copy_dir(&f.video, &empty);
         for dir in ["mask", "mask_ball"] {
             for e in std::fs::read_dir(empty.join(dir)).unwrap() {
                 let p = e.unwrap().path();
@@ -410,13 +445,7 @@ rays_per_step = 256
         // An object folder that is neither a merge nor a run.
         let nothing = d.join("nothing");
         std::fs::create_dir_all(&nothing).unwrap();
-        expect(
-            "no_merge",
-            &f.video,
-            &format!("ball={}", nothing.display()),
-            &good_init,
-            "neither a merge output",
-        );
+        expect("no_merge", &f.video, &nothing, &good_init, "neither a merge output");
         // A guess for a body the video has no mask for.
         let mut two: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&good_init).unwrap()).unwrap();
         two["cup"] = two["ball"].clone();
@@ -428,34 +457,28 @@ rays_per_step = 256
         expect("outside", &f.video, object, &d.join("far.json"), "outside the image");
         // Settings the simulator refuses: named, and nothing written (they were checked only after the
         // output folder was opened).
-        std::fs::write(
-            d.join("no_substeps.toml"),
-            format!("{SMALL_FIT}\n[sim]\nsubsteps = 0\n"),
-        )
-        .unwrap();
-        let out = d.join("refused_settings");
-        let o = fit_cmd_with(f, &f.video, object, &good_init, &out, &d.join("no_substeps.toml"))
-            .output()
-            .unwrap();
-        assert!(!o.status.success() && text(&o).contains("sim.substeps"), "{}", text(&o));
-        assert!(!out.exists(), "wrote {}", out.display());
+        let no_substeps = settings(&format!("{SMALL_FIT}\n[sim]\nsubsteps = 0\n"));
+        refused(
+            "settings",
+            inputs(f, &f.video, object, &good_init),
+            &no_substeps,
+            "sim.substeps",
+        );
     }
 }
 
 mod several_bodies {
-    //! `pganeus fit` with several bodies, end to end on a CI-sized video (96×72,
-    //! 8 frames): three balls (one untrained sphere field saved as a run, so
-    //! nothing is trained here) on a board (an untrained board field as the scene run): one rolls
-    //! into a second at rest, which it knocks on; a third is tossed apart from
-    //! them. `simulate` moves them with pair values unlike the board's,
-    //! `render --trajectory` films them with a mask per body, and `fit` recovers
-    //! every body's poses, the collision frame and the launches from guesses
-    //! 8 mm and 10° off (the same code as two bodies: no special case).
+    //! The fit of several bodies, end to end on a CI-sized video (96×72, 8 frames): three balls (one
+    //! untrained sphere field saved as a run, so nothing is trained here) on a board (an untrained board
+    //! field as the scene run): one rolls into a second at rest, which it knocks on; a third is tossed apart
+    //! from them. The simulator moves them with pair values unlike the board's, the renderer films them with
+    //! a mask per body, and the fit recovers every body's poses, the collision frame and the launches from
+    //! guesses 8 mm and 10° off (the same code as two bodies: no special case).
 
     use geom::{Camera, Pose, Quat, Vec3};
+    use pipeline::fit::FitInputs;
 
-    use super::common::{bin, text};
-    use super::{camera_file, run_ok, untrained_runs};
+    use super::{camera_file, film, fit, settings, simulate, untrained_runs};
 
     /// 96×72, looking down at the three balls from the front.
     fn camera() -> Camera<f64> {
@@ -485,6 +508,7 @@ iterations = 4
     const NAMES: [&str; 3] = ["rolling", "struck", "tossed"];
 
     #[test]
+    #[ignore = "slow: three balls, one knocking another, fitted end to end by the collision schedule and resumed, ~120 s"]
     fn fit_recovers_three_balls_one_knocking_another() {
         let d = testkit::scratch_dir("cli", "fit_bodies");
         let (scene, ball, mesh) = untrained_runs(&d);
@@ -531,30 +555,11 @@ friction = 0.15
             z2 = z + 0.05
         );
         std::fs::write(d.join("balls.toml"), scene_file).unwrap();
-        run_ok(
-            bin()
-                .args(["simulate", "--scene"])
-                .arg(d.join("balls.toml"))
-                .arg("--out")
-                .arg(d.join("truth.json")),
-        );
-        let truth = pganeus_io::read_trajectory(&d.join("truth.json")).unwrap();
+        let truth = simulate(&d.join("balls.toml"), &d.join("truth.json"));
         let cams = camera_file(&d, &camera());
         let video = d.join("balls");
-        let mut render = bin();
-        render
-            .args(["render", "--trajectory"])
-            .arg(d.join("truth.json"))
-            .arg("--scene")
-            .arg(&scene)
-            .arg("--camera")
-            .arg(&cams)
-            .arg("--out")
-            .arg(&video);
-        for n in NAMES {
-            render.arg("--object").arg(format!("{n}={}", ball.display()));
-        }
-        run_ok(&mut render);
+        let objects: Vec<String> = NAMES.iter().map(|n| format!("{n}={}", ball.display())).collect();
+        film(&d.join("truth.json"), &scene, &objects, &cams, &video);
 
         // The frame the simulator first reports the two balls touching.
         let pair = &truth.contact.extra["pairs"][0];
@@ -586,25 +591,14 @@ friction = 0.15
             );
         }
         std::fs::write(d.join("init.json"), serde_json::Value::Object(init).to_string()).unwrap();
-        std::fs::write(d.join("small.toml"), SMALL_FIT).unwrap();
+        let small = settings(SMALL_FIT);
         let out = d.join("fit");
-        let mut fit = bin();
-        fit.arg("fit")
-            .arg(&video)
-            .arg("--scene")
-            .arg(&scene)
-            .arg("--init")
-            .arg(d.join("init.json"))
-            .arg("--config")
-            .arg(d.join("small.toml"))
-            .arg("--out")
-            .arg(&out);
-        for n in NAMES {
-            fit.arg("--object").arg(format!("{n}={}", ball.display()));
-        }
+        let mut balls = FitInputs::new(&video, &scene, NAMES.map(|n| (n, ball.clone())));
+        balls.init = d.join("init.json");
         let t = std::time::Instant::now();
-        let o = run_ok(&mut fit);
-        eprintln!("{}\nfit took {:.1} s", text(&o), t.elapsed().as_secs_f64());
+        let outcome = fit(&balls, &small, &out).unwrap();
+        eprintln!("{}\nfit took {:.1} s", outcome.summary, t.elapsed().as_secs_f64());
+        assert_eq!(outcome.reported.as_ref().map(|r| r.len()), Some(3));
         for file in [
             "trajectory.json",
             "ga_tracked.json",
@@ -684,7 +678,7 @@ friction = 0.15
         // Stopped before its end, it resumes from its stage files to the same result, bit for bit (both rounds'
         // worlds read back, the round kept by comparing them, the ranges from the kept one).
         std::fs::remove_file(out.join("trajectory.json")).unwrap();
-        run_ok(&mut fit);
+        fit(&balls, &small, &out).unwrap();
         let resumed = pganeus_io::read_trajectory(&out.join("trajectory.json")).unwrap();
         for (a, b) in resumed.bodies.iter().zip(&fitted.bodies) {
             assert_eq!((&a.initial, &a.poses), (&b.initial, &b.poses), "{}", a.name);

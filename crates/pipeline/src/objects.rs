@@ -2,26 +2,30 @@
 //! loaded once however many bodies share it (several identical balls are one object: its zero level is
 //! extracted once, not once per body).
 
-use anyhow::{anyhow, bail, Result};
+use crate::error::{err, fail, Context};
+use crate::Result;
 use neus::object_model::ObjectModel;
 use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The `--object NAME=DIR` entries, in order (names unique).
-pub(super) fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
+pub fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
     if list.is_empty() {
-        bail!("give the body with --object NAME=DIR");
+        fail!(Stage, "give the body with --object NAME=DIR");
     }
     let mut out: Vec<(String, PathBuf)> = Vec::new();
     for one in list {
-        let (n, d) = one
-            .split_once('=')
-            .ok_or_else(|| anyhow!("--object {one:?}: expected NAME=DIR (a merge output or a run folder)"))?;
+        let (n, d) = one.split_once('=').ok_or_else(|| {
+            err!(
+                Settings,
+                "--object {one:?}: expected NAME=DIR (a merge output or a run folder)"
+            )
+        })?;
         if n.is_empty() {
-            bail!("--object {one:?}: the name is empty");
+            fail!(Settings, "--object {one:?}: the name is empty");
         }
         if out.iter().any(|(o, _)| o == n) {
-            bail!("--object {one:?}: body {n:?} is given twice");
+            fail!(Settings, "--object {one:?}: body {n:?} is given twice");
         }
         out.push((n.to_string(), PathBuf::from(d)));
     }
@@ -29,14 +33,14 @@ pub(super) fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
 }
 
 /// Each named body's object, every distinct folder loaded once (errors name the body).
-pub(super) fn load_objects(named: &[(String, PathBuf)]) -> Result<Vec<(String, Arc<ObjectModel>)>> {
+pub fn load_objects(named: &[(String, PathBuf)]) -> Result<Vec<(String, Arc<ObjectModel>)>> {
     let mut loaded: Vec<(PathBuf, Arc<ObjectModel>)> = Vec::new();
     let mut out = Vec::with_capacity(named.len());
     for (name, dir) in named {
         let model = match loaded.iter().find(|(d, _)| d == dir) {
             Some((_, m)) => m.clone(),
             None => {
-                let m = Arc::new(ObjectModel::load(dir).map_err(|e| anyhow!("--object {name}: {e}"))?);
+                let m = Arc::new(ObjectModel::load(dir).with_context(|| format!("--object {name}"))?);
                 loaded.push((dir.clone(), m.clone()));
                 m
             }

@@ -4,9 +4,10 @@
 //! (docs/formats.md): `X = T_capture⁻¹ ∘ P_reference` takes fit-body points to
 //! truth-body points, so the fit's pose of the true body is `F ∘ X⁻¹`.
 
-use super::mesh_cmds::world_cameras;
-use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
+use crate::cameras::world_cameras;
+use crate::error::{err, fail, Context};
+use crate::Result;
+use crate::{note, Observer, Task};
 use geom::{coverage_iou, silhouette, Camera, Pose, TriMesh, Vec3};
 use mesh::SurfacePoints;
 use pganeus_io::{Trajectory, Truth, TruthBody};
@@ -14,29 +15,47 @@ use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-#[command(after_help = "Examples:
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus eval fits/slide --truth data/tabletop/truth.json
-  pganeus eval fits/drop --truth data/tabletop/truth.json --out fits/drop/eval.json --csv fits/drop/eval.csv")]
+  pganeus eval fits/drop --truth data/tabletop/truth.json --out fits/drop/eval.json --csv fits/drop/eval.csv")
+)]
 pub struct EvalArgs {
     /// A fit folder (`trajectory.json` and, when present, the stages' `pa.json`, `ga.json`, `pga.json`), or a
     /// trajectory file.
     pub fit: PathBuf,
     /// The scene's `truth.json` (its video with the fit's capture name is the reference).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub truth: PathBuf,
     /// The truth's video to compare with (default: the trajectory's `capture`).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub video: Option<String>,
     /// Surface points per body for ADD and ADD-S.
-    #[arg(long, default_value_t = 2000)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 2000))]
     pub samples: usize,
     /// Where to write the scores (default: `eval.json` in the fit folder, or beside the trajectory file).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub out: Option<PathBuf>,
     /// Per-frame rows as CSV (default: `--out` with the extension `.csv`).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub csv: Option<PathBuf>,
+}
+
+impl EvalArgs {
+    /// `fit` scored against `truth` (its video `video`, or the fit's own), written beside the fit.
+    pub fn new(fit: PathBuf, truth: PathBuf, video: Option<String>) -> EvalArgs {
+        EvalArgs {
+            fit,
+            truth,
+            video,
+            samples: 2000,
+            out: None,
+            csv: None,
+        }
+    }
 }
 
 /// What one body of the fit is measured with.
@@ -61,20 +80,22 @@ fn relation(entry: &pganeus_io::VideoBody, truth: &TruthBody, file: &Path) -> Re
         return Ok((Pose::identity(), false));
     };
     let capture = r["capture"].as_str().ok_or_else(|| {
-        anyhow!(
+        err!(
+            Input,
             "{}: {}: object.reference.capture is not a string",
             file.display(),
             entry.name
         )
     })?;
     let pose: pganeus_io::Pose = serde_json::from_value(r["pose"].clone())
-        .map_err(|e| anyhow!("{}: {}: object.reference.pose: {e}", file.display(), entry.name))?;
+        .with_context(|| format!("{}: {}: object.reference.pose", file.display(), entry.name))?;
     let stat = truth
         .static_captures
         .iter()
         .find(|s| s.capture == capture)
         .ok_or_else(|| {
-            anyhow!(
+            err!(
+                Input,
                 "{}: body {:?} is expressed in capture {capture:?}, which the truth does not list for it",
                 file.display(),
                 entry.name
@@ -302,7 +323,7 @@ fn add_ranges(row: &mut Value, fitted: &serde_json::Map<String, Value>) {
 }
 
 /// A `[lo, hi]` range as `fit` writes it (`restitution_range`, `friction_range`), if `v` is one.
-pub(super) fn range_pair(v: &Value) -> Option<[f64; 2]> {
+pub fn range_pair(v: &Value) -> Option<[f64; 2]> {
     match v.as_array()?.as_slice() {
         [lo, hi] => Some([lo.as_f64()?, hi.as_f64()?]),
         _ => None,
@@ -336,30 +357,74 @@ fn range_text(row: &Value, value: &str) -> String {
     }
 }
 
-pub fn run(a: EvalArgs) -> Result<()> {
+/// A fit's scores against a truth: `eval.json`'s document (per frame and per body: position, rotation,
+/// ADD(-S), silhouette IoU; the launch's and the contact values' errors; each stage file's poses; the object's
+/// mesh against the true one).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvalReport {
+    pub scores: Value,
+}
+
+impl EvalReport {
+    /// The summary a user reads, a line per body, pair and stage.
+    pub fn lines(&self) -> Vec<String> {
+        summary_lines(&self.scores)
+    }
+
+    /// Body `body`'s summary (`position_mm`, `rotation_deg`, ...), if the fit has it.
+    pub fn body(&self, body: &str) -> Option<&Value> {
+        self.scores["summary"].get(body)
+    }
+
+    /// The fitted and true launch and contact values of body `body` and their errors.
+    pub fn parameters(&self, body: &str) -> Option<&Value> {
+        self.scores["parameters"].get(body)
+    }
+}
+
+/// `fit` (a fit folder or a trajectory file) scored against `truth` (its video `video`, or the one with the
+/// fit's capture name), `samples` surface points per body for ADD and ADD-S.
+pub fn score(
+    fit: &Path,
+    truth: &Path,
+    video: Option<&str>,
+    samples: usize,
+    observer: &dyn Observer,
+) -> Result<EvalReport> {
+    let a = ScoreInputs {
+        fit,
+        truth,
+        video,
+        samples,
+    };
     let (dir, file) = if a.fit.is_dir() {
-        (a.fit.clone(), a.fit.join("trajectory.json"))
+        (a.fit.to_path_buf(), a.fit.join("trajectory.json"))
     } else {
-        (a.fit.parent().unwrap_or(Path::new(".")).to_path_buf(), a.fit.clone())
+        (
+            a.fit.parent().unwrap_or(Path::new(".")).to_path_buf(),
+            a.fit.to_path_buf(),
+        )
     };
     let fit = pganeus_io::read_trajectory(&file)?;
-    let truth: Truth = pganeus_io::read_truth(&a.truth)?;
+    let truth: Truth = pganeus_io::read_truth(a.truth)?;
     let truth_dir = a.truth.parent().unwrap_or(Path::new("."));
-    let name = a.video.clone().unwrap_or_else(|| fit.capture.clone());
+    let name = a.video.map(str::to_string).unwrap_or_else(|| fit.capture.clone());
     let video = truth.video(&name).ok_or_else(|| {
-        anyhow!(
+        err!(
+            Input,
             "{}: no video {name:?} (it has {:?}); name it with --video",
             a.truth.display(),
             truth.videos.iter().map(|v| &v.capture).collect::<Vec<_>>()
         )
     })?;
     if fit.bodies.is_empty() {
-        bail!("{}: no bodies", file.display());
+        fail!(Input, "{}: no bodies", file.display());
     }
     let mut refs = Vec::new();
     for entry in &fit.bodies {
         let tb = truth.body(&entry.name).ok_or_else(|| {
-            anyhow!(
+            err!(
+                Input,
                 "{}: body {:?} is not in {}",
                 file.display(),
                 entry.name,
@@ -367,7 +432,8 @@ pub fn run(a: EvalArgs) -> Result<()> {
             )
         })?;
         if video.body(&entry.name).is_none() {
-            bail!(
+            fail!(
+                Input,
                 "{}: body {:?} does not move in video {name:?}",
                 a.truth.display(),
                 entry.name
@@ -394,7 +460,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         }
     };
     // Steps: the reported poses, each stage file, each body's mesh.
-    let pb = super::progress((1 + STAGE_FILES.len() + fit.bodies.len()) as u64, "eval");
+    let pb = Task::start(observer, "eval", (1 + STAGE_FILES.len() + fit.bodies.len()) as u64);
     let scores = score_poses(&fit, video, &refs, camera.as_ref());
     pb.inc(1);
     // Where each fit put the true body's origin, frame by frame, beside the truth (the report's plots).
@@ -448,7 +514,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 "volume_iou": num(mesh::volume_iou(&ours, &r.mesh, 200_000, 5), 1.0, 4)}),
         );
     }
-    pb.finish_and_clear();
+    pb.finish();
     if !meshes.is_empty() {
         report["meshes"] = Value::Object(meshes);
     }
@@ -461,7 +527,26 @@ pub fn run(a: EvalArgs) -> Result<()> {
         tracing::warn!("{unrelated:?}: no object.reference in the fit: its body frame is taken to be the truth's");
         report["frame_assumed_identical"] = json!(unrelated);
     }
+    Ok(EvalReport { scores: report })
+}
 
+/// What [`score`] reads.
+struct ScoreInputs<'a> {
+    fit: &'a Path,
+    truth: &'a Path,
+    video: Option<&'a str>,
+    samples: usize,
+}
+
+/// `eval`: the fit scored ([`score`]) and written to `eval.json` (or `--out`) and a CSV of its frames.
+pub fn run(a: &EvalArgs, observer: &dyn Observer) -> Result<EvalReport> {
+    let evaluated = score(&a.fit, &a.truth, a.video.as_deref(), a.samples, observer)?;
+    let report = &evaluated.scores;
+    let dir = if a.fit.is_dir() {
+        a.fit.clone()
+    } else {
+        a.fit.parent().unwrap_or(Path::new(".")).to_path_buf()
+    };
     let out = a.out.clone().unwrap_or_else(|| dir.join("eval.json"));
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
@@ -492,8 +577,18 @@ pub fn run(a: EvalArgs) -> Result<()> {
     }
     pganeus_io::write_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
     pganeus_io::write_atomic(&csv_path, csv.as_bytes())?;
+    for line in evaluated.lines() {
+        note(observer, line);
+    }
+    note(observer, format!("wrote {} and {}", out.display(), csv_path.display()));
+    Ok(evaluated)
+}
+
+/// The summary lines of an `eval.json` document.
+fn summary_lines(report: &Value) -> Vec<String> {
+    let mut lines = Vec::new();
     for (body, s) in report["summary"].as_object().into_iter().flatten() {
-        println!(
+        lines.push(format!(
             "{body}: position mm mean {} worst {} (frame {}); rotation ° mean {} worst {} (frame {}); ADD mm mean {}; ADD-S mm mean {}{}",
             s["position_mm"]["mean"],
             s["position_mm"]["worst"],
@@ -506,25 +601,25 @@ pub fn run(a: EvalArgs) -> Result<()> {
             s.get("silhouette_iou")
                 .map(|i| format!("; silhouette IoU mean {} worst {}", i["mean"], i["worst"]))
                 .unwrap_or_default()
-        );
+        ));
         if s["symmetries"].as_u64().is_some_and(|k| k > 1) {
-            println!(
+            lines.push(format!(
                 "{body}: the shape has {} proper symmetries (the identity counted); up to them, rotation ° mean {} worst {} (frame {})",
                 s["symmetries"], s["rotation_sym_deg"]["mean"], s["rotation_sym_deg"]["worst"], s["rotation_sym_deg"]["worst_frame"]
-            );
+            ));
         }
         if let (Some(a), Some(x)) = (s.get("along_sight_mm"), s.get("across_sight_mm")) {
-            println!(
+            lines.push(format!(
                 "{body}: position along the camera's line of sight (absolute) mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",
                 a["mean"], a["worst"], a["worst_frame"], x["mean"], x["worst"], x["worst_frame"]
-            );
+            ));
         }
         let p = &report["parameters"][body];
         let share = match p["v0_error_percent"].as_f64() {
             Some(pc) => format!("{pc} %"),
             None => "the truth is at rest".into(),
         };
-        println!(
+        lines.push(format!(
             "{body}: v0 off by {} m/s ({share}), omega0 by {} rad/s{}",
             p["v0_error_m_s"],
             p["omega0_error_rad_s"],
@@ -533,9 +628,9 @@ pub fn run(a: EvalArgs) -> Result<()> {
             } else {
                 String::new()
             }
-        );
+        ));
         if let Some(f) = p.get("flight") {
-            println!(
+            lines.push(format!(
                 "{body}: the launch fitted to the flight alone ({} frames before the first contact; the kept launch {}): \
                  v0 off by {} m/s ({} %), omega0 by {} rad/s",
                 f["frames"],
@@ -547,14 +642,13 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 f["v0_error_m_s"],
                 f["v0_error_percent"],
                 f["omega0_error_rad_s"]
-            );
+            ));
         }
     }
     for p in report["pairs"].as_array().into_iter().flatten() {
-        println!("{} and {}: {}", p["bodies"][0], p["bodies"][1], values_text(p));
+        lines.push(format!("{} and {}: {}", p["bodies"][0], p["bodies"][1], values_text(p)));
     }
-    println!("wrote {} and {}", out.display(), csv_path.display());
-    Ok(())
+    lines
 }
 
 #[cfg(test)]

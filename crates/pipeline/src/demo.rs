@@ -5,9 +5,15 @@
 //! are skipped on a rerun; a stage stopped half way resumes (training from its checkpoint, `fit` from its
 //! stage files).
 
-use super::synth::{PhysicsArg, ScaleArg};
-use anyhow::{anyhow, Context, Result};
-use clap::{Args, ValueEnum};
+use crate::error::{err, Context};
+use crate::eval::EvalArgs;
+use crate::fit::{FitInputs, FitRun, Stage};
+use crate::report_page::ReportArgs;
+use crate::surfaces::{BakeArgs, MergeArgs};
+use crate::synth::{PhysicsArg, ScaleArg, SynthArgs};
+use crate::train::TrainArgs;
+use crate::{note, Observer, Result, Resume};
+use recon::VideoFitConfig;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -15,37 +21,41 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(Args, Debug)]
-#[command(after_help = "Examples:
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus demo
   pganeus demo --quick --out out/demo-quick
   pganeus demo --preset backdrop --physics rapier
-  pganeus demo --preset two-body")]
+  pganeus demo --preset two-body")
+)]
 pub struct DemoArgs {
     /// Short training and a light fit on the first 12 frames: the whole chain in about 5 minutes (a smoke
     /// run; its figures are far from the method's).
-    #[arg(long, conflicts_with = "scale")]
+    #[cfg_attr(feature = "clap", arg(long, conflicts_with = "scale"))]
     pub quick: bool,
     /// The folder for everything: data/, runs/, merged/, scene.sdf, fits/, report.md, demo.json.
     /// Default: out/demo, with the preset, `rapier`, `large` and `quick` added when given
     /// (out/demo-quick, out/demo-backdrop-rapier, ...).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub out: Option<PathBuf>,
     /// Redo every stage, even those that finished.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub force: bool,
     /// The synthetic scene (`synth --preset`): tabletop (a toy slides into a wall and drops), backdrop (the
     /// same motion with another light, board, obstacles and a backdrop) or two-body (a toy hits a block: the
     /// several-body fit).
-    #[arg(long, default_value = "tabletop")]
+    #[cfg_attr(feature = "clap", arg(long, default_value = "tabletop"))]
     pub preset: String,
     /// What moves the bodies in the videos (`synth --physics`): the project's simulator (the preset's
     /// default) or Rapier, an engine the project did not write (then motion is compared, not parameters).
-    #[arg(long, value_enum)]
+    #[cfg_attr(feature = "clap", arg(long, value_enum))]
     pub physics: Option<PhysicsArg>,
     /// small: 160×120, 30 frames (about 13 minutes for the tabletop); large: 320×240, 48 frames, longer
     /// training (about an hour).
-    #[arg(long, value_enum, default_value = "small")]
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "small"))]
     pub scale: ScaleArg,
 }
 
@@ -65,7 +75,7 @@ struct Expected {
 
 /// How the demo's sizes differ between `--quick`, the default and `--scale large`.
 struct Plan {
-    scale: &'static str,
+    scale: ScaleArg,
     scene_steps: usize,
     object_steps: usize,
     bake_res: usize,
@@ -81,7 +91,7 @@ struct Plan {
 }
 
 const QUICK: Plan = Plan {
-    scale: "small",
+    scale: ScaleArg::Small,
     scene_steps: 250,
     object_steps: 250,
     bake_res: 192,
@@ -103,7 +113,7 @@ const QUICK: Plan = Plan {
 };
 
 const FULL: Plan = Plan {
-    scale: "small",
+    scale: ScaleArg::Small,
     scene_steps: 1500,
     object_steps: 1000,
     bake_res: 256,
@@ -124,7 +134,7 @@ const FULL: Plan = Plan {
 
 /// The default's training and fit at 320×240, the objects trained as long as the scene.
 const LARGE: Plan = Plan {
-    scale: "large",
+    scale: ScaleArg::Large,
     object_steps: 1500,
     expected: Expected {
         synth: 170.0,
@@ -178,20 +188,18 @@ impl Scene {
         Ok(Scene {
             preset: a.preset.clone(),
             physics: a.physics,
-            desc: super::synth::named_preset(&a.preset, super::synth::scale(a.scale))?,
+            desc: crate::synth::named_preset(&a.preset, crate::synth::scale(a.scale))?,
         })
     }
 
     /// The engine named on the command line (none: the preset's own).
     fn physics_name(&self) -> Option<String> {
-        self.physics
-            .and_then(|p| p.to_possible_value())
-            .map(|v| v.get_name().to_string())
+        self.physics.map(|p| p.name().to_string())
     }
 }
 
 /// The default output folder: out/demo, with what differs from the default demo added.
-fn default_out(a: &DemoArgs) -> PathBuf {
+pub fn default_out(a: &DemoArgs) -> PathBuf {
     let mut name = String::from("demo");
     if a.preset != "tabletop" {
         name += &format!("-{}", a.preset);
@@ -208,12 +216,31 @@ fn default_out(a: &DemoArgs) -> PathBuf {
     PathBuf::from("out").join(name)
 }
 
-/// One stage: a name, the subcommand's arguments, and its expected share of the time (seconds on two cores,
-/// only for the ETA).
-struct Stage {
-    name: String,
-    argv: Vec<String>,
-    expected_s: f64,
+/// What one stage of the demo runs: a call of this library, typed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StageJob {
+    Synth(SynthArgs),
+    Train(TrainArgs),
+    Merge(MergeArgs),
+    Bake(BakeArgs),
+    /// A fit: its inputs, its settings file (over fit's defaults) and its run folder.
+    Fit {
+        inputs: FitInputs,
+        config: Option<PathBuf>,
+        out: PathBuf,
+    },
+    Eval(EvalArgs),
+    Report(ReportArgs),
+}
+
+/// One stage: a name, the command line a user would type for it (printed and recorded: the demo is also the
+/// recipe), what it runs, and its expected share of the time (seconds on two cores, only for the ETA).
+#[derive(Clone, Debug)]
+pub struct DemoStage {
+    pub name: String,
+    pub argv: Vec<String>,
+    pub job: StageJob,
+    pub expected_s: f64,
 }
 
 /// What finished: stage name → the command line it ran with and how long it took.
@@ -234,17 +261,18 @@ fn s(p: &Path) -> String {
 
 /// The stages in order, their arguments written out as a user would type them: synth, the scene's training,
 /// each body's two static captures and their merge, the bake, then each video's fit and eval, the report.
-fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
+fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
     let data = out.join("data");
     let runs = out.join("runs");
     let merged = |body: &str| out.join("merged").join(body);
     let grid = out.join("scene.sdf");
     let x = &plan.expected;
     let mut v = Vec::new();
-    let mut add = |name: &str, expected_s: f64, args: Vec<String>| {
-        v.push(Stage {
+    let mut add = |name: &str, expected_s: f64, argv: Vec<String>, job: StageJob| {
+        v.push(DemoStage {
             name: name.to_string(),
-            argv: args,
+            argv,
+            job,
             expected_s,
         })
     };
@@ -253,7 +281,7 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
         "--preset".into(),
         scene.preset.clone(),
         "--scale".into(),
-        plan.scale.into(),
+        plan.scale.name().into(),
         "--out".into(),
         s(&data),
         "--contact-sheet".into(),
@@ -261,7 +289,17 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
     if let Some(p) = scene.physics_name() {
         synth_args.extend(["--physics".into(), p]);
     }
-    add("synth", x.synth, synth_args);
+    let synth_job = SynthArgs {
+        preset: Some(scene.preset.clone()),
+        scene: None,
+        scale: plan.scale,
+        out: Some(data.clone()),
+        force: false,
+        contact_sheet: true,
+        physics: scene.physics,
+        print_preset: None,
+    };
+    add("synth", x.synth, synth_args, StageJob::Synth(synth_job));
     let mut train = vec![("background".to_string(), "scene".to_string(), plan.scene_steps, x.scene)];
     for body in &scene.desc.bodies {
         for side in ["a", "b"] {
@@ -278,10 +316,13 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
             "--iterations".into(),
             steps.to_string(),
         ];
+        let mut job = TrainArgs::new(data.join(&capture), runs.join(&run));
+        job.iterations = Some(steps);
         if capture == "background" && plan.scene_config.is_some() {
             args.extend(["--config".into(), s(&out.join("train_scene.toml"))]);
+            job.config = Some(out.join("train_scene.toml"));
         }
-        add(&format!("train {run}"), expected, args);
+        add(&format!("train {run}"), expected, args, StageJob::Train(job));
     }
     for body in &scene.desc.bodies {
         let (a, b) = (format!("{}_a", body.name), format!("{}_b", body.name));
@@ -296,11 +337,17 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
             "--capture-b".into(),
             s(&data.join(&b)),
         ];
+        let mut job = MergeArgs::new(runs.join(&a), runs.join(&b), merged(&body.name));
+        job.capture_a = Some(data.join(&a));
+        job.capture_b = Some(data.join(&b));
         if let Some(r) = plan.merge_field_res {
             args.extend(["--field-res".into(), r.to_string()]);
+            job.field_res = r;
         }
-        add(&format!("merge {}", body.name), x.merge, args);
+        add(&format!("merge {}", body.name), x.merge, args, StageJob::Merge(job));
     }
+    let mut bake = BakeArgs::new(runs.join("scene"), grid.clone());
+    bake.res = Some(plan.bake_res);
     add(
         "bake",
         x.bake,
@@ -312,6 +359,7 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
             "--res".into(),
             plan.bake_res.to_string(),
         ],
+        StageJob::Bake(bake),
     );
     for video in &scene.desc.videos {
         let fit_dir = out.join("fits").join(&video.name);
@@ -327,16 +375,30 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
             args.extend(["--object".into(), format!("{}={}", body.name, s(&merged(&body.name)))]);
         }
         args.extend(["--init".into(), "auto".into(), "--out".into(), s(&fit_dir)]);
+        let mut inputs = FitInputs::new(
+            data.join(&video.name),
+            runs.join("scene"),
+            video.bodies.iter().map(|b| (b.name.clone(), merged(&b.name))),
+        );
+        inputs.scene_grid = Some(grid.clone());
         if let Some(n) = plan.frames {
             args.extend(["--frames".into(), n.to_string()]);
+            inputs.frames = Some(n);
         }
+        let mut config = None;
         if plan.fit_config.is_some() {
             args.extend(["--config".into(), s(&out.join("fit.toml"))]);
+            config = Some(out.join("fit.toml"));
         }
         add(
             &format!("fit {}", video.name),
             x.fit_per_body * video.bodies.len() as f64,
             args,
+            StageJob::Fit {
+                inputs,
+                config,
+                out: fit_dir.clone(),
+            },
         );
         add(
             &format!("eval {}", video.name),
@@ -349,30 +411,102 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<Stage> {
                 "--video".into(),
                 video.name.clone(),
             ],
+            StageJob::Eval(EvalArgs::new(
+                fit_dir.clone(),
+                data.join("truth.json"),
+                Some(video.name.clone()),
+            )),
         );
     }
-    add("report", x.eval, vec!["report".into(), s(out)]);
+    add(
+        "report",
+        x.eval,
+        vec!["report".into(), s(out)],
+        StageJob::Report(ReportArgs::new(out.to_path_buf())),
+    );
     v
 }
 
-/// Runs the demo; `dispatch` runs one subcommand from its arguments (as `pganeus ARGS...` would).
-pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()> {
-    let t0 = Instant::now();
-    let plan = match (a.quick, a.scale) {
+/// The stages `a` asks for, in order, and the folder they write to.
+pub fn plan(a: &DemoArgs) -> Result<(Vec<DemoStage>, PathBuf)> {
+    let scene = Scene::new(a)?;
+    let out = a.out.clone().unwrap_or_else(|| default_out(a));
+    Ok((stages(plan_of(a), &scene, &out), out))
+}
+
+fn plan_of(a: &DemoArgs) -> &'static Plan {
+    match (a.quick, a.scale) {
         (true, _) => &QUICK,
         (false, ScaleArg::Small) => &FULL,
         (false, ScaleArg::Large) => &LARGE,
-    };
-    let scene = Scene::new(&a)?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(&a));
+    }
+}
+
+/// Runs one stage of the demo. `redo`: its inputs or its command line changed since it last ran (or the
+/// demo was asked to redo everything): it starts over instead of resuming what it left.
+pub trait StageRunner {
+    fn run_stage(&self, stage: &DemoStage, redo: bool, observer: &dyn Observer) -> Result<()>;
+}
+
+/// Runs each stage through this library.
+pub struct Library;
+
+impl StageRunner for Library {
+    fn run_stage(&self, stage: &DemoStage, redo: bool, observer: &dyn Observer) -> Result<()> {
+        match &stage.job {
+            StageJob::Synth(a) => {
+                // synth replaces its folder whole.
+                let a = SynthArgs {
+                    force: true,
+                    ..a.clone()
+                };
+                crate::synth::run(&a, observer)
+            }
+            StageJob::Train(a) => {
+                // Training resumes from its checkpoint when one is there, unless it must start over.
+                let resume = !redo && a.out.join("checkpoint.safetensors").exists();
+                let a = TrainArgs {
+                    resume,
+                    force: !resume,
+                    ..a.clone()
+                };
+                crate::train::run(&a, observer)
+            }
+            StageJob::Merge(a) => crate::surfaces::merge(a, observer),
+            StageJob::Bake(a) => crate::surfaces::bake(a, observer),
+            StageJob::Fit { inputs, config, out } => {
+                let config = match config {
+                    Some(file) => crate::run_folder::config_over(&VideoFitConfig::default(), file)?,
+                    None => VideoFitConfig::default(),
+                };
+                let resume = if redo { Resume::StartOver } else { Resume::Continue };
+                let outcome = FitRun::open(inputs.clone(), config, out, resume)?.run(&Stage::ALL, observer)?;
+                note(observer, &outcome.summary);
+                Ok(())
+            }
+            StageJob::Eval(a) => crate::eval::run(a, observer).map(|_| ()),
+            StageJob::Report(a) => crate::report_page::run(a, observer),
+        }
+    }
+}
+
+/// Runs the demo (each stage through `runner`: [`Library`] runs them in this process) and writes
+/// `report.md`; its path.
+pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> Result<PathBuf> {
+    let t0 = Instant::now();
+    let plan = plan_of(a);
+    let scene = Scene::new(a)?;
+    let out = a.out.clone().unwrap_or_else(|| default_out(a));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let record_path = out.join("demo.json");
     let mut record: Record = if a.force || !record_path.exists() {
         Record::default()
     } else {
-        let text = std::fs::read_to_string(&record_path)?;
+        let text =
+            std::fs::read_to_string(&record_path).with_context(|| format!("cannot read {}", record_path.display()))?;
         serde_json::from_str(&text).map_err(|e| {
-            anyhow!(
+            err!(
+                Input,
                 "{}: {e} (not a demo record: give another --out, or --force)",
                 record_path.display()
             )
@@ -388,35 +522,38 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
     let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
     // Expected seconds of the stages done or skipped, and of those run here (with the time they took).
     let (mut expected_done, mut expected_run, mut spent) = (0.0, 0.0, 0.0);
-    println!(
-        "demo{} of the {} scene: {} stages into {} (about {} on two cores)",
-        if a.quick { " --quick" } else { "" },
-        scene.preset,
-        all.len(),
-        out.display(),
-        minutes(total_expected)
+    note(
+        observer,
+        format!(
+            "demo{} of the {} scene: {} stages into {} (about {} on two cores)",
+            if a.quick { " --quick" } else { "" },
+            scene.preset,
+            all.len(),
+            out.display(),
+            minutes(total_expected)
+        ),
     );
     // Once a stage runs, every later one runs too: its inputs changed.
     let mut upstream_ran = false;
     for (i, stage) in all.iter().enumerate() {
         let head = format!("[{}/{}] {}", i + 1, all.len(), stage.name);
         if !upstream_ran && record.done.get(&stage.name).is_some_and(|d| d.argv == stage.argv) {
-            println!("{head}: done before, skipped");
+            note(observer, format!("{head}: done before, skipped"));
             expected_done += stage.expected_s;
             continue;
         }
         // The time left, scaled by how this machine compares with the expected times so far (a minute of
         // the expected pace mixed in, so one quick stage does not halve the estimate).
         let pace = (spent + 60.0) / (expected_run + 60.0);
-        println!(
-            "{head}: pganeus {} (ETA for the demo {})",
-            stage.argv.join(" "),
-            minutes((total_expected - expected_done) * pace)
+        note(
+            observer,
+            format!(
+                "{head}: pganeus {} (ETA for the demo {})",
+                stage.argv.join(" "),
+                minutes((total_expected - expected_done) * pace)
+            ),
         );
-        let mut argv = vec!["pganeus".to_string()];
-        argv.extend(stage.argv.iter().cloned());
         let redo = a.force || upstream_ran || record.done.contains_key(&stage.name);
-        argv.extend(resume_flags(stage, redo));
         upstream_ran = true;
         // What the later stages made came from this stage's old outputs: forget it, so that a stop further on
         // cannot leave them marked done.
@@ -425,9 +562,11 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
         }
         pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
         let t = Instant::now();
-        dispatch(&argv).with_context(|| format!("demo stage {:?} failed", stage.name))?;
+        runner
+            .run_stage(stage, redo, observer)
+            .with_context(|| format!("demo stage {:?} failed", stage.name))?;
         let seconds = t.elapsed().as_secs_f64();
-        println!("{head}: done in {seconds:.0} s");
+        note(observer, format!("{head}: done in {seconds:.0} s"));
         spent += seconds;
         expected_run += stage.expected_s;
         expected_done += stage.expected_s;
@@ -441,34 +580,31 @@ pub fn run(a: DemoArgs, dispatch: &dyn Fn(&[String]) -> Result<()>) -> Result<()
         pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
     }
     let report = write_report(&out, plan, &scene, a.quick, &all, &record)?;
-    println!(
-        "demo finished in {} (this run); report: {}",
-        minutes(t0.elapsed().as_secs_f64()),
-        report.display()
+    note(
+        observer,
+        format!(
+            "demo finished in {} (this run); report: {}",
+            minutes(t0.elapsed().as_secs_f64()),
+            report.display()
+        ),
     );
-    Ok(())
+    Ok(report)
 }
 
-/// A stage that has not finished is run over whatever it left: training resumes from its checkpoint when
-/// one is there, `fit` from its stage files, synth replaces its folder (merge, bake and eval always write anew). `redo`: its inputs or
-/// its command line changed since (or `--force`): everything starts over.
-fn resume_flags(stage: &Stage, redo: bool) -> Vec<String> {
-    let out = stage
-        .argv
-        .iter()
-        .position(|x| x == "--out")
-        .map(|i| PathBuf::from(&stage.argv[i + 1]));
-    match stage.argv[0].as_str() {
-        "train" => {
-            let checkpoint = out.map(|o| o.join("checkpoint.safetensors"));
-            if !redo && checkpoint.is_some_and(|c| c.exists()) {
+/// The flags a stage's command line gets for a rerun: training resumes from its checkpoint when one is there,
+/// `fit` from its stage files, synth replaces its folder (merge, bake and eval always write anew). `redo`:
+/// its inputs or its command line changed since (or `--force`): everything starts over.
+pub fn resume_flags(stage: &DemoStage, redo: bool) -> Vec<String> {
+    match &stage.job {
+        StageJob::Train(a) => {
+            if !redo && a.out.join("checkpoint.safetensors").exists() {
                 vec!["--resume".into()]
             } else {
                 vec!["--force".into()]
             }
         }
-        "synth" => vec!["--force".into()],
-        "fit" if redo => vec!["--force".into()],
+        StageJob::Synth(_) => vec!["--force".into()],
+        StageJob::Fit { .. } if redo => vec!["--force".into()],
         _ => vec![],
     }
 }
@@ -483,7 +619,7 @@ fn minutes(s: f64) -> String {
 
 fn read_json(p: &Path) -> Result<Value> {
     let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", p.display()))
+    serde_json::from_str(&text).with_context(|| format!("{}", p.display()))
 }
 
 /// `report.md`: what ran, how long, and how the fits compare with the truth (from each fit's eval.json),
@@ -493,7 +629,7 @@ fn write_report(
     plan: &Plan,
     scene: &Scene,
     quick: bool,
-    all: &[Stage],
+    all: &[DemoStage],
     record: &Record,
 ) -> Result<PathBuf> {
     let mut md = String::new();
@@ -505,7 +641,7 @@ fn write_report(
          at {}³, then `fit` from `--init auto` on each video{} and `eval` against the truth.\n",
         if quick { " --quick" } else { "" },
         scene.preset,
-        plan.scale,
+        plan.scale.name(),
         scene
             .physics_name()
             .map(|p| format!(" --physics {p}"))
@@ -554,7 +690,7 @@ fn write_report(
         let summary = e["summary"]
             .as_object()
             .filter(|m| !m.is_empty())
-            .ok_or_else(|| anyhow!("{}: no body in the summary", p.display()))?;
+            .ok_or_else(|| err!(Input, "{}: no body in the summary", p.display()))?;
         for (body, sum) in summary {
             let par = &e["parameters"][body];
             // Which pose each frame reports (`fit`'s choice, in eval's rows).
@@ -575,15 +711,15 @@ fn write_report(
                 video.name,
                 f(&sum["position_mm"]["mean"]),
                 f(&sum["position_mm"]["worst"]),
-                super::report::rotation_text(sum),
+                crate::report_page::rotation_text(sum),
                 f(&sum["add_s_mm"]["mean"]),
                 f(&sum["silhouette_iou"]["worst"]),
                 f(&par["restitution"]),
                 f(&par["restitution_true"]),
-                super::report::range_text(par.get("restitution_range")),
+                crate::report_page::range_text(par.get("restitution_range")),
                 f(&par["friction"]),
                 f(&par["friction_true"]),
-                super::report::range_text(par.get("friction_range")),
+                crate::report_page::range_text(par.get("friction_range")),
                 reported("simulated"),
                 reported("ga_at_weighed_depth"),
                 reported("ga"),
@@ -597,10 +733,10 @@ fn write_report(
                 pair["bodies"][1].as_str().unwrap_or("?"),
                 f(&pair["restitution"]),
                 f(&pair["restitution_true"]),
-                super::report::range_text(pair.get("restitution_range")),
+                crate::report_page::range_text(pair.get("restitution_range")),
                 f(&pair["friction"]),
                 f(&pair["friction_true"]),
-                super::report::range_text(pair.get("friction_range")),
+                crate::report_page::range_text(pair.get("friction_range")),
             ));
         }
         for (body, m) in e["meshes"].as_object().into_iter().flatten() {
@@ -657,19 +793,23 @@ mod tests {
     use super::*;
     use std::cell::RefCell;
 
-    /// A stand-in for the subcommands: records each command line, writes the eval files the report reads,
-    /// and fails at `fail_at` (a stage's subcommand and first argument's end).
-    fn fake<'a>(
+    /// A stand-in for the stages: records each command line (with the flags a rerun adds), writes the eval
+    /// files the report reads, and fails at `fail_at` (a stage's subcommand and first argument's end).
+    struct Fake<'a> {
         calls: &'a RefCell<Vec<Vec<String>>>,
         fail_at: Option<&'a str>,
-    ) -> impl Fn(&[String]) -> Result<()> + 'a {
-        move |argv: &[String]| {
-            calls.borrow_mut().push(argv[1..].to_vec());
-            let line = argv[1..].join(" ");
-            if fail_at.is_some_and(|f| line.starts_with(f)) {
-                anyhow::bail!("stopped in {line}");
+    }
+
+    impl StageRunner for Fake<'_> {
+        fn run_stage(&self, stage: &DemoStage, redo: bool, _: &dyn Observer) -> Result<()> {
+            let mut argv = stage.argv.clone();
+            argv.extend(resume_flags(stage, redo));
+            self.calls.borrow_mut().push(argv.clone());
+            let line = argv.join(" ");
+            if self.fail_at.is_some_and(|f| line.starts_with(f)) {
+                crate::error::fail!(Stage, "stopped in {line}");
             }
-            if argv[1] == "eval" {
+            if argv[0] == "eval" {
                 let e = serde_json::json!({
                     "summary": {"toy": {"position_mm": {"mean": 1.0, "worst": 2.0},
                         "rotation_deg": {"mean": 0.5, "worst": 1.5}, "add_s_mm": {"mean": 0.7},
@@ -680,12 +820,16 @@ mod tests {
                     "frames": [{"fit_pose": "simulated"}, {"fit_pose": "ga_at_weighed_depth"},
                         {"fit_pose": "ga"}, {"fit_pose": "simulated"}]
                 });
-                let dir = PathBuf::from(&argv[2]);
+                let dir = PathBuf::from(&argv[1]);
                 std::fs::create_dir_all(&dir)?;
                 std::fs::write(dir.join("eval.json"), e.to_string())?;
             }
             Ok(())
         }
+    }
+
+    fn fake<'a>(calls: &'a RefCell<Vec<Vec<String>>>, fail_at: Option<&'a str>) -> Fake<'a> {
+        Fake { calls, fail_at }
     }
 
     fn args(out: &Path, force: bool) -> DemoArgs {
@@ -714,13 +858,13 @@ mod tests {
         // Stopped in the drop's fit: everything before it is recorded, the report is not written.
         let calls = RefCell::new(Vec::new());
         let drop_fit = format!("fit {}", dir.join("data").join("drop").display());
-        let e = run(args(&dir, false), &fake(&calls, Some(&drop_fit))).unwrap_err();
+        let e = run(&args(&dir, false), &fake(&calls, Some(&drop_fit)), &crate::Quiet).unwrap_err();
         assert!(format!("{e:#}").contains("fit drop"), "{e:#}");
         assert_eq!(calls.borrow().len(), 9);
         assert!(!dir.join("report.md").exists());
         // Rerun: only the drop's fit (resuming its own stage files: no --force) and its eval run.
         let calls = RefCell::new(Vec::new());
-        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        run(&args(&dir, false), &fake(&calls, None), &crate::Quiet).unwrap();
         assert_eq!(names(&calls), ["fit drop", "eval drop", report_call.as_str()]);
         assert!(!calls.borrow()[0].contains(&"--force".to_string()));
         let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
@@ -736,7 +880,7 @@ mod tests {
         );
         // Nothing left to do.
         let calls = RefCell::new(Vec::new());
-        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        run(&args(&dir, false), &fake(&calls, None), &crate::Quiet).unwrap();
         assert!(calls.borrow().is_empty());
         // A stage whose command line changed (the object's training) runs again from scratch, and so does
         // every stage after it; those before it are kept.
@@ -745,7 +889,7 @@ mod tests {
         record.done.get_mut("train toy_a").unwrap().argv.push("--old".into());
         std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let calls = RefCell::new(Vec::new());
-        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        run(&args(&dir, false), &fake(&calls, None), &crate::Quiet).unwrap();
         assert_eq!(calls.borrow().len(), 9, "{:?}", names(&calls));
         assert_eq!(names(&calls)[0], "train toy_a");
         for c in calls.borrow().iter().filter(|c| c[0] == "train" || c[0] == "fit") {
@@ -758,13 +902,13 @@ mod tests {
         record.done.get_mut("merge toy").unwrap().argv.push("--old".into());
         std::fs::write(dir.join("demo.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let calls = RefCell::new(Vec::new());
-        assert!(run(args(&dir, false), &fake(&calls, Some(&drop_fit))).is_err());
+        assert!(run(&args(&dir, false), &fake(&calls, Some(&drop_fit)), &crate::Quiet).is_err());
         let calls = RefCell::new(Vec::new());
-        run(args(&dir, false), &fake(&calls, None)).unwrap();
+        run(&args(&dir, false), &fake(&calls, None), &crate::Quiet).unwrap();
         assert_eq!(names(&calls), ["fit drop", "eval drop", report_call.as_str()]);
         // --force redoes everything.
         let calls = RefCell::new(Vec::new());
-        run(args(&dir, true), &fake(&calls, None)).unwrap();
+        run(&args(&dir, true), &fake(&calls, None), &crate::Quiet).unwrap();
         assert_eq!(calls.borrow().len(), 11);
         let _ = std::fs::remove_dir_all(&dir);
     }

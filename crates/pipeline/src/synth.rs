@@ -1,64 +1,91 @@
-use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, ValueEnum};
+use crate::error::{err, fail, Context};
+use crate::Result;
+use crate::{note, Observer, Task};
 use std::path::{Path, PathBuf};
 use synth::{preset, Scale, SynthScene, PRESETS};
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum PhysicsArg {
     Pganeus,
     Rapier,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ScaleArg {
     Small,
     Large,
 }
 
-#[derive(Args)]
-#[command(after_help = "Examples:
+impl PhysicsArg {
+    /// The engine's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            PhysicsArg::Pganeus => "pganeus",
+            PhysicsArg::Rapier => "rapier",
+        }
+    }
+}
+
+impl ScaleArg {
+    /// The size's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScaleArg::Small => "small",
+            ScaleArg::Large => "large",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus synth --preset tabletop --out data/tabletop --contact-sheet
-  pganeus synth --print-preset tabletop > my_scene.toml && pganeus synth --scene my_scene.toml --out data/mine")]
+  pganeus synth --print-preset tabletop > my_scene.toml && pganeus synth --scene my_scene.toml --out data/mine")
+)]
 pub struct SynthArgs {
     /// A built-in scene: tabletop, two-body or backdrop.
-    #[arg(long, conflicts_with = "scene")]
+    #[cfg_attr(feature = "clap", arg(long, conflicts_with = "scene"))]
     pub preset: Option<String>,
     /// A scene description (TOML); see `--print-preset`.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub scene: Option<PathBuf>,
     /// Image size, views and frames of a preset: small (160×120, 24 views, 30 frames) or large (320×240, 48, 48).
-    #[arg(long, value_enum, default_value = "small")]
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "small"))]
     pub scale: ScaleArg,
     /// The dataset folder to write.
-    #[arg(long, required_unless_present = "print_preset")]
+    #[cfg_attr(feature = "clap", arg(long, required_unless_present = "print_preset"))]
     pub out: Option<PathBuf>,
     /// Replace `--out` if it exists (the old folder is kept until the new one is complete).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub force: bool,
     /// Also write contact_sheet.png: a few frames of every capture.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub contact_sheet: bool,
     /// The engine that makes the videos' motion: the project's simulator, or Rapier (a trusted engine the
     /// project did not write; truth.json then says `model: "rapier"`). Overrides the scene's `physics`.
-    #[arg(long, value_enum)]
+    #[cfg_attr(feature = "clap", arg(long, value_enum))]
     pub physics: Option<PhysicsArg>,
     /// Print a preset's scene description as TOML and exit.
-    #[arg(long, value_name = "PRESET")]
+    #[cfg_attr(feature = "clap", arg(long, value_name = "PRESET"))]
     pub print_preset: Option<String>,
 }
 
-pub(super) fn scale(a: ScaleArg) -> Scale {
+pub fn scale(a: ScaleArg) -> Scale {
     match a {
         ScaleArg::Small => Scale::Small,
         ScaleArg::Large => Scale::Large,
     }
 }
 
-pub(super) fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
-    preset(name, s).ok_or_else(|| anyhow!("unknown preset \"{name}\" (presets: {})", PRESETS.join(", ")))
+pub fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
+    preset(name, s).ok_or_else(|| err!(Stage, "unknown preset \"{name}\" (presets: {})", PRESETS.join(", ")))
 }
 
-pub fn run(a: SynthArgs) -> Result<()> {
+pub fn run(a: &SynthArgs, observer: &dyn Observer) -> Result<()> {
     if let Some(name) = &a.print_preset {
         print!("{}", toml::to_string(&named_preset(name, scale(a.scale))?)?);
         return Ok(());
@@ -72,14 +99,14 @@ pub fn run(a: SynthArgs) -> Result<()> {
         ),
         (None, Some(f)) => {
             let text = std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
-            let scene: SynthScene = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", f.display()))?;
+            let scene: SynthScene = toml::from_str(&text).with_context(|| format!("{}", f.display()))?;
             (
                 scene,
                 f.parent().unwrap_or(Path::new(".")).to_path_buf(),
                 f.display().to_string(),
             )
         }
-        _ => bail!("give --preset NAME or --scene FILE"),
+        _ => fail!(Stage, "give --preset NAME or --scene FILE"),
     };
     let mut scene = scene;
     if let Some(p) = a.physics {
@@ -89,27 +116,31 @@ pub fn run(a: SynthArgs) -> Result<()> {
         };
     }
     if out.exists() && std::fs::read_dir(&out).map(|mut d| d.next().is_some()).unwrap_or(true) && !a.force {
-        bail!("{} exists and is not empty; use --force to replace it", out.display());
+        fail!(
+            OutputTaken,
+            "{} exists and is not empty; use --force to replace it",
+            out.display()
+        );
     }
     // Written beside the target and swapped in whole, so a failure leaves the old dataset as it was.
     let staged = pganeus_io::StagedDir::new(&out)?;
     let partial = staged.path().to_path_buf();
     let t0 = std::time::Instant::now();
-    let pb = super::progress(0, "render");
+    let pb = Task::start(observer, "render", 0);
     let result = synth::generate(&scene, &base, &partial, &mut |name, done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
-        pb.set_message(name.to_string());
+        pb.set_status(name);
     });
-    pb.finish_and_clear();
+    pb.finish();
     let summary = match result {
         Ok(s) => s,
-        Err(e) => return Err(anyhow!("{label}: {e}")),
+        Err(e) => return Err(err!(Input, "{label}: {e}")),
     };
     if a.contact_sheet {
         let (sheet, rows) = synth::contact_sheet::contact_sheet(&partial)?;
         pganeus_io::write_png(&partial.join("contact_sheet.png"), &sheet)?;
-        println!("contact sheet rows: {}", rows.join(", "));
+        note(observer, format!("contact sheet rows: {}", rows.join(", ")));
     }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
@@ -118,13 +149,16 @@ pub fn run(a: SynthArgs) -> Result<()> {
         .commit()
         .with_context(|| format!("cannot move the new dataset to {}", out.display()))?;
     for (name, n) in &summary.captures {
-        println!("  {name}: {n} images");
+        note(observer, format!("  {name}: {n} images"));
     }
-    println!(
-        "rendered {} images in {:.1} s into {}",
-        summary.images,
-        t0.elapsed().as_secs_f64(),
-        out.display()
+    note(
+        observer,
+        format!(
+            "rendered {} images in {:.1} s into {}",
+            summary.images,
+            t0.elapsed().as_secs_f64(),
+            out.display()
+        ),
     );
     Ok(())
 }

@@ -1,45 +1,69 @@
-use anyhow::{anyhow, bail, Result};
-use clap::Args;
+use crate::error::{err, fail};
+use crate::Result;
+use crate::{note, Observer, Task};
 use neus::{checkpoint, CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-#[command(after_help = "Examples:
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus train data/tabletop/toy_a --out runs/toy_a
-  pganeus train data/tabletop/background --out runs/scene --kind scene --iterations 1500")]
+  pganeus train data/tabletop/background --out runs/scene --kind scene --iterations 1500")
+)]
 pub struct TrainArgs {
     /// The capture (NeuS layout: image/, mask/, cameras_sphere.npz).
     pub capture: PathBuf,
     /// The run folder: checkpoint.safetensors, config.toml, log.jsonl, preview.ply.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub out: PathBuf,
     /// fast (default) or quality.
-    #[arg(long, default_value = "fast")]
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
     pub preset: String,
     /// What the capture shows: `object` (sphere start; masks mark the object) or `scene` (board-plane
     /// start, a background field beyond the unit sphere; masks mark what is not scene). Default: capture.json's
     /// "subject", else object when the capture has masks and scene when it has none.
-    #[arg(long, value_parser = parse_kind)]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_kind))]
     pub kind: Option<CaptureSubject>,
     /// A TOML file with TrainConfig fields, over the preset.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub config: Option<PathBuf>,
     /// Override the number of steps.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub iterations: Option<usize>,
     /// Continue from the run's checkpoint.
-    #[arg(long, conflicts_with = "force")]
+    #[cfg_attr(feature = "clap", arg(long, conflicts_with = "force"))]
     pub resume: bool,
     /// Start over even if the run folder has a checkpoint (its checkpoint and log are replaced).
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub force: bool,
     /// Skip the marching-tetrahedra preview of the zero level.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub no_preview: bool,
     /// Grid resolution of the preview mesh.
-    #[arg(long, default_value_t = 128)]
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 128))]
     pub preview_res: usize,
+}
+
+impl TrainArgs {
+    /// Training of `capture` into the run folder `out` with the command's defaults (the `fast` preset, the
+    /// kind from the capture, a preview mesh at 128³).
+    pub fn new(capture: PathBuf, out: PathBuf) -> TrainArgs {
+        TrainArgs {
+            capture,
+            out,
+            preset: "fast".into(),
+            kind: None,
+            config: None,
+            iterations: None,
+            resume: false,
+            force: false,
+            no_preview: false,
+            preview_res: 128,
+        }
+    }
 }
 
 fn parse_kind(s: &str) -> Result<CaptureSubject, String> {
@@ -66,12 +90,12 @@ pub fn capture_kind(given: Option<CaptureSubject>, data: &Dataset) -> CaptureSub
 /// A preset for a kind of capture with a config file's fields laid over it.
 pub fn load_config(preset: &str, kind: CaptureSubject, file: Option<&Path>) -> Result<TrainConfig> {
     let base = TrainConfig::preset(preset, kind)
-        .ok_or_else(|| anyhow!("--preset: unknown preset \"{preset}\" (fast, quality)"))?;
+        .ok_or_else(|| err!(Settings, "--preset: unknown preset \"{preset}\" (fast, quality)"))?;
     let Some(file) = file else { return Ok(base) };
-    super::config_over(&base, file)
+    crate::run_folder::config_over(&base, file)
 }
 
-pub fn run(a: TrainArgs) -> Result<()> {
+pub fn run(a: &TrainArgs, observer: &dyn Observer) -> Result<()> {
     let ckpt = a.out.join("checkpoint.safetensors");
     let data = Dataset::load(&a.capture)?;
     tracing::info!(
@@ -84,7 +108,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
     );
     let mut trainer = if a.resume {
         if !ckpt.exists() {
-            bail!("--resume: {} does not exist", ckpt.display());
+            fail!(Settings, "--resume: {} does not exist", ckpt.display());
         }
         let mut t = checkpoint::resume(&ckpt, data)?;
         if let Some(n) = a.iterations {
@@ -94,7 +118,8 @@ pub fn run(a: TrainArgs) -> Result<()> {
         t
     } else {
         if ckpt.exists() && !a.force {
-            bail!(
+            fail!(
+                OutputTaken,
                 "{} exists: pass --resume to continue it, --force to start over, or choose another --out",
                 ckpt.display()
             );
@@ -125,7 +150,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
             trainer.config.stereo_steps
         );
     }
-    let pb = super::progress(total as u64, "train");
+    let pb = Task::start(observer, "train", total as u64);
     pb.set_position(trainer.step as u64);
     let (mut rays, mut secs) = (0usize, 0.0f64);
     while trainer.step < total {
@@ -133,7 +158,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
         rays += s.rays;
         secs += s.seconds;
         pb.set_position(s.step as u64);
-        pb.set_message(format!(
+        pb.set_status(&format!(
             "loss {:.4} psnr {:.1} {:.0} rays/s",
             s.loss.total(&trainer.config, s.step - 1),
             s.psnr,
@@ -146,29 +171,45 @@ pub fn run(a: TrainArgs) -> Result<()> {
             checkpoint::save(&trainer, &ckpt)?;
         }
     }
-    pb.finish_and_clear();
-    println!(
-        "trained {total} steps: {:.0} rays/s on average",
-        rays as f64 / secs.max(1e-9)
+    pb.finish();
+    note(
+        observer,
+        format!(
+            "trained {total} steps: {:.0} rays/s on average",
+            rays as f64 / secs.max(1e-9)
+        ),
     );
     if !trainer.holdout_views.is_empty() {
         let h = neus::holdout::holdout(&trainer);
-        println!(
-            "held-out PSNR {:.2} dB over {} views",
-            h.psnr,
-            trainer.holdout_views.len()
+        note(
+            observer,
+            format!(
+                "held-out PSNR {:.2} dB over {} views",
+                h.psnr,
+                trainer.holdout_views.len()
+            ),
         );
         if let Some(area) = h.silhouette.area_excess_percent() {
-            println!(
-                "held-out silhouette: area {area:+.2} % of the masks', IoU {:.4}",
-                h.silhouette.iou()
+            note(
+                observer,
+                format!(
+                    "held-out silhouette: area {area:+.2} % of the masks', IoU {:.4}",
+                    h.silhouette.iou()
+                ),
             );
         }
     }
     if !a.no_preview {
         let loaded = checkpoint::load_field(&ckpt)?;
         let levels = loaded.config.field.grid.levels;
-        let mesh = super::render::zero_level_mesh(&loaded.field, levels, loaded.centre, loaded.radius, a.preview_res);
+        let mesh = crate::surfaces::zero_level_mesh(
+            &loaded.field,
+            levels,
+            loaded.centre,
+            loaded.radius,
+            a.preview_res,
+            observer,
+        );
         if mesh.faces.is_empty() {
             tracing::warn!("the field has no zero level inside the unit sphere: no preview.ply");
         } else {
@@ -178,7 +219,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
                 &pganeus_io::PlyMesh::from_mesh(mesh),
                 pganeus_io::PlyEncoding::BinaryLittleEndian,
             )?;
-            println!("wrote {}", path.display());
+            note(observer, format!("wrote {}", path.display()));
         }
     }
     Ok(())

@@ -1,136 +1,98 @@
-use super::checkpoint_of;
-use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
+use crate::cameras::{read_cameras, read_transform};
+use crate::error::{err, fail};
+use crate::images::to8;
+use crate::run_folder::checkpoint_of;
+use crate::Result;
+use crate::{note, Observer, Task};
 use geom::Camera;
-use geom::{Pose, Vec3};
+use geom::Vec3;
 use neus::checkpoint::load_field;
 use neus::holdout::SilhouetteTally;
 use neus::render_view::{psnr, render_view, RenderSettings};
 use neus::switching::{route, Route};
 use neus::Dataset;
 use pganeus_io::Image;
-use serde::Deserialize;
 use std::path::PathBuf;
 
-#[derive(Args)]
-#[command(after_help = "Examples:
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
   pganeus render runs/toy_a --views data/tabletop/toy_a --out renders/toy_a
-  pganeus render --trajectory fits/slide/trajectory.json --scene runs/scene --object toy=merged/toy --views data/tabletop/slide --out renders/slide")]
+  pganeus render --trajectory fits/slide/trajectory.json --scene runs/scene --object toy=merged/toy --views data/tabletop/slide --out renders/slide")
+)]
 pub struct RenderArgs {
     /// A run folder (from `pganeus train`) or its checkpoint file (not with --trajectory).
-    #[arg(required_unless_present = "trajectory", conflicts_with = "trajectory")]
+    #[cfg_attr(
+        feature = "clap",
+        arg(required_unless_present = "trajectory", conflicts_with = "trajectory")
+    )]
     pub run: Option<PathBuf>,
     /// Render every frame of a motion: a trajectory.json (from simulate, target, fit-physics) or a
     /// truth.json (pick the video with --video), with each body's reconstructed object (--object) at its
     /// poses inside the reconstructed scene (--scene); writes a video capture in the NeuS layout.
-    #[arg(long, requires = "object")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "object"))]
     pub trajectory: Option<PathBuf>,
     /// With a truth.json trajectory: the video whose poses to render.
-    #[arg(long, requires = "trajectory")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory"))]
     pub video: Option<String>,
     /// The scene's run folder (train --kind scene); without it, objects over white.
-    #[arg(long, requires = "trajectory")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory"))]
     pub scene: Option<PathBuf>,
     /// NAME=DIR: the body NAME of the trajectory is the object in DIR (a merge output or a run folder).
-    #[arg(long, requires = "trajectory")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory"))]
     pub object: Vec<String>,
     /// With --trajectory: the animation shows this capture's images beside the rendering.
-    #[arg(long, requires = "trajectory")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory"))]
     pub side_by_side: Option<PathBuf>,
     /// With --trajectory: a novel view, the cameras turned by DEG degrees about the world's vertical axis
     /// (through the board's origin), at the same height and distance.
-    #[arg(long, requires = "trajectory", allow_hyphen_values = true)]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory", allow_hyphen_values = true))]
     pub orbit: Option<f64>,
     /// With --trajectory and a fixed camera: trace every field along every ray in every frame (the
     /// reference), instead of compositing the objects over the scene rendered once.
-    #[arg(long, requires = "trajectory")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "trajectory"))]
     pub reference_compositing: bool,
     /// Render every view of this capture and print PSNR against its images.
-    #[arg(long, conflicts_with = "camera")]
+    #[cfg_attr(feature = "clap", arg(long, conflicts_with = "camera"))]
     pub views: Option<PathBuf>,
     /// Render the cameras of a JSON file (one object or a list): `{"width", "height",
     /// "world_mat": 4×4}` (NeuS: K·W2C) or `{"width", "height", "K": 3×3, "world_to_cam": 4×4}`, world coordinates.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub camera: Option<PathBuf>,
     /// Where to write rgb/, depth/ (PNG and .npy) and normal/.
-    #[arg(long)]
+    #[cfg_attr(feature = "clap", arg(long))]
     pub out: PathBuf,
     /// Switching render (Eq. 3–4): the run of the same object in its other pose. Cameras below
     /// the board (z < 0 in RUN's frame) render this field instead, through `--transform`.
-    #[arg(long, requires = "transform")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "transform"))]
     pub other: Option<PathBuf>,
     /// The `transform.json` written by `pganeus merge OTHER RUN`: `p_run = R_1to2 · p_other + T_1to2`.
-    #[arg(long, requires = "other")]
+    #[cfg_attr(feature = "clap", arg(long, requires = "other"))]
     pub transform: Option<PathBuf>,
 }
 
-/// A field's zero level (`neus::surface::zero_level_mesh`) with a progress bar over the points sampled.
-pub fn zero_level_mesh(
-    field: &neus::NeusField,
-    levels: usize,
-    centre: geom::Vec3<f64>,
-    radius: f64,
-    res: usize,
-) -> geom::TriMesh {
-    let pb = super::progress((res * res * res) as u64, &format!("zero level at {res}³"));
-    let m = neus::surface::zero_level_mesh_reporting(field, levels, centre, radius, res, &|n| pb.inc(n as u64));
-    pb.finish_and_clear();
-    m
-}
-
-fn to8(v: f32) -> u8 {
-    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
-}
-
-/// A camera given by the user.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CameraJson {
-    width: u32,
-    height: u32,
-    world_mat: Option<[[f64; 4]; 4]>,
-    #[serde(rename = "K")]
-    k: Option<[[f64; 3]; 3]>,
-    world_to_cam: Option<[[f64; 4]; 4]>,
-}
-
-pub(crate) fn read_cameras(path: &std::path::Path) -> Result<Vec<Camera<f64>>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let list = if value.is_array() {
-        value
-    } else {
-        serde_json::Value::Array(vec![value])
-    };
-    let cams: Vec<CameraJson> = serde_json::from_value(list).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    cams.iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let wm = match (c.world_mat, c.k, c.world_to_cam) {
-                (Some(w), None, None) => w,
-                (None, Some(k), Some(e)) => {
-                    let mut w = [[0.0; 4]; 4];
-                    for r in 0..3 {
-                        for col in 0..4 {
-                            w[r][col] = (0..3).map(|l| k[r][l] * e[l][col]).sum();
-                        }
-                    }
-                    w[3] = [0.0, 0.0, 0.0, 1.0];
-                    w
-                }
-                _ => bail!("{}: camera {i}: give world_mat, or K and world_to_cam", path.display()),
-            };
-            if c.width == 0 || c.height == 0 {
-                bail!("{}: camera {i}: width and height must be positive", path.display());
-            }
-            Camera::from_world_mat(&wm, c.width, c.height).map_err(|e| anyhow!("{}: camera {i}: {e}", path.display()))
-        })
-        .collect()
-}
-
-/// `p_b = a_to_b · p_a` from a `transform.json` written by `pganeus merge` (or by hand).
-pub fn read_transform(path: &std::path::Path) -> Result<Pose<f64>> {
-    neus::object_model::read_transform(path).map_err(|e| anyhow!("{e}"))
+impl RenderArgs {
+    /// A render into `out` with nothing else given: set `run` (a field's views) or `trajectory` and
+    /// `object` (a motion), and the cameras (`views` or `camera`).
+    pub fn new(out: PathBuf) -> RenderArgs {
+        RenderArgs {
+            run: None,
+            trajectory: None,
+            video: None,
+            scene: None,
+            object: Vec::new(),
+            side_by_side: None,
+            orbit: None,
+            reference_compositing: false,
+            views: None,
+            camera: None,
+            out,
+            other: None,
+            transform: None,
+        }
+    }
 }
 
 /// An image to compare a render with, and its mask.
@@ -146,28 +108,34 @@ struct Job<'a> {
     reference: Option<Reference<'a>>,
 }
 
-pub fn run(a: RenderArgs) -> Result<()> {
+pub fn run(a: &RenderArgs, observer: &dyn Observer) -> Result<()> {
     // Written beside --out and swapped in whole: a failure part-way leaves the old folder as it was.
     let staged = pganeus_io::StagedDir::new(&a.out)?;
     let out = staged.path().to_path_buf();
     if let Some(trajectory) = &a.trajectory {
-        super::render_trajectory::run(super::render_trajectory::TrajectoryJob {
-            trajectory,
-            video: a.video.as_deref(),
-            scene: a.scene.as_deref(),
-            objects: &a.object,
-            views: a.views.as_deref(),
-            camera: a.camera.as_deref(),
-            side_by_side: a.side_by_side.as_deref(),
-            orbit_deg: a.orbit,
-            reference_compositing: a.reference_compositing,
-            out: &out,
-            shown_as: &a.out,
-        })?;
+        super::render_trajectory::run(
+            super::render_trajectory::TrajectoryJob {
+                trajectory,
+                video: a.video.as_deref(),
+                scene: a.scene.as_deref(),
+                objects: &a.object,
+                views: a.views.as_deref(),
+                camera: a.camera.as_deref(),
+                side_by_side: a.side_by_side.as_deref(),
+                orbit_deg: a.orbit,
+                reference_compositing: a.reference_compositing,
+                out: &out,
+                shown_as: &a.out,
+            },
+            observer,
+        )?;
         staged.commit()?;
         return Ok(());
     }
-    let run = a.run.as_deref().expect("clap: RUN is required without --trajectory");
+    let run = a
+        .run
+        .as_deref()
+        .ok_or_else(|| err!(Settings, "render: give a run folder, or --trajectory"))?;
     let l = load_field(&checkpoint_of(run))?;
     let data = match &a.views {
         Some(capture) => Some(Dataset::load(capture)?),
@@ -196,7 +164,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             });
         }
     } else {
-        bail!("give --views <capture> or --camera <json>");
+        fail!(Stage, "give --views <capture> or --camera <json>");
     }
     let other = match (&a.other, &a.transform) {
         (Some(run), Some(t)) => Some((load_field(&checkpoint_of(run))?, read_transform(t)?.inverse())),
@@ -206,7 +174,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     // An object's opacity against the capture's masks (a scene's masks mark what is not scene).
     let object = l.config.kind == neus::CaptureSubject::Object && other.is_none();
     let mut silhouettes = SilhouetteTally::default();
-    let pb = super::progress(jobs.len() as u64, "views");
+    let pb = Task::start(observer, "views", jobs.len() as u64);
     for job in &jobs {
         pb.inc(1);
         // Eq. 4: the other field renders cameras below the primary's board.
@@ -270,28 +238,34 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
             None => format!("{}: rendered", job.name),
         };
-        pb.suspend(|| println!("{line}"));
+        note(observer, line);
     }
-    pb.finish_and_clear();
+    pb.finish();
     if !psnrs.is_empty() {
-        println!(
-            "mean PSNR {:.2} dB over {} views{}",
-            psnrs.iter().sum::<f32>() / psnrs.len() as f32,
-            psnrs.len(),
-            if data.as_ref().is_some_and(|d| d.has_masks()) {
-                " (inside the masks)"
-            } else {
-                ""
-            }
+        note(
+            observer,
+            format!(
+                "mean PSNR {:.2} dB over {} views{}",
+                psnrs.iter().sum::<f32>() / psnrs.len() as f32,
+                psnrs.len(),
+                if data.as_ref().is_some_and(|d| d.has_masks()) {
+                    " (inside the masks)"
+                } else {
+                    ""
+                }
+            ),
         );
     }
     if let Some(excess) = silhouettes.area_excess_percent() {
-        println!(
-            "silhouette: area {excess:+.2} % of the masks', IoU {:.4} (opacity > 0.5)",
-            silhouettes.iou()
+        note(
+            observer,
+            format!(
+                "silhouette: area {excess:+.2} % of the masks', IoU {:.4} (opacity > 0.5)",
+                silhouettes.iou()
+            ),
         );
     }
     staged.commit()?;
-    println!("wrote {}", a.out.display());
+    note(observer, format!("wrote {}", a.out.display()));
     Ok(())
 }

@@ -3,11 +3,13 @@
 //! the NeuS layout (so it is itself an input of `train`, `fit` and NeuS tools)
 //! plus an animation.
 
-use super::checkpoint_of;
-use super::mesh_cmds::world_cameras;
 use super::objects::{load_objects, parse_objects};
-use super::render::read_cameras;
-use anyhow::{anyhow, bail, Context, Result};
+use crate::cameras::{read_cameras, world_cameras};
+use crate::error::{err, fail, Context};
+use crate::images::{beside, read_mask, reference_frame, to8};
+use crate::run_folder::checkpoint_of;
+use crate::Result;
+use crate::{note, Observer, Task};
 use geom::{Pose, Quat, Vec3};
 use neus::checkpoint::{load_field, LoadedField};
 use neus::compose::{prerender_scene, render_composed, Behind, ComposedImage, Composer, Layer};
@@ -35,7 +37,7 @@ pub struct TrajectoryJob<'a> {
 }
 
 /// One body's poses, in its object folder's body frame.
-pub(crate) struct BodyMotion {
+pub struct BodyMotion {
     pub name: String,
     pub poses: Vec<Pose<f64>>,
 }
@@ -43,16 +45,17 @@ pub(crate) struct BodyMotion {
 /// The motion to render: a `trajectory.json` (poses of each object's own body frame) or a `videos[]` entry
 /// of a `truth.json` (poses of the true meshes' frames, carried onto each object's body frame through the
 /// static capture the object's reference was taken in).
-pub(crate) fn read_motion(
+pub fn read_motion(
     path: &Path,
     video: Option<&str>,
     objects: &[(String, Arc<ObjectModel>)],
 ) -> Result<(f64, String, Vec<BodyMotion>)> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}", path.display()))?;
     if value.get("videos").is_none() {
         if video.is_some() {
-            bail!(
+            fail!(
+                Input,
                 "{}: --video picks a video of a truth.json; this is a trajectory",
                 path.display()
             );
@@ -72,9 +75,10 @@ pub(crate) fn read_motion(
     let v = match video {
         Some(name) => truth
             .video(name)
-            .ok_or_else(|| anyhow!("{}: no video named {name:?}", path.display()))?,
+            .ok_or_else(|| err!(Input, "{}: no video named {name:?}", path.display()))?,
         None if truth.videos.len() == 1 => &truth.videos[0],
-        None => bail!(
+        None => fail!(
+            Input,
             "{}: a truth.json with {} videos: pick one with --video ({})",
             path.display(),
             truth.videos.len(),
@@ -95,15 +99,21 @@ pub(crate) fn read_motion(
             });
             continue;
         };
-        let tb = truth
-            .body(&b.name)
-            .ok_or_else(|| anyhow!("{}: body {:?} of the video is not in bodies[]", path.display(), b.name))?;
+        let tb = truth.body(&b.name).ok_or_else(|| {
+            err!(
+                Input,
+                "{}: body {:?} of the video is not in bodies[]",
+                path.display(),
+                b.name
+            )
+        })?;
         let sc = tb
             .static_captures
             .iter()
             .find(|s| s.capture == model.reference_capture)
             .ok_or_else(|| {
-                anyhow!(
+                err!(
+                    Input,
                     "{}: body {:?} has no static capture named {:?} (the capture the object {} was reconstructed in)",
                     path.display(),
                     b.name,
@@ -119,10 +129,6 @@ pub(crate) fn read_motion(
         });
     }
     Ok((v.fps, v.capture.clone(), bodies))
-}
-
-pub(crate) fn to8(v: f32) -> u8 {
-    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
 fn mask_image(w: u32, h: u32, inside: impl Fn(usize) -> bool) -> Image {
@@ -144,33 +150,10 @@ fn iou(a: &[bool], b: &[bool]) -> f64 {
     }
 }
 
-/// A capture's image as RGB in [0, 1].
-pub(crate) fn reference_frame(path: &Path) -> Result<Vec<[f32; 3]>> {
-    let img = pganeus_io::read_image(path)?;
-    let ch = img.channels as usize;
-    Ok(img
-        .data
-        .chunks_exact(ch)
-        .map(|p| {
-            if ch >= 3 {
-                [p[0], p[1], p[2]].map(|v| v as f32 / 255.0)
-            } else {
-                [p[0] as f32 / 255.0; 3]
-            }
-        })
-        .collect())
-}
-
-pub(crate) fn read_mask(path: &Path) -> Result<Vec<bool>> {
-    let m = pganeus_io::read_image(path)?;
-    let ch = m.channels as usize;
-    Ok(m.data.chunks_exact(ch).map(|p| p[0] >= 128).collect())
-}
-
-pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
+pub fn run(job: TrajectoryJob<'_>, observer: &dyn Observer) -> Result<()> {
     let t0 = std::time::Instant::now();
     if job.objects.is_empty() {
-        bail!("give at least one --object NAME=DIR");
+        fail!(Stage, "give at least one --object NAME=DIR");
     }
     let named = parse_objects(job.objects)?;
     let objects = load_objects(&named)?;
@@ -189,7 +172,8 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     let (fps, capture_name, motion) = read_motion(job.trajectory, job.video, &objects)?;
     for (name, _) in &objects {
         if !motion.iter().any(|m| &m.name == name) {
-            bail!(
+            fail!(
+                Input,
                 "{}: no body named {name:?} (bodies: {})",
                 job.trajectory.display(),
                 motion.iter().map(|m| m.name.as_str()).collect::<Vec<_>>().join(", ")
@@ -209,7 +193,8 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         .collect();
     let frames = bodies.iter().map(|(m, _)| m.poses.len()).max().unwrap_or(0);
     if frames == 0 || bodies.iter().any(|(m, _)| m.poses.len() != frames) {
-        bail!(
+        fail!(
+            Input,
             "{}: every body needs the same number of poses (at least one)",
             job.trajectory.display()
         );
@@ -221,7 +206,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
             (Some((dir.to_path_buf(), c)), cams)
         }
         (None, Some(path)) => (None, read_cameras(path)?),
-        _ => bail!("give --views VIDEO_CAPTURE or --camera cams.json"),
+        _ => fail!(Stage, "give --views VIDEO_CAPTURE or --camera cams.json"),
     };
     if let Some(deg) = job.orbit_deg {
         // A new viewpoint: nothing to compare with.
@@ -235,7 +220,8 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         }
     }
     if cameras.len() != 1 && cameras.len() != frames {
-        bail!(
+        fail!(
+            Input,
             "{} cameras for {frames} frames: give one camera, or one per frame",
             cameras.len()
         );
@@ -262,7 +248,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     let images = out.join("image");
     std::fs::create_dir_all(&images).with_context(|| format!("cannot create {}", images.display()))?;
     let (w, h) = (cameras[0].width, cameras[0].height);
-    let pb = super::progress(frames as u64, "render");
+    let pb = Task::start(observer, "render", frames as u64);
     let mut anim = Vec::with_capacity(frames);
     let mut mats = Vec::with_capacity(frames);
     let mut rows = Vec::new();
@@ -278,7 +264,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
     for k in 0..frames {
         let cam = cameras[if cameras.len() == 1 { 0 } else { k }];
         if (cam.width, cam.height) != (w, h) {
-            bail!("camera {k} is {}×{}, camera 0 {w}×{h}", cam.width, cam.height);
+            fail!(Stage, "camera {k} is {}×{}, camera 0 {w}×{h}", cam.width, cam.height);
         }
         let (mut layers, behind): (Vec<Layer<'_>>, _) = match &prerendered {
             Some(pre) => (Vec::new(), Behind::Scene(pre)),
@@ -333,7 +319,7 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
         anim.push(rgb);
         pb.inc(1);
     }
-    pb.finish_and_clear();
+    pb.finish();
     pganeus_io::write_cameras_npz(&out.join("cameras_sphere.npz"), &mats)?;
     pganeus_io::write_capture_info(
         &out.join("capture.json"),
@@ -368,30 +354,36 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
             &out.join("metrics.json"),
             serde_json::to_string_pretty(&summary)?.as_bytes(),
         )?;
-        println!(
-            "against {}: mean PSNR {:.2} dB{}",
-            reference
-                .as_ref()
-                .map(|(d, _)| d.display().to_string())
-                .unwrap_or_default(),
-            mean("psnr").unwrap_or(f64::NAN),
-            bodies
-                .iter()
-                .filter_map(|(m, _)| {
-                    let k = format!("iou_{}", m.name);
-                    summary
-                        .get(format!("mean_{k}"))
-                        .and_then(|v| v.as_f64())
-                        .map(|v| format!(", {} IoU mean {v:.3} min {:.3}", m.name, summary[format!("min_{k}")]))
-                })
-                .collect::<String>()
+        note(
+            observer,
+            format!(
+                "against {}: mean PSNR {:.2} dB{}",
+                reference
+                    .as_ref()
+                    .map(|(d, _)| d.display().to_string())
+                    .unwrap_or_default(),
+                mean("psnr").unwrap_or(f64::NAN),
+                bodies
+                    .iter()
+                    .filter_map(|(m, _)| {
+                        let k = format!("iou_{}", m.name);
+                        summary
+                            .get(format!("mean_{k}"))
+                            .and_then(|v| v.as_f64())
+                            .map(|v| format!(", {} IoU mean {v:.3} min {:.3}", m.name, summary[format!("min_{k}")]))
+                    })
+                    .collect::<String>()
+            ),
         );
     }
-    println!(
-        "rendered {frames} frames of {w}×{h} in {:.1} s into {} (animation.png{})",
-        t0.elapsed().as_secs_f64(),
-        job.shown_as.display(),
-        if mp4 { ", video.mp4" } else { "" }
+    note(
+        observer,
+        format!(
+            "rendered {frames} frames of {w}×{h} in {:.1} s into {} (animation.png{})",
+            t0.elapsed().as_secs_f64(),
+            job.shown_as.display(),
+            if mp4 { ", video.mp4" } else { "" }
+        ),
     );
     Ok(())
 }
@@ -400,7 +392,8 @@ pub fn run(job: TrajectoryJob<'_>) -> Result<()> {
 fn side_by_side(dir: &Path, ours: &[Image]) -> Result<Vec<Image>> {
     let c = pganeus_io::open_capture(dir)?;
     if c.images.len() < ours.len() {
-        bail!(
+        fail!(
+            Settings,
             "--side-by-side {}: {} images for {} frames",
             dir.display(),
             c.images.len(),
@@ -412,7 +405,8 @@ fn side_by_side(dir: &Path, ours: &[Image]) -> Result<Vec<Image>> {
         .map(|(a, path)| {
             let b = pganeus_io::read_image(path)?;
             if b.height != a.height {
-                bail!(
+                fail!(
+                    Settings,
                     "--side-by-side {}: images are {} high, the rendering {}",
                     dir.display(),
                     b.height,
@@ -422,22 +416,6 @@ fn side_by_side(dir: &Path, ours: &[Image]) -> Result<Vec<Image>> {
             Ok(beside(&b, a))
         })
         .collect()
-}
-
-/// Two images of the same height side by side (`left` may be grey or RGBA; `right` is RGB).
-pub(crate) fn beside(left: &Image, right: &Image) -> Image {
-    let (l, r) = (left.to_rgb(), right);
-    let mut out = Image::new(l.width + r.width, l.height, 3);
-    fn row(img: &Image, y: usize) -> &[u8] {
-        let w = img.width as usize * 3;
-        &img.data[y * w..(y + 1) * w]
-    }
-    for y in 0..l.height as usize {
-        let d = y * out.width as usize * 3;
-        out.data[d..d + l.width as usize * 3].copy_from_slice(row(&l, y));
-        out.data[d + l.width as usize * 3..d + out.width as usize * 3].copy_from_slice(row(r, y));
-    }
-    out
 }
 
 /// `video.mp4` from `image/` when ffmpeg is on PATH (true if written).
