@@ -139,4 +139,53 @@ mod tests {
         }
         assert!(checked >= 20, "{checked} examples");
     }
+
+    /// The demo runs each stage through the library with typed arguments and prints the command line a user
+    /// would type for it: the two say the same (the command line, parsed, gives the stage's arguments).
+    #[test]
+    fn each_demo_stage_runs_what_its_command_line_says() {
+        use pipeline::demo::{plan, DemoArgs, StageJob};
+        use pipeline::synth::{PhysicsArg, ScaleArg};
+        let mut checked = 0;
+        for (preset, physics, quick, scale) in [
+            ("tabletop", None, false, ScaleArg::Small),
+            ("tabletop", None, true, ScaleArg::Small),
+            ("backdrop", Some(PhysicsArg::Rapier), false, ScaleArg::Large),
+            ("two-body", Some(PhysicsArg::Pganeus), true, ScaleArg::Small),
+        ] {
+            let a = DemoArgs {
+                quick,
+                out: None,
+                force: false,
+                preset: preset.into(),
+                physics,
+                scale,
+            };
+            let (stages, _) = plan(&a).unwrap();
+            for stage in stages {
+                let argv: Vec<&str> = std::iter::once("pganeus")
+                    .chain(stage.argv.iter().map(String::as_str))
+                    .collect();
+                let parsed = Cli::try_parse_from(&argv)
+                    .unwrap_or_else(|e| panic!("{}: `{}` does not parse: {e}", stage.name, argv.join(" ")))
+                    .command;
+                match (parsed, &stage.job) {
+                    (Command::Synth(p), StageJob::Synth(j)) => assert_eq!(&p, j),
+                    (Command::Train(p), StageJob::Train(j)) => assert_eq!(&p, j),
+                    (Command::Merge(p), StageJob::Merge(j)) => assert_eq!(&p, j),
+                    (Command::Bake(p), StageJob::Bake(j)) => assert_eq!(&p, j),
+                    (Command::Eval(p), StageJob::Eval(j)) => assert_eq!(&p, j),
+                    (Command::Report(p), StageJob::Report(j)) => assert_eq!(&p, j),
+                    (Command::Fit(p), StageJob::Fit { inputs, config, out }) => {
+                        assert_eq!(&p.inputs().unwrap(), inputs, "{}", stage.name);
+                        assert_eq!((&p.config, &p.out), (config, out), "{}", stage.name);
+                        assert!(p.stages.is_none() && !p.force, "{}", stage.name);
+                    }
+                    (_, job) => panic!("{}: `{}` is another command than {job:?}", stage.name, argv.join(" ")),
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked >= 40, "{checked} stages");
+    }
 }

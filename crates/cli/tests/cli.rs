@@ -876,6 +876,7 @@ radius = 0.005
 /// cut at the unit sphere and compares with the true scene, `bake` of the run covers the board region with the
 /// floor below it, and the simulator reads the grid.
 #[test]
+#[ignore = "slow: a scene trained, previewed against the true scene, baked and simulated on, ~37 s"]
 fn scene_train_bake_and_simulate_on_the_reconstruction() {
     let d = scratch("scene");
     tiny_dataset(&d, 96, 72, 16);

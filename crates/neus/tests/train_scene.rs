@@ -119,6 +119,7 @@ fn check_scene(preset: &str) {
 /// With no table, the plane start alone turned into a fog (sharpness falling to ~10, heights off by
 /// centimetres): nothing anchored it beyond the board. The stereo points do.
 #[test]
+#[ignore = "slow: a scene before a plain backdrop trained into a clean surface, ~25 s"]
 fn board_before_a_plain_backdrop_trains_into_a_clean_surface() {
     check_scene("backdrop");
 }

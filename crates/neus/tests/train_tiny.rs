@@ -96,6 +96,7 @@ fn tiny_training_fits_a_ball() {
 /// silhouette grows, and a fit from such a field puts the body too far from the camera. Rays through pixel
 /// centres (the object default) are not. It takes a sharp field to show: the default config, 800 steps.
 #[test]
+#[ignore = "slow: an object field trained 800 steps with the default settings keeps its silhouette to the masks, ~95 s"]
 fn rays_through_pixel_centres_keep_the_silhouette_to_the_masks() {
     let dir = scratch("ball_silhouette");
     let (capture, _, _) = ball_capture_sized(&dir, 160, 120);
