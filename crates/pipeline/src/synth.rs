@@ -87,10 +87,14 @@ pub fn named_preset(name: &str, s: Scale) -> Result<SynthScene> {
 
 pub fn run(a: &SynthArgs, observer: &dyn Observer) -> Result<()> {
     if let Some(name) = &a.print_preset {
-        print!("{}", toml::to_string(&named_preset(name, scale(a.scale))?)?);
+        let text = toml::to_string(&named_preset(name, scale(a.scale))?)?;
+        note(observer, text.trim_end());
         return Ok(());
     }
-    let out = a.out.clone().expect("clap requires --out");
+    let out = a
+        .out
+        .clone()
+        .ok_or_else(|| err!(Settings, "synth: give --out, or --print-preset"))?;
     let (scene, base, label) = match (&a.preset, &a.scene) {
         (Some(p), None) => (
             named_preset(p, scale(a.scale))?,

@@ -10,13 +10,13 @@ use geom::{Camera, Pose, Vec3};
 /// body's IoU differs by several hundredths between poses millimetres apart, and GA, fitting the silhouette
 /// alone, wins it by moving in depth (a 14 px ball: 0.88 simulated against 0.96 by GA, the simulated pose
 /// 2 mm closer to the truth), so only a clear miss counts.
-const SIMULATION_MISSES_BY: f64 = 0.1;
+pub const SIMULATION_MISSES_BY: f64 = 0.1;
 /// A frame whose image loss (GA's terms, per pixel) under the simulation is more than this
 /// many times GA's is one the simulation misses too, even with its silhouette in place: a tumble the
 /// simulator turned another way (the tabletop drop's bounces: 10–15° off, at 1.5–4 times GA's loss). Where
 /// both explain the image alike, the simulation's pose is kept (depth from physics, not from a silhouette's
 /// size).
-const SIMULATION_LOSS_RATIO: f64 = 1.5;
+pub const SIMULATION_LOSS_RATIO: f64 = 1.5;
 
 /// A simulated pose that draws its body this many pixels from GA's on average (its depth set to GA's) draws
 /// it visibly elsewhere: four times the precision a silhouette's edge is placed to
@@ -25,7 +25,7 @@ const SIMULATION_LOSS_RATIO: f64 = 1.5;
 /// (2–3 px) off (the 320×240 tabletop drop's bounce: IoU 0.877 against GA's 0.961), where on a 14 px ball
 /// it forgives a fraction of a pixel. Depth is left out: one view tells it least, and the simulation's is
 /// weighed against GA's where GA's pose is reported.
-const SIMULATION_MISSES_BY_PX: f64 = 4.0 * crate::image_precision::EDGE_PRECISION_PX;
+pub const SIMULATION_MISSES_BY_PX: f64 = 4.0 * crate::image_precision::EDGE_PRECISION_PX;
 
 /// How far apart two poses draw a body's `points` (body frame) through `camera`, in pixels on average,
 /// `b`'s depth along its line of sight first set to `a`'s: what the image can tell of the difference.

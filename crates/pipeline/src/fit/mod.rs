@@ -1,7 +1,7 @@
 //! `fit`: each body's pose in every frame of a fixed-camera video and the physics that explains it
 //! (Sec. 3.3–3.4): the first pose from a rough guess (or searched, `init = auto`), PA, GA with the contact
 //! penalty of Eq. 10, and PGA (Eq. 11; GA ↔ PGA while it helps); with several bodies, the collision
-//! schedule ([`several`]). Each stage's result is written to the run folder as it ends, so a run that stops
+//! schedule (`fit/several.rs`). Each stage's result is written to the run folder as it ends, so a run that stops
 //! resumes at the stage it was in (same inputs and settings).
 //!
 //! ```no_run
@@ -145,6 +145,8 @@ pub struct FitOutcome {
     pub summary: String,
     /// `trajectory.json`, when the whole fit ran.
     pub trajectory: Option<PathBuf>,
+    /// The files the run folder holds when the run ends (its stage files, log, renders' folder, ...), sorted.
+    pub files: Vec<PathBuf>,
 }
 
 /// The pose a frame of the fit reports, and where it came from.
@@ -211,6 +213,7 @@ impl FitRun {
             tracing::info!("resuming the fit in {}: already finished", self.out.display());
             return Ok(FitOutcome {
                 finished_before: true,
+                files: folder_files(&self.out),
                 summary: format!(
                     "resuming the fit in {}: already finished, {} is in place (--force to fit again)",
                     self.out.display(),
@@ -228,11 +231,22 @@ impl FitRun {
             observer,
             t_start,
         };
-        match self.prepared {
-            Prepared::One(p) => single::run(*p, &ctx),
-            Prepared::Several(p) => several::run(*p, &ctx),
-        }
+        let mut outcome = match self.prepared {
+            Prepared::One(p) => single::run(*p, &ctx)?,
+            Prepared::Several(p) => several::run(*p, &ctx)?,
+        };
+        outcome.files = folder_files(&self.out);
+        Ok(outcome)
     }
+}
+
+/// The entries of `dir`, sorted (none if it cannot be read).
+fn folder_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    files.sort();
+    files
 }
 
 /// What every stage of a run reads besides its inputs.
