@@ -11,6 +11,7 @@ use crate::{note, Observer, Task};
 use geom::{coverage_iou, silhouette, Camera, Pose, TriMesh, Vec3};
 use mesh::SurfacePoints;
 use pganeus_io::{Trajectory, Truth, TruthBody};
+use report::run_page::range_pair;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -319,14 +320,6 @@ fn add_ranges(row: &mut Value, fitted: &serde_json::Map<String, Value>) {
             row[key] = json!([lo, hi]);
             row[format!("{value}_true_in_range")] = json!((lo..=hi).contains(&truth));
         }
-    }
-}
-
-/// A `[lo, hi]` range as `fit` writes it (`restitution_range`, `friction_range`), if `v` is one.
-pub fn range_pair(v: &Value) -> Option<[f64; 2]> {
-    match v.as_array()?.as_slice() {
-        [lo, hi] => Some([lo.as_f64()?, hi.as_f64()?]),
-        _ => None,
     }
 }
 

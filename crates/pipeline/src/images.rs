@@ -1,5 +1,4 @@
-//! Images as the stages read and write them: a capture's frames and masks, its cameras, side-by-side pairs
-//! and strips.
+//! Images as the stages read and write them: a capture's frames and masks, side-by-side pairs and strips.
 
 use crate::Result;
 use pganeus_io::Image;

@@ -1,3 +1,7 @@
+//! `render`: a trained field's views, depth and normals from a capture's or a file's cameras, with PSNR
+//! against the capture (the switching render of Eq. 3–4 with `other`); with a trajectory, objects moving in
+//! their scene (`render_trajectory`).
+
 use crate::cameras::{read_cameras, read_transform};
 use crate::error::{err, fail};
 use crate::images::to8;

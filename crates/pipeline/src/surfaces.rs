@@ -1,5 +1,6 @@
-//! `mesh`, `bake` and `compare-mesh`: the zero level of a trained field, SDF
-//! grids for the simulator, and mesh metrics.
+//! `mesh`, `bake`, `compare-mesh` and `merge`: the zero level of a trained field, SDF grids for the
+//! simulator (a scene's with its planes made exact: [`bake_scene`]), mesh metrics, and one object from its
+//! reconstructions in two poses (Sec. 3.2, Fig. 2b).
 
 use crate::cameras::world_cameras;
 use crate::error::{err, fail, Context};

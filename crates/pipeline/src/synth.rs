@@ -1,3 +1,6 @@
+//! `synth`: a synthetic tabletop dataset with exact ground truth, in the NeuS layout (a preset or a scene
+//! description; the motion made by the project's simulator or by Rapier).
+
 use crate::error::{err, fail, Context};
 use crate::Result;
 use crate::{note, Observer, Task};

@@ -1,3 +1,7 @@
+//! `train`: a NeuS field (SDF + colour) from a capture (Sec. 3.2, Eq. 1–2): an object (masked, a sphere
+//! start) or a scene (a board-plane start, a background field beyond the unit sphere), with checkpoints it
+//! resumes from, a log and a preview mesh.
+
 use crate::error::{err, fail};
 use crate::Result;
 use crate::{note, Observer, Task};

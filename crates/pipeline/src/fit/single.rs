@@ -1,8 +1,7 @@
-//! `fit`: a body's pose in every frame of a fixed-camera video and the physics
-//! that explains it (Sec. 3.3–3.4): the first pose from a rough guess, PA,
-//! GA with the contact penalty, and PGA (GA ↔ PGA while it helps). Each
-//! stage's result is written as it ends, so a run that stops resumes at the
-//! stage it was in (same settings; `--force` starts over).
+//! The fit of one body: its pose in every frame of a fixed-camera video and the physics that explains it
+//! (Sec. 3.3–3.4): the first pose from a rough guess, PA, GA with the contact penalty, and PGA (GA ↔ PGA
+//! while it helps). Each stage's result is written as it ends, so a run that stops resumes at the stage it
+//! was in (same settings; [`crate::Resume::StartOver`] starts over).
 
 use super::*;
 use crate::images::{beside, strip, to8};
