@@ -429,9 +429,13 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
 
 /// The stages `a` asks for, in order, and the folder they write to.
 pub fn plan(a: &DemoArgs) -> Result<(Vec<DemoStage>, PathBuf)> {
-    let scene = Scene::new(a)?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(a));
-    Ok((stages(plan_of(a), &scene, &out), out))
+    let out = out_of(a);
+    Ok((stages(plan_of(a), &Scene::new(a)?, &out), out))
+}
+
+/// The folder the demo writes to: `--out`, else [`default_out`].
+fn out_of(a: &DemoArgs) -> PathBuf {
+    a.out.clone().unwrap_or_else(|| default_out(a))
 }
 
 fn plan_of(a: &DemoArgs) -> &'static Plan {
@@ -496,7 +500,7 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
     let t0 = Instant::now();
     let plan = plan_of(a);
     let scene = Scene::new(a)?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(a));
+    let out = out_of(a);
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let record_path = out.join("demo.json");
     let mut record: Record = if a.force || !record_path.exists() {

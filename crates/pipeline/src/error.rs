@@ -2,8 +2,6 @@
 //! cause of a failure in a library crate (a format, the simulator, a fit) is kept as the error's source, so
 //! a front end can print the chain (`anyhow`'s `{:#}`) or walk it ([`Error::chain`]).
 
-use std::path::Path;
-
 /// Why a stage stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -54,11 +52,6 @@ impl Error {
             context: context.into(),
             source: Box::new(source.into()),
         }
-    }
-
-    /// `file` could not be read (or written): its path and the cause.
-    pub fn file(file: &Path, verb: &str, source: impl Into<Error>) -> Error {
-        Error::context(format!("cannot {verb} {}", file.display()), source)
     }
 }
 

@@ -300,6 +300,23 @@ fn with_read_back(mut outcome: FitOutcome, log: &Log) -> FitOutcome {
     outcome
 }
 
+/// A PGA start's result as a `log.jsonl` row: `row` (the stage and where in it) with the start's number and
+/// its values.
+fn start_row(mut row: Value, i: usize, r: &recon::StartResult) -> Value {
+    row["start"] = json!(i);
+    for (key, value) in [
+        ("restitution", json!(r.restitution)),
+        ("friction", json!(r.friction)),
+        ("loss", json!(r.loss)),
+        ("iterations", json!(r.iterations)),
+        ("fitted_restitution", json!(r.fitted_restitution)),
+        ("fitted_friction", json!(r.fitted_friction)),
+    ] {
+        row[key] = value;
+    }
+    row
+}
+
 /// The video's name in trajectory files: its folder's.
 fn capture_name(video: &Path) -> String {
     video

@@ -621,11 +621,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         pga_observed(m, ga),
         launch_settings(m),
         &mut |label, i, r| {
-            rows.push(
-                json!({"stage": "pga", "step": label, "start": i, "restitution": r.restitution,
-                "friction": r.friction, "loss": r.loss, "iterations": r.iterations,
-                "fitted_restitution": r.fitted_restitution, "fitted_friction": r.fitted_friction}),
-            );
+            rows.push(start_row(json!({"stage": "pga", "step": label}), i, r));
             pb.inc(1);
         },
     )

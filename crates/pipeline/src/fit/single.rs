@@ -625,11 +625,7 @@ fn stage_pga(
         let pga_cfg = pga_config(job);
         let observed = pga_observed(job, &ga, start_contact);
         let fit = fit_to_poses(&pga_cfg, multi, from.clone(), observed, &mut |i, r| {
-            start_rows.push(
-                json!({"stage": "pga", "round": round, "start": i, "restitution": r.restitution,
-                "friction": r.friction, "loss": r.loss, "iterations": r.iterations,
-                "fitted_restitution": r.fitted_restitution, "fitted_friction": r.fitted_friction}),
-            );
+            start_rows.push(start_row(json!({"stage": "pga", "round": round}), i, r));
             pb.inc(1);
         })
         .context("PGA")?;
