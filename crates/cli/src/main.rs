@@ -7,7 +7,7 @@ mod docs_check;
 
 use clap::{Parser, Subcommand};
 use commands::Bars;
-use pipeline::{demo, eval, render, report_page, surfaces, synth, train};
+use pipeline::{board, demo, eval, render, report_page, surfaces, synth, train};
 
 #[derive(Parser)]
 #[command(
@@ -24,6 +24,8 @@ struct Cli {
 enum Command {
     /// The whole method on the synthetic tabletop scene in one command (synth, train, merge, bake, fit, eval, report.md).
     Demo(demo::DemoArgs),
+    /// A calibration board to print, from its board file: SVG at true size, or PNG at a dpi as OpenCV draws it.
+    Board(board::BoardArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
@@ -80,6 +82,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
     let bars = Bars::default();
     match command {
         Command::Demo(a) => demo::run(&a, &demo::Library, &bars).map(|_| ())?,
+        Command::Board(a) => board::run(&a, &bars).map(|_| ())?,
         Command::Synth(a) => synth::run(&a, &bars)?,
         Command::Train(a) => train::run(&a, &bars)?,
         Command::Render(a) => render::run(&a, &bars)?,

@@ -46,7 +46,9 @@ pub use formats::ply::{
     read_ply, read_ply_bytes, write_ply, write_ply_bytes, write_ply_bytes_with, write_ply_with, PlyEncoding, PlyMesh,
     PlyWriteOptions,
 };
-pub use formats::png::{encode_png, read_png, read_png_bytes, read_png_size, write_apng, write_png, Image};
+pub use formats::png::{
+    encode_png, read_png, read_png_bytes, read_png_size, write_apng, write_png, write_png_at_dpi, Image,
+};
 pub use formats::safetensors::{
     read_safetensors, read_safetensors_bytes, safetensors_bytes, write_safetensors, SafeTensors, Tensor, TensorData,
     TensorError,

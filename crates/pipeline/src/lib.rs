@@ -4,6 +4,7 @@
 //!
 //! | stage | module | the paper |
 //! | --- | --- | --- |
+//! | a printable calibration board | [`board`] | — |
 //! | synthetic datasets with their truth | [`synth`] | — |
 //! | NeuS training of objects and scenes | [`train`] | Sec. 3.2, Eq. 1–2 |
 //! | views, depth and normals of a field; objects moving in their scene | [`render`], [`render_trajectory`] | Eq. 3–7 |
@@ -17,6 +18,7 @@
 //! kept) live in `recon`; this crate reads and writes the run folders around them. Errors are [`Error`]s
 //! that name the file or the setting; progress goes to an [`Observer`].
 
+pub mod board;
 pub mod cameras;
 pub mod demo;
 mod error;

@@ -273,6 +273,16 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// Encodes `image` as PNG stating `dpi` dots per inch (what a printer reads to print it at its true size) and
+/// writes it to `path` atomically.
+pub fn write_png_at_dpi(path: &Path, image: &Image, dpi: f64) -> Result<()> {
+    let bytes = try_encode_at(image, Some(dpi)).map_err(|msg| IoError::Png {
+        path: path.to_path_buf(),
+        msg: format!("cannot encode: {msg}"),
+    })?;
+    write_atomic(path, &bytes)
+}
+
 /// Writes `frames` (all of one size and channel count) as an animated PNG
 /// (APNG, played in a loop) at `fps` frames per second, atomically. Viewers
 /// without APNG support show the first frame.
@@ -364,6 +374,12 @@ fn try_encode_apng(frames: &[Image], fps: f64) -> std::result::Result<Vec<u8>, S
 }
 
 fn try_encode(image: &Image) -> std::result::Result<Vec<u8>, String> {
+    try_encode_at(image, None)
+}
+
+/// Encodes `image`; with `dpi`, the file says its pixel density (a `pHYs` chunk), so a printer prints it at
+/// its true size.
+fn try_encode_at(image: &Image, dpi: Option<f64>) -> std::result::Result<Vec<u8>, String> {
     image.check()?;
     if image.width == 0 || image.height == 0 {
         return Err(format!("a PNG cannot be {}x{}", image.width, image.height));
@@ -378,6 +394,14 @@ fn try_encode(image: &Image) -> std::result::Result<Vec<u8>, String> {
     encoder.set_color(color);
     encoder.set_depth(png::BitDepth::Eight);
     encoder.set_compression(png::Compression::Fast);
+    if let Some(dpi) = dpi {
+        let per_metre = (dpi / 0.0254).round() as u32;
+        encoder.set_pixel_dims(Some(png::PixelDimensions {
+            xppu: per_metre,
+            yppu: per_metre,
+            unit: png::Unit::Meter,
+        }));
+    }
     let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
     writer.write_image_data(&image.data).map_err(|e| e.to_string())?;
     writer.finish().map_err(|e| e.to_string())?;

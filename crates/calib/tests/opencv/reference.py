@@ -1,0 +1,58 @@
+"""OpenCV as the independent reference for the calib crate's tests (opencv-contrib-python-headless).
+
+    python reference.py boards CASES.json OUT_DIR
+        each case's board drawn by OpenCV's generateImage into OUT_DIR/<name>.png; the names of the cases
+        OpenCV refuses to draw (it asserts) in OUT_DIR/refused.json
+
+A case: {"name", "kind": "aruco_grid"|"charuco", "dictionary", "size": [cols, rows], "marker_length",
+"marker_separation" | "square_length", "legacy", "first_id", "width", "height", "margin"}.
+"""
+import json
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+aruco = cv2.aruco
+
+
+def board_of(case):
+    dictionary = aruco.getPredefinedDictionary(getattr(aruco, case["dictionary"].upper()))
+    cols, rows = case["size"]
+    if case["kind"] == "aruco_grid":
+        ids = np.arange(case["first_id"], case["first_id"] + cols * rows, dtype=np.int32)
+        return aruco.GridBoard((cols, rows), case["marker_length"], case["marker_separation"], dictionary, ids)
+    board = aruco.CharucoBoard((cols, rows), case["square_length"], case["marker_length"], dictionary)
+    board.setLegacyPattern(bool(case.get("legacy", False)))
+    count = len(board.getIds())
+    # The ids of a board with first_id > 0: the same layout, shifted ids.
+    if case["first_id"]:
+        ids = np.arange(case["first_id"], case["first_id"] + count, dtype=np.int32)
+        board = aruco.CharucoBoard((cols, rows), case["square_length"], case["marker_length"], dictionary, ids)
+        board.setLegacyPattern(bool(case.get("legacy", False)))
+    return board
+
+
+def boards(cases_path, out_dir):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    refused = []
+    for case in json.loads(Path(cases_path).read_text()):
+        try:
+            image = board_of(case).generateImage((case["width"], case["height"]), marginSize=case["margin"], borderBits=1)
+        except cv2.error:
+            # OpenCV asserts when a marker's rounded square runs past the drawing region.
+            refused.append(case["name"])
+            continue
+        cv2.imwrite(str(out / f"{case['name']}.png"), image)
+    (out / "refused.json").write_text(json.dumps(refused))
+    print(cv2.__version__)
+
+
+if __name__ == "__main__":
+    command = sys.argv[1]
+    if command == "boards":
+        boards(sys.argv[2], sys.argv[3])
+    else:
+        sys.exit(f"unknown command {command}")
