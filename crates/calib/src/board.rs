@@ -69,6 +69,8 @@ pub struct Board {
     pub chessboard_corners: Vec<[f64; 2]>,
     /// The pattern's extent in OpenCV's board frame (metres): width and height.
     pub extent: [f64; 2],
+    /// For each grid place (marker of a grid, square of a ChArUco board), row by row: its marker's index.
+    places: Vec<Option<usize>>,
 }
 
 impl BoardSpec {
@@ -214,11 +216,13 @@ impl Board {
         let square = |x0: f64, y0: f64| [[x0, y0], [x0 + ml, y0], [x0 + ml, y0 + ml], [x0, y0 + ml]];
         let mut markers = Vec::new();
         let mut chessboard_corners = Vec::new();
+        let mut places = Vec::with_capacity(cols * rows);
         let extent = match spec.kind {
             BoardKind::ArucoGrid => {
                 let step = ml + spec.marker_separation.expect("checked");
                 for y in 0..rows {
                     for x in 0..cols {
+                        places.push(Some(markers.len()));
                         markers.push(BoardMarker {
                             id: spec.first_id + markers.len(),
                             corners: square(x as f64 * step, y as f64 * step),
@@ -232,6 +236,7 @@ impl Board {
                 let inset = (sq - ml) / 2.0;
                 for y in 0..rows {
                     for x in 0..cols {
+                        places.push(spec.charuco_has_marker(x, y).then_some(markers.len()));
                         if spec.charuco_has_marker(x, y) {
                             markers.push(BoardMarker {
                                 id: spec.first_id + markers.len(),
@@ -254,7 +259,43 @@ impl Board {
             markers,
             chessboard_corners,
             extent,
+            places,
         })
+    }
+
+    /// Whether the printed board is black at `p` (OpenCV's board frame, metres); white off the pattern.
+    pub fn is_black(&self, p: [f64; 2]) -> bool {
+        let [cols, rows] = self.spec.size.map(|v| v as usize);
+        let ml = self.spec.marker_length;
+        let (pitch, inset) = match self.spec.kind {
+            BoardKind::ArucoGrid => (ml + self.spec.marker_separation.unwrap_or(0.0), 0.0),
+            BoardKind::Charuco => {
+                let sq = self.spec.square_length.unwrap_or(1.0);
+                (sq, (sq - ml) / 2.0)
+            }
+        };
+        if !(p[0] >= 0.0 && p[1] >= 0.0) {
+            return false;
+        }
+        let (ix, iy) = ((p[0] / pitch).floor() as usize, (p[1] / pitch).floor() as usize);
+        if ix >= cols || iy >= rows {
+            return false;
+        }
+        let Some(m) = self.places[iy * cols + ix] else {
+            return true; // a black square of a ChArUco board
+        };
+        let (u, v) = (p[0] - ix as f64 * pitch - inset, p[1] - iy as f64 * pitch - inset);
+        if !(u >= 0.0 && v >= 0.0 && u < ml && v < ml) {
+            return false;
+        }
+        let n = self.dictionary.marker_size;
+        let cells = n + 2 * crate::draw::BORDER_BITS;
+        let (col, row) = ((u / ml * cells as f64) as usize, (v / ml * cells as f64) as usize);
+        let b = crate::draw::BORDER_BITS;
+        if col < b || row < b || col >= cells - b || row >= cells - b {
+            return true;
+        }
+        !self.dictionary.bit(self.markers[m].id, (row - b) * n + (col - b))
     }
 
     /// Reads, checks and resolves a board file.

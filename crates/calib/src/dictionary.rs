@@ -106,8 +106,15 @@ impl Dictionary {
 
     /// Marker `id`'s inner bits, row by row from the top-left (`true` is white).
     pub fn bits(&self, id: usize) -> Vec<bool> {
+        (0..self.marker_size * self.marker_size)
+            .map(|i| self.bit(id, i))
+            .collect()
+    }
+
+    /// Bit `index` (row by row from the top-left) of marker `id`: `true` is white.
+    pub fn bit(&self, id: usize, index: usize) -> bool {
         let n = self.marker_size * self.marker_size;
-        (0..n).map(|i| (self.codes[id] >> (n - 1 - i)) & 1 == 1).collect()
+        (self.codes[id] >> (n - 1 - index)) & 1 == 1
     }
 
     /// The marker a read grid of bits is (row by row, `true` white), at the rotation with the fewest

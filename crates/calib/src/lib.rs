@@ -3,11 +3,17 @@
 //! - [`dictionary`]: OpenCV's predefined marker dictionaries (bit tables extracted from OpenCV).
 //! - [`board`]: the board file (`board.toml`) and the board's geometry, in OpenCV's board frame and the world.
 //! - [`draw`]: a board's image exactly as OpenCV draws it, and a true-size SVG to print.
+//! - [`detect`]: ArUco markers in an image (ids and subpixel corners); [`subpix`]: OpenCV's `cornerSubPix`.
+//! - [`homography`]: plane-to-image homographies; [`gray`]: the gray images detection reads.
 
 pub mod board;
+pub mod detect;
 pub mod dictionary;
 pub mod draw;
 pub mod error;
+pub mod gray;
+pub mod homography;
+pub mod subpix;
 
 pub use board::{Board, BoardKind, BoardMarker, BoardSpec};
 pub use dictionary::Dictionary;

@@ -1,0 +1,123 @@
+//! Test images of a board: a pinhole camera looking at the printed board, each pixel the mean of a grid of
+//! samples over its area (the sensor integrates light), with noise; and the true corners.
+
+#![allow(dead_code)]
+
+use calib::gray::Gray;
+use calib::Board;
+use geom::{Quat, SplitMix64, Vec3};
+
+/// A camera: intrinsics and the board-to-camera rotation and translation (board frame: OpenCV's, metres).
+#[derive(Clone, Copy, Debug)]
+pub struct View {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub rotation: Quat<f64>,
+    pub translation: Vec3<f64>,
+}
+
+impl View {
+    /// A camera at `distance` from the board's centre, looking at it along a direction tilted `tilt` radians
+    /// from the board's normal toward azimuth `azimuth`, rolled by `roll` radians.
+    pub fn looking_at(
+        board: &Board,
+        focal: f64,
+        size: (usize, usize),
+        distance: f64,
+        tilt: f64,
+        azimuth: f64,
+        roll: f64,
+    ) -> View {
+        let centre = Vec3::new(board.extent[0] / 2.0, board.extent[1] / 2.0, 0.0);
+        // The printed face looks along -z of OpenCV's board frame (z goes into the board).
+        let dir = Vec3::new(tilt.sin() * azimuth.cos(), tilt.sin() * azimuth.sin(), -tilt.cos());
+        let eye = centre + dir * distance;
+        let forward = (centre - eye) * (1.0 / distance);
+        let up_hint = Vec3::new(0.0, -1.0, 0.0);
+        let right = forward.cross(up_hint);
+        let right = right * (1.0 / right.norm());
+        let down = forward.cross(right);
+        // Camera axes: x right, y down, z forward; rows of the board-to-camera rotation.
+        let (c, s) = (roll.cos(), roll.sin());
+        let (r2, d2) = (right * c + down * s, down * c - right * s);
+        let m = [
+            [r2.x, r2.y, r2.z],
+            [d2.x, d2.y, d2.z],
+            [forward.x, forward.y, forward.z],
+        ];
+        let rotation = Quat::from_mat(&geom::Mat3 { m });
+        let translation = -(rotation.rotate(eye));
+        View {
+            fx: focal,
+            fy: focal,
+            cx: (size.0 as f64 - 1.0) / 2.0,
+            cy: (size.1 as f64 - 1.0) / 2.0,
+            rotation,
+            translation,
+        }
+    }
+
+    /// Where a board point (metres, z = 0) is seen, pixels.
+    pub fn project(&self, p: [f64; 2]) -> [f64; 2] {
+        let c = self.rotation.rotate(Vec3::new(p[0], p[1], 0.0)) + self.translation;
+        [self.fx * c.x / c.z + self.cx, self.fy * c.y / c.z + self.cy]
+    }
+
+    /// The board point seen at pixel position `(u, v)` (the ray meets the plane z = 0).
+    pub fn unproject(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        let d_cam = Vec3::new((u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0);
+        let inv = self.rotation.conj();
+        let d = inv.rotate(d_cam);
+        let o = inv.rotate(-self.translation);
+        if d.z.abs() < 1e-12 {
+            return None;
+        }
+        let s = -o.z / d.z;
+        (s > 0.0).then_some([o.x + s * d.x, o.y + s * d.y])
+    }
+}
+
+/// The board seen by `view`: white paper (`paper`) with black ink (`ink`) on a grey table, `samples`² samples per
+/// pixel, Gaussian noise of `noise` (0–255).
+pub fn render(board: &Board, view: &View, size: (usize, usize), samples: usize, noise: f64, seed: u64) -> Gray {
+    let (w, h) = size;
+    let mut rng = SplitMix64::new(seed);
+    let (paper, ink, table) = (225.0, 30.0, 110.0);
+    let margin = 0.02;
+    let mut data = vec![0.0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = 0.0;
+            for i in 0..samples {
+                for j in 0..samples {
+                    let u = x as f64 - 0.5 + (j as f64 + 0.5) / samples as f64;
+                    let v = y as f64 - 0.5 + (i as f64 + 0.5) / samples as f64;
+                    sum += match view.unproject(u, v) {
+                        Some(p)
+                            if p[0] > -margin
+                                && p[1] > -margin
+                                && p[0] < board.extent[0] + margin
+                                && p[1] < board.extent[1] + margin =>
+                        {
+                            if board.is_black(p) {
+                                ink
+                            } else {
+                                paper
+                            }
+                        }
+                        _ => table,
+                    };
+                }
+            }
+            let gauss = (-2.0 * rng.next_f64().max(1e-12).ln()).sqrt() * (std::f64::consts::TAU * rng.next_f64()).cos();
+            data[y * w + x] = (sum / (samples * samples) as f64 + noise * gauss).clamp(0.0, 255.0) as f32;
+        }
+    }
+    Gray {
+        width: w,
+        height: h,
+        data,
+    }
+}
