@@ -95,3 +95,112 @@ fn every_visible_marker_of_a_charuco_board_is_found() {
         "median {median:.3} px, worst {worst:.3} px"
     );
 }
+
+/// OpenCV's detections of the images `cases` lists (`[{"image", "dictionary"}]`), by `tests/opencv/reference.py`.
+fn opencv_detections(dir: &Path, cases: &serde_json::Value) -> (serde_json::Value, String) {
+    std::fs::write(dir.join("cases.json"), cases.to_string()).unwrap();
+    let python = std::env::var("PGANEUS_OPENCV_PYTHON").unwrap_or_else(|_| "python3".into());
+    let out = std::process::Command::new(python)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/opencv/reference.py"))
+        .args([
+            "detect",
+            &dir.join("cases.json").to_string_lossy(),
+            &dir.join("opencv.json").to_string_lossy(),
+        ])
+        .output()
+        .expect("run Python; set PGANEUS_OPENCV_PYTHON to a Python with opencv-contrib-python-headless");
+    assert!(
+        out.status.success(),
+        "OpenCV's reference failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json = serde_json::from_str(&std::fs::read_to_string(dir.join("opencv.json")).unwrap()).unwrap();
+    (json, String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+#[test]
+#[ignore = "slow: OpenCV's ArucoDetector (Python) on 12 rendered views"]
+fn the_same_markers_as_opencv_and_corners_as_its_or_better() {
+    use calib::detect::{Refine, SubpixRule};
+    let boards = [
+        board("kind = \"aruco_grid\"\ndictionary = \"DICT_5X5_1000\"\nsize = [7, 5]\nmarker_length = 0.035\nmarker_separation = 0.007\n"),
+        board("kind = \"charuco\"\ndictionary = \"DICT_6X6_250\"\nsize = [7, 5]\nmarker_length = 0.03\nsquare_length = 0.04\n"),
+    ];
+    let dir = testkit::scratch_dir("calib", "opencv_detect");
+    let size = (640, 480);
+    let mut cases = Vec::new();
+    let mut scenes = Vec::new();
+    for (bi, b) in boards.iter().enumerate() {
+        for (k, &(distance, tilt, azimuth, roll)) in VIEWS.iter().enumerate() {
+            let view = View::looking_at(b, 600.0, size, distance, tilt, azimuth, roll);
+            let gray = render(b, &view, size, 6, 2.0, (bi * 10 + k) as u64);
+            let mut png = pganeus_io::Image::new(size.0 as u32, size.1 as u32, 1);
+            for (o, v) in png.data.iter_mut().zip(&gray.data) {
+                *o = v.round() as u8;
+            }
+            let path = dir.join(format!("view_{bi}_{k}.png"));
+            pganeus_io::write_png(&path, &png).unwrap();
+            cases.push(serde_json::json!({"image": path.to_string_lossy(), "dictionary": b.dictionary.name}));
+            scenes.push((bi, view, path));
+        }
+    }
+    let (opencv, version) = opencv_detections(&dir, &serde_json::Value::Array(cases));
+    let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    let (mut to_opencv, mut ours_err, mut theirs_err) = (Vec::new(), Vec::new(), Vec::new());
+    for (bi, view, path) in &scenes {
+        let b = &boards[*bi];
+        let gray = calib::gray::Gray::from_image(&pganeus_io::read_png(path).unwrap());
+        let theirs = &opencv[path.to_string_lossy().as_ref()];
+        let their_ids: Vec<usize> = theirs["ids"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect();
+        let their_corners = |id: usize| -> [[f64; 2]; 4] {
+            let i = their_ids.iter().position(|&t| t == id).unwrap();
+            let c = &theirs["corners"][i];
+            [0, 1, 2, 3].map(|k| [c[k][0].as_f64().unwrap(), c[k][1].as_f64().unwrap()])
+        };
+        let opencv_rule = DetectorSettings {
+            refine: Refine::Subpix(SubpixRule::OPENCV),
+            ..DetectorSettings::default()
+        };
+        let like_opencv = detect_markers(&gray, b.dictionary, &opencv_rule);
+        let ours = detect_markers(&gray, b.dictionary, &DetectorSettings::default());
+        let mut our_ids: Vec<usize> = ours.iter().map(|m| m.id).collect();
+        let mut sorted_theirs = their_ids.clone();
+        our_ids.sort();
+        sorted_theirs.sort();
+        assert_eq!(our_ids, sorted_theirs, "{}: the same markers as OpenCV", path.display());
+        for (m, o) in like_opencv.iter().zip(&ours) {
+            let theirs = their_corners(m.id);
+            let truth = b.marker(m.id).unwrap().corners.map(|c| view.project(c));
+            for k in 0..4 {
+                to_opencv.push(dist(m.corners[k], theirs[k]));
+                ours_err.push(dist(o.corners[k], truth[k]));
+                theirs_err.push(dist(theirs[k], truth[k]));
+            }
+        }
+    }
+    // Where the two outlines' Douglas-Peucker vertices differ by a pixel, cornerSubPix (stopping at 0.1 px
+    // steps, on a biased landscape) ends elsewhere: a few corners.
+    let within = to_opencv.iter().filter(|&&d| d <= 0.1).count() as f64 / to_opencv.len() as f64;
+    let (to_med, to_max) = summary(&mut to_opencv);
+    let (our_med, our_max) = summary(&mut ours_err);
+    let (their_med, their_max) = summary(&mut theirs_err);
+    eprintln!(
+        "OpenCV {version}: {} corners; our cornerSubPix vs OpenCV's: median {to_med:.4} px, {:.1} % within 0.1 px, worst {to_max:.3} px; \
+         from the truth: ours (edges) median {our_med:.3} px, worst {our_max:.3} px; OpenCV's median {their_med:.3} px, worst {their_max:.3} px",
+        to_opencv.len(),
+        within * 100.0
+    );
+    assert!(
+        to_med < 0.01 && within > 0.95,
+        "OpenCV's refinement rule here and in OpenCV: median {to_med:.3} px, {within:.3} within 0.1 px"
+    );
+    assert!(
+        our_med < their_med && our_max < their_max,
+        "ours {our_med:.3}/{our_max:.3} px, OpenCV's {their_med:.3}/{their_max:.3} px"
+    );
+}

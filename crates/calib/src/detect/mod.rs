@@ -122,8 +122,14 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
             if length < min_perimeter || length > max_perimeter {
                 continue;
             }
-            let Some(corners) = quadrilateral(&outline, s, w, h) else {
+            let Some((rough, fitted)) = quadrilateral(&outline, s, w, h) else {
                 continue;
+            };
+            // OpenCV refines from the outline's vertices; the edge refinement from the fitted sides' corners.
+            let corners = if matches!(s.refine, Refine::Subpix(_)) {
+                rough
+            } else {
+                fitted
             };
             let Some(decoded) = decode::decode(gray, &corners, dictionary, &s.decode) else {
                 continue;
@@ -186,8 +192,9 @@ fn subpix_corners(gray: &Gray, corners: &mut [[f64; 2]; 4], cell: f64, refine: &
 }
 
 /// The outline as a convex quadrilateral with sides long enough and corners away from the image edge,
-/// clockwise as seen; its corners where the lines fitted to its sides meet.
-fn quadrilateral(outline: &[[i64; 2]], s: &DetectorSettings, w: usize, h: usize) -> Option<[[f64; 2]; 4]> {
+/// clockwise as seen: its vertices on the outline, and the corners where the lines fitted to its sides meet.
+type Quad = [[f64; 2]; 4];
+fn quadrilateral(outline: &[[i64; 2]], s: &DetectorSettings, w: usize, h: usize) -> Option<(Quad, Quad)> {
     let length = quad::perimeter(outline);
     let mut vertices = quad::simplify_closed(outline, s.polygon_accuracy_rate * length);
     if vertices.len() != 4 {
@@ -218,7 +225,7 @@ fn quadrilateral(outline: &[[i64; 2]], s: &DetectorSettings, w: usize, h: usize)
     }
     // The traced outline runs through the dark pixels' centres, half a pixel inside the edge: the corners
     // start there and the refinement moves them onto the edge.
-    quad::is_convex(&corners).then(|| quad::clockwise(corners))
+    quad::is_convex(&corners).then(|| (quad::clockwise(rough), quad::clockwise(corners)))
 }
 
 fn side_mean(c: &[[f64; 2]; 4]) -> f64 {

@@ -4,7 +4,11 @@
         each case's board drawn by OpenCV's generateImage into OUT_DIR/<name>.png; the names of the cases
         OpenCV refuses to draw (it asserts) in OUT_DIR/refused.json
 
-A case: {"name", "kind": "aruco_grid"|"charuco", "dictionary", "size": [cols, rows], "marker_length",
+    python reference.py detect CASES.json OUT.json
+        each case's image ({"image", "dictionary"}) through OpenCV's ArucoDetector with CORNER_REFINE_SUBPIX:
+        {"<image>": {"ids": [...], "corners": [[[x, y] x 4], ...]}} in OUT.json
+
+A board case: {"name", "kind": "aruco_grid"|"charuco", "dictionary", "size": [cols, rows], "marker_length",
 "marker_separation" | "square_length", "legacy", "first_id", "width", "height", "margin"}.
 """
 import json
@@ -50,9 +54,26 @@ def boards(cases_path, out_dir):
     print(cv2.__version__)
 
 
+def detect(cases_path, out_path):
+    results = {}
+    for case in json.loads(Path(cases_path).read_text()):
+        dictionary = aruco.getPredefinedDictionary(getattr(aruco, case["dictionary"].upper()))
+        params = aruco.DetectorParameters()
+        params.cornerRefinementMethod = aruco.CORNER_REFINE_SUBPIX
+        detector = aruco.ArucoDetector(dictionary, params)
+        gray = cv2.imread(case["image"], cv2.IMREAD_GRAYSCALE)
+        corners, ids, _ = detector.detectMarkers(gray)
+        ids = [] if ids is None else [int(i) for i in ids.flatten()]
+        results[case["image"]] = {"ids": ids, "corners": [c.reshape(4, 2).tolist() for c in corners]}
+    Path(out_path).write_text(json.dumps(results))
+    print(cv2.__version__)
+
+
 if __name__ == "__main__":
     command = sys.argv[1]
     if command == "boards":
         boards(sys.argv[2], sys.argv[3])
+    elif command == "detect":
+        detect(sys.argv[2], sys.argv[3])
     else:
         sys.exit(f"unknown command {command}")
