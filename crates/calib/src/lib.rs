@@ -4,17 +4,22 @@
 //! - [`board`]: the board file (`board.toml`) and the board's geometry, in OpenCV's board frame and the world.
 //! - [`draw`]: a board's image exactly as OpenCV draws it, and a true-size SVG to print.
 //! - [`detect`]: ArUco markers in an image (ids and subpixel corners); [`subpix`]: OpenCV's `cornerSubPix`.
+//! - [`calibrate`]: the lens (OpenCV's model, [`lens`]) and each view's pose from a board seen in several views.
 //! - [`homography`]: plane-to-image homographies; [`gray`]: the gray images detection reads.
 
 pub mod board;
+pub mod calibrate;
 pub mod detect;
 pub mod dictionary;
 pub mod draw;
 pub mod error;
 pub mod gray;
 pub mod homography;
+pub mod lens;
+mod linalg;
 pub mod subpix;
 
 pub use board::{Board, BoardKind, BoardMarker, BoardSpec};
 pub use dictionary::Dictionary;
 pub use error::{CalibError, Result};
+pub use lens::Lens;

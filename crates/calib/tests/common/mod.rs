@@ -4,16 +4,13 @@
 #![allow(dead_code)]
 
 use calib::gray::Gray;
-use calib::Board;
+use calib::{Board, Lens};
 use geom::{Quat, SplitMix64, Vec3};
 
 /// A camera: intrinsics and the board-to-camera rotation and translation (board frame: OpenCV's, metres).
 #[derive(Clone, Copy, Debug)]
 pub struct View {
-    pub fx: f64,
-    pub fy: f64,
-    pub cx: f64,
-    pub cy: f64,
+    pub lens: Lens,
     pub rotation: Quat<f64>,
     pub translation: Vec3<f64>,
 }
@@ -49,25 +46,29 @@ impl View {
         ];
         let rotation = Quat::from_mat(&geom::Mat3 { m });
         let translation = -(rotation.rotate(eye));
+        let lens = Lens::pinhole(focal, focal, (size.0 as f64 - 1.0) / 2.0, (size.1 as f64 - 1.0) / 2.0);
         View {
-            fx: focal,
-            fy: focal,
-            cx: (size.0 as f64 - 1.0) / 2.0,
-            cy: (size.1 as f64 - 1.0) / 2.0,
+            lens,
             rotation,
             translation,
         }
     }
 
+    /// The same view through another lens.
+    pub fn with_lens(self, lens: Lens) -> View {
+        View { lens, ..self }
+    }
+
     /// Where a board point (metres, z = 0) is seen, pixels.
     pub fn project(&self, p: [f64; 2]) -> [f64; 2] {
-        let c = self.rotation.rotate(Vec3::new(p[0], p[1], 0.0)) + self.translation;
-        [self.fx * c.x / c.z + self.cx, self.fy * c.y / c.z + self.cy]
+        self.lens
+            .project(self.rotation.rotate(Vec3::new(p[0], p[1], 0.0)) + self.translation)
     }
 
     /// The board point seen at pixel position `(u, v)` (the ray meets the plane z = 0).
     pub fn unproject(&self, u: f64, v: f64) -> Option<[f64; 2]> {
-        let d_cam = Vec3::new((u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0);
+        let [x, y] = self.lens.undistort(u, v);
+        let d_cam = Vec3::new(x, y, 1.0);
         let inv = self.rotation.conj();
         let d = inv.rotate(d_cam);
         let o = inv.rotate(-self.translation);
