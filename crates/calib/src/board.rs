@@ -308,6 +308,27 @@ impl Board {
         [p[0] - self.extent[0] / 2.0, self.extent[1] / 2.0 - p[1], 0.0]
     }
 
+    /// The index (in [`Board::markers`]) of the marker in grid place (column `x`, row `y`): a grid's marker or
+    /// a ChArUco square's; `None` for a black square or a place off the board.
+    pub fn marker_in_square(&self, x: usize, y: usize) -> Option<usize> {
+        let [cols, rows] = self.spec.size.map(|v| v as usize);
+        if x >= cols || y >= rows {
+            return None;
+        }
+        self.places[y * cols + x]
+    }
+
+    /// The world-to-camera pose of a camera whose board-to-camera pose is `rotation`, `translation`.
+    /// World: `p_world = M p_board + o` with `M = diag(1, -1, -1)` (y up, z out of the face) and `o` moving the
+    /// pattern's top-left to `(-w/2, h/2, 0)`.
+    pub fn world_to_camera(&self, rotation: geom::Quat<f64>, translation: geom::Vec3<f64>) -> geom::Pose<f64> {
+        // p_cam = R p_board + t = R M (p_world - o) + t
+        let flip = geom::Quat::new(0.0, 1.0, 0.0, 0.0); // 180 degrees about x: diag(1, -1, -1)
+        let r = rotation * flip;
+        let o = geom::Vec3::new(-self.extent[0] / 2.0, self.extent[1] / 2.0, 0.0);
+        geom::Pose::new(r, translation - r.rotate(o))
+    }
+
     /// The marker with this id, if it is on the board.
     pub fn marker(&self, id: usize) -> Option<&BoardMarker> {
         id.checked_sub(self.spec.first_id).and_then(|i| self.markers.get(i))
@@ -335,6 +356,20 @@ mod tests {
         let w = board.to_world(board.markers[0].corners[0]);
         assert!((w[0] + board.extent[0] / 2.0).abs() < 1e-12 && (w[1] - board.extent[1] / 2.0).abs() < 1e-12);
         assert_eq!(board.marker(47).unwrap().id, 47);
+    }
+
+    #[test]
+    fn the_world_pose_sees_the_board_where_its_board_pose_does() {
+        let board = Board::new(spec("kind = \"aruco_grid\"\ndictionary = \"DICT_4X4_50\"\nsize = [3, 2]\nmarker_length = 0.04\nmarker_separation = 0.01\n").unwrap()).unwrap();
+        let rotation = geom::Quat::exp(geom::Vec3::new(0.3, -0.2, 0.9));
+        let translation = geom::Vec3::new(0.02, -0.05, 0.5);
+        let pose = board.world_to_camera(rotation, translation);
+        for p in [[0.0, 0.0], [0.04, 0.09], [0.14, 0.01]] {
+            let seen = rotation.rotate(geom::Vec3::new(p[0], p[1], 0.0)) + translation;
+            let w = board.to_world(p);
+            let via_world = pose.transform_point(geom::Vec3::new(w[0], w[1], w[2]));
+            assert!((seen - via_world).norm() < 1e-12);
+        }
     }
 
     #[test]

@@ -15,6 +15,35 @@ pub struct ViewPoints {
     pub image: Vec<[f64; 2]>,
 }
 
+impl ViewPoints {
+    /// A view's points from what was detected in it: each marker's four corners, and (ChArUco) the
+    /// chessboard corners.
+    pub fn from_detections(
+        board: &crate::Board,
+        markers: &[crate::detect::DetectedMarker],
+        chess: &[crate::charuco::ChessCorner],
+    ) -> Self {
+        let mut v = ViewPoints::default();
+        for m in markers {
+            if let Some(on_board) = board.marker(m.id) {
+                v.board.extend_from_slice(&on_board.corners);
+                v.image.extend_from_slice(&m.corners);
+            }
+        }
+        for c in chess {
+            v.board.push(board.chessboard_corners[c.id]);
+            v.image.push(c.image);
+        }
+        v
+    }
+
+    /// Another view's points added (frames of a fixed camera pooled into one view).
+    pub fn extend(&mut self, other: &ViewPoints) {
+        self.board.extend_from_slice(&other.board);
+        self.image.extend_from_slice(&other.image);
+    }
+}
+
 /// A view's pose: board frame to camera frame, `p_cam = rotation · p_board + translation`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoardPose {

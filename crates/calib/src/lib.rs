@@ -4,11 +4,15 @@
 //! - [`board`]: the board file (`board.toml`) and the board's geometry, in OpenCV's board frame and the world.
 //! - [`draw`]: a board's image exactly as OpenCV draws it, and a true-size SVG to print.
 //! - [`detect`]: ArUco markers in an image (ids and subpixel corners); [`subpix`]: OpenCV's `cornerSubPix`.
+//! - [`charuco`]: a ChArUco board's chessboard corners between its detected markers.
 //! - [`calibrate`]: the lens (OpenCV's model, [`lens`]) and each view's pose from a board seen in several views.
+//! - [`undistort`]: images through an ideal pinhole, at any size.
+//! - [`region`]: the region a capture's cameras look at (its `scale_mat`).
 //! - [`homography`]: plane-to-image homographies; [`gray`]: the gray images detection reads.
 
 pub mod board;
 pub mod calibrate;
+pub mod charuco;
 pub mod detect;
 pub mod dictionary;
 pub mod draw;
@@ -17,7 +21,9 @@ pub mod gray;
 pub mod homography;
 pub mod lens;
 mod linalg;
+pub mod region;
 pub mod subpix;
+pub mod undistort;
 
 pub use board::{Board, BoardKind, BoardMarker, BoardSpec};
 pub use dictionary::Dictionary;

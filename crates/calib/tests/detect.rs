@@ -204,3 +204,43 @@ fn the_same_markers_as_opencv_and_corners_as_its_or_better() {
         "ours {our_med:.3}/{our_max:.3} px, OpenCV's {their_med:.3}/{their_max:.3} px"
     );
 }
+
+#[test]
+fn chessboard_corners_of_a_charuco_board_are_found_between_its_markers() {
+    let b = board(
+        "kind = \"charuco\"\ndictionary = \"DICT_4X4_50\"\nsize = [7, 5]\nmarker_length = 0.03\nsquare_length = 0.04\n",
+    );
+    let size = (640, 480);
+    let mut errors = Vec::new();
+    for (k, &(distance, tilt, azimuth, roll)) in VIEWS.iter().enumerate() {
+        let view = View::looking_at(&b, 600.0, size, distance, tilt, azimuth, roll);
+        let image = render(&b, &view, size, 4, 2.0, k as u64);
+        let markers = detect_markers(&image, b.dictionary, &DetectorSettings::default());
+        let corners = calib::charuco::chessboard_corners(&image, &b, &markers);
+        let inside =
+            |p: [f64; 2]| p[0] > 30.0 && p[1] > 30.0 && p[0] < size.0 as f64 - 30.0 && p[1] < size.1 as f64 - 30.0;
+        let visible = b
+            .chessboard_corners
+            .iter()
+            .filter(|c| inside(view.project(**c)))
+            .count();
+        assert!(
+            corners.len() * 10 >= visible * 9,
+            "view {k}: {} of {visible} corners",
+            corners.len()
+        );
+        for c in &corners {
+            let t = view.project(b.chessboard_corners[c.id]);
+            errors.push(((c.image[0] - t[0]).powi(2) + (c.image[1] - t[1]).powi(2)).sqrt());
+        }
+    }
+    let (median, worst) = summary(&mut errors);
+    eprintln!(
+        "chessboard corners: {} found, median {median:.3} px, worst {worst:.3} px",
+        errors.len()
+    );
+    assert!(
+        median < 0.1 && worst < 0.5,
+        "median {median:.3} px, worst {worst:.3} px"
+    );
+}
