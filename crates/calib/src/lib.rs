@@ -8,9 +8,11 @@
 //! - [`calibrate`]: the lens (OpenCV's model, [`lens`]) and each view's pose from a board seen in several views.
 //! - [`undistort`]: images through an ideal pinhole, at any size.
 //! - [`region`]: the region a capture's cameras look at (its `scale_mat`).
+//! - [`board_views`]: rendered views of a board with their truth (tests, benchmarks).
 //! - [`homography`]: plane-to-image homographies; [`gray`]: the gray images detection reads.
 
 pub mod board;
+pub mod board_views;
 pub mod calibrate;
 pub mod charuco;
 pub mod detect;

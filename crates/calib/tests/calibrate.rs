@@ -1,12 +1,10 @@
 //! Calibration from rendered views of a printed board through a lens with distortion: detection, then the
 //! lens and the poses against the truth.
 
-mod common;
-
+use calib::board_views::{render, View};
 use calib::calibrate::{calibrate, CalibrationSettings, ViewPoints};
 use calib::detect::{detect_markers, DetectorSettings};
 use calib::{Board, BoardSpec, Lens};
-use common::{render, View};
 use geom::Vec3;
 use std::path::Path;
 

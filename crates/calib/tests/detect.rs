@@ -1,11 +1,9 @@
 //! Markers found in rendered views of a board: every fully visible marker, no other id, corners near the
 //! truth.
 
-mod common;
-
+use calib::board_views::{render, View};
 use calib::detect::{detect_markers, DetectorSettings};
 use calib::{Board, BoardSpec};
-use common::{render, View};
 use std::path::Path;
 
 fn board(text: &str) -> Board {

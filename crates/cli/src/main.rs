@@ -7,7 +7,7 @@ mod docs_check;
 
 use clap::{Parser, Subcommand};
 use commands::Bars;
-use pipeline::{board, demo, eval, render, report_page, surfaces, synth, train};
+use pipeline::{board, calibrate, demo, eval, render, report_page, surfaces, synth, train};
 
 #[derive(Parser)]
 #[command(
@@ -26,6 +26,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// A calibration board to print, from its board file: SVG at true size, or PNG at a dpi as OpenCV draws it.
     Board(board::BoardArgs),
+    /// The lens and every camera from photos and videos of a printed board; NeuS captures in the board's metric world.
+    Calibrate(calibrate::CalibrateArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
@@ -83,6 +85,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Demo(a) => demo::run(&a, &demo::Library, &bars).map(|_| ())?,
         Command::Board(a) => board::run(&a, &bars).map(|_| ())?,
+        Command::Calibrate(a) => calibrate::run(&a, &bars).map(|_| ())?,
         Command::Synth(a) => synth::run(&a, &bars)?,
         Command::Train(a) => train::run(&a, &bars)?,
         Command::Render(a) => render::run(&a, &bars)?,

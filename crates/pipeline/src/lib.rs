@@ -5,6 +5,7 @@
 //! | stage | module | the paper |
 //! | --- | --- | --- |
 //! | a printable calibration board | [`board`] | — |
+//! | cameras, lens and NeuS captures from photos and videos of the board | [`calibrate`] | — |
 //! | synthetic datasets with their truth | [`synth`] | — |
 //! | NeuS training of objects and scenes | [`train`] | Sec. 3.2, Eq. 1–2 |
 //! | views, depth and normals of a field; objects moving in their scene | [`render`], [`render_trajectory`] | Eq. 3–7 |
@@ -19,6 +20,7 @@
 //! that name the file or the setting; progress goes to an [`Observer`].
 
 pub mod board;
+pub mod calibrate;
 pub mod cameras;
 pub mod demo;
 mod error;

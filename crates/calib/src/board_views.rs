@@ -1,13 +1,12 @@
-//! Test images of a board: a pinhole camera looking at the printed board, each pixel the mean of a grid of
-//! samples over its area (the sensor integrates light), with noise; and the true corners.
+//! Views of a board with their truth, for tests and benchmarks: a camera (any lens) looking at the printed
+//! board on a grey table, each pixel the mean of a grid of samples over its area (the sensor integrates
+//! light), with noise.
 
-#![allow(dead_code)]
-
-use calib::gray::Gray;
-use calib::{Board, Lens};
+use crate::gray::Gray;
+use crate::{Board, Lens};
 use geom::{Quat, SplitMix64, Vec3};
 
-/// A camera: intrinsics and the board-to-camera rotation and translation (board frame: OpenCV's, metres).
+/// A camera: its lens and the board-to-camera rotation and translation (board frame: OpenCV's, metres).
 #[derive(Clone, Copy, Debug)]
 pub struct View {
     pub lens: Lens,
@@ -120,5 +119,16 @@ pub fn render(board: &Board, view: &View, size: (usize, usize), samples: usize, 
         width: w,
         height: h,
         data,
+    }
+}
+
+impl Gray {
+    /// The image rounded to 8 bits, one channel.
+    pub fn to_image(&self) -> pganeus_io::Image {
+        let mut out = pganeus_io::Image::new(self.width as u32, self.height as u32, 1);
+        for (o, v) in out.data.iter_mut().zip(&self.data) {
+            *o = v.round().clamp(0.0, 255.0) as u8;
+        }
+        out
     }
 }

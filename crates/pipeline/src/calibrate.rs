@@ -1,0 +1,572 @@
+//! `calibrate`: folders of photos and videos of a printed board from one camera → the lens, every view's
+//! camera in the board's metric world, and one capture in the NeuS layout per folder (images undistorted
+//! and resized, `cameras_sphere.npz`, `capture.json`), with `calibration.json` saying how well it went.
+
+use std::path::{Path, PathBuf};
+
+use calib::calibrate::{calibrate, BoardPose, Calibration, CalibrationSettings, ViewPoints};
+use calib::charuco::chessboard_corners;
+use calib::detect::{detect_markers, DetectedMarker, DetectorSettings};
+use calib::gray::Gray;
+use calib::region::{looked_at_region, Looking};
+use calib::undistort::{scaled_pinhole, undistort_image};
+use calib::{Board, Lens};
+use geom::Vec3;
+use pganeus_io::{CameraMats, CaptureInfo, CaptureKind};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+use crate::error::{err, fail, Context};
+use crate::{note, Observer, Result, Task};
+
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
+  pganeus calibrate session/background session/toy_a session/toy_b --video session/drop --board session/board.toml --out captures
+  pganeus calibrate photos --board board.toml --out captures --width 320
+  pganeus calibrate more_photos --board board.toml --out captures2 --intrinsics captures/calibration.json")
+)]
+pub struct CalibrateArgs {
+    /// Folders of photos of a static scene or object (PNG/JPEG, any order): a capture each, OUT/<folder name>/.
+    pub dirs: Vec<PathBuf>,
+    /// The board file (FORMATS.md "Boards").
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub board: PathBuf,
+    /// The output folder: calibration.json and one capture per input folder.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub out: PathBuf,
+    /// A folder of a video's frames from a fixed camera, in time order by name (repeatable).
+    #[cfg_attr(feature = "clap", arg(long = "video"))]
+    pub videos: Vec<PathBuf>,
+    /// Width of the captures' images, pixels (the height keeps the aspect); default: the raw width.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub width: Option<u32>,
+    /// Hold a known lens: the calibration.json of an earlier run with the same camera and zoom.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub intrinsics: Option<PathBuf>,
+    /// The region of every capture, `x0,y0,z0,x1,y1,z1` (metres, world): its scale_mat is the ball around it.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_delimiter = ',', num_args = 6, allow_hyphen_values = true)
+    )]
+    pub region: Option<Vec<f64>>,
+    /// Solve for k3 as well (wide-angle lenses).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub k3: bool,
+    /// Frames per second of the videos.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 30.0))]
+    pub fps: f64,
+    /// The fewest board markers a photo must show to be used.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 3))]
+    pub min_markers: usize,
+}
+
+impl CalibrateArgs {
+    /// The flags' defaults for these folders, board and output.
+    pub fn new(dirs: Vec<PathBuf>, board: impl Into<PathBuf>, out: impl Into<PathBuf>) -> Self {
+        CalibrateArgs {
+            dirs,
+            board: board.into(),
+            out: out.into(),
+            videos: Vec::new(),
+            width: None,
+            intrinsics: None,
+            region: None,
+            k3: false,
+            fps: 30.0,
+            min_markers: 3,
+        }
+    }
+}
+
+/// One input folder.
+struct Folder {
+    name: String,
+    dir: PathBuf,
+    video: bool,
+    images: Vec<PathBuf>,
+}
+
+/// What was found in one image.
+struct Seen {
+    points: ViewPoints,
+    markers: usize,
+    foreign_ids: Vec<usize>,
+}
+
+/// What `calibrate` found (also in `calibration.json`).
+#[derive(Clone, Debug)]
+pub struct CalibrateOutcome {
+    /// The lens, OpenCV's convention (pixel centres at integers), raw image size.
+    pub lens: Lens,
+    /// Reprojection error of every kept point, pixels.
+    pub rms: f64,
+    /// Per capture: its name and the world-to-camera pose of each image written.
+    pub cameras: Vec<(String, Vec<geom::Pose<f64>>)>,
+}
+
+/// Calibrates and writes the captures (the output folder appears whole, or not at all).
+pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcome> {
+    let board = Board::read(&a.board).map_err(|e| crate::Error::Input(e.to_string()))?;
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        fail!(Settings, "--fps {}: must be above 0", a.fps);
+    }
+    let folders = list_folders(a)?;
+    let size = common_size(&folders)?;
+    let known_lens = a.intrinsics.as_deref().map(|p| read_lens(p, size)).transpose()?;
+
+    // Detection in every image.
+    let total: usize = folders.iter().map(|f| f.images.len()).sum();
+    let task = Task::start(observer, "finding the board", total as u64);
+    let mut seen: Vec<Vec<Seen>> = Vec::new();
+    for f in &folders {
+        let found: Vec<Result<Seen>> = f
+            .images
+            .par_iter()
+            .map(|path| {
+                let image = pganeus_io::read_image(path)?;
+                let gray = Gray::from_image(&image);
+                let markers = detect_markers(&gray, board.dictionary, &DetectorSettings::default());
+                let (on_board, foreign): (Vec<DetectedMarker>, Vec<DetectedMarker>) =
+                    markers.into_iter().partition(|m| board.marker(m.id).is_some());
+                let chess = chessboard_corners(&gray, &board, &on_board);
+                task.inc(1);
+                Ok(Seen {
+                    points: ViewPoints::from_detections(&board, &on_board, &chess),
+                    markers: on_board.len(),
+                    foreign_ids: foreign.iter().map(|m| m.id).collect(),
+                })
+            })
+            .collect();
+        seen.push(found.into_iter().collect::<Result<_>>()?);
+    }
+    drop(task);
+    check_board_seen(&board, &a.board, &folders, &seen)?;
+
+    // The views: each usable photo, and each video's usable frames pooled (one camera).
+    let mut views = Vec::new();
+    let mut owners = Vec::new(); // (folder, Some(image) for a photo, None for a pooled video)
+    let mut skipped: Vec<Vec<(String, String)>> = vec![Vec::new(); folders.len()];
+    for (fi, (f, s)) in folders.iter().zip(&seen).enumerate() {
+        if f.video {
+            let mut pooled = ViewPoints::default();
+            for frame in s.iter().filter(|x| x.markers >= a.min_markers) {
+                pooled.extend(&frame.points);
+            }
+            if pooled.board.is_empty() {
+                fail!(
+                    Input,
+                    "{}: no frame shows {} markers of the board; a video's camera is found from the board it sees",
+                    f.dir.display(),
+                    a.min_markers
+                );
+            }
+            views.push(pooled);
+            owners.push((fi, None));
+            continue;
+        }
+        for (ii, x) in s.iter().enumerate() {
+            if x.markers < a.min_markers {
+                let file = file_name(&f.images[ii]);
+                let reason = format!("{} board markers seen, {} needed", x.markers, a.min_markers);
+                note(observer, format!("skipping {}: {reason}", f.images[ii].display()));
+                skipped[fi].push((file, reason));
+                continue;
+            }
+            views.push(x.points.clone());
+            owners.push((fi, Some(ii)));
+        }
+    }
+    let photos = owners.iter().filter(|o| o.1.is_some()).count();
+    if known_lens.is_none() && views.len() < 3 {
+        fail!(Input, "{} usable views (photos and videos) of the board; calibrating a lens needs at least 3, better 10 or more from around the board: take more photos, or give --intrinsics", views.len());
+    }
+    let settings = CalibrationSettings {
+        known_lens,
+        solve_k3: a.k3,
+        ..CalibrationSettings::default()
+    };
+    let c = calibrate(&views, size, &settings).map_err(|e| err!(Stage, "calibration failed: {e}"))?;
+    note(observer, format!("lens: fx {:.1} fy {:.1} cx {:.1} cy {:.1} px, k1 {:.4} k2 {:.4} p1 {:.5} p2 {:.5} k3 {:.4}; {} views ({} photos), reprojection rms {:.3} px", c.lens.fx, c.lens.fy, c.lens.cx, c.lens.cy, c.lens.distortion[0], c.lens.distortion[1], c.lens.distortion[2], c.lens.distortion[3], c.lens.distortion[4], views.len(), photos, c.rms));
+    if c.rms > 2.0 {
+        fail!(Input, "{}: the board's corners are {:.1} px (rms) from where the board file puts them; check that marker_length, marker_separation or square_length, and the kind match the print", a.board.display(), c.rms);
+    }
+    let moved = video_motion(&folders, &seen, &owners, &c, a.min_markers);
+    if let Some((name, frames)) = moved.iter().find(|(_, f)| !f.is_empty()) {
+        fail!(Input, "{name}: the camera moves during the video (the board's corners are off the video's one camera in frames {}); a video needs a camera that stays still (a tripod), or calibrate its frames as photos", frames.join(", "));
+    }
+
+    // The captures.
+    let width = a.width.unwrap_or(size.0 as u32);
+    if width < 16 || width as usize > 4 * size.0 {
+        fail!(Settings, "--width {width}: between 16 and {} pixels", 4 * size.0);
+    }
+    let scale = width as f64 / size.0 as f64;
+    let height = (size.1 as f64 * scale).round() as u32;
+    let target = scaled_pinhole(&Lens::pinhole(c.lens.fx, c.lens.fy, c.lens.cx, c.lens.cy), scale);
+    let staged = pganeus_io::StagedDir::new(&a.out)?;
+    let mut report_captures = Vec::new();
+    let mut outcome_cameras = Vec::new();
+    let writing = Task::start(observer, "writing the captures", total as u64);
+    for (fi, f) in folders.iter().enumerate() {
+        // Each image written: its source and its world-to-camera pose.
+        let mut written: Vec<(usize, geom::Pose<f64>)> = Vec::new();
+        for (vi, owner) in owners.iter().enumerate() {
+            if owner.0 != fi {
+                continue;
+            }
+            let BoardPose { rotation, translation } = c.poses[vi];
+            let pose = board.world_to_camera(rotation, translation);
+            match owner.1 {
+                Some(ii) => written.push((ii, pose)),
+                None => written.extend((0..f.images.len()).map(|ii| (ii, pose))),
+            }
+        }
+        let (centre, radius) = capture_region(a, &written, &target, width, height, &f.name)?;
+        let dir = staged.path().join(&f.name);
+        let digits = written.len().to_string().len().max(3);
+        let results: Vec<Result<()>> = written
+            .par_iter()
+            .enumerate()
+            .map(|(k, (ii, _))| {
+                let image = pganeus_io::read_image(&f.images[*ii])?;
+                let out = undistort_image(&image, &c.lens, &target, width, height);
+                pganeus_io::write_png(&dir.join("image").join(format!("{k:0digits$}.png")), &out)?;
+                writing.inc(1);
+                Ok(())
+            })
+            .collect();
+        results.into_iter().collect::<Result<()>>()?;
+        let capture_k = geom::Intrinsics {
+            fx: target.fx,
+            fy: target.fy,
+            cx: target.cx + 0.5,
+            cy: target.cy + 0.5,
+            skew: 0.0,
+        };
+        let mats: Vec<CameraMats> = written
+            .iter()
+            .map(|(_, pose)| CameraMats {
+                world_mat: geom::Camera {
+                    k: capture_k,
+                    world_to_cam: *pose,
+                    width,
+                    height,
+                }
+                .world_mat(),
+                scale_mat: [
+                    [radius, 0.0, 0.0, centre.x],
+                    [0.0, radius, 0.0, centre.y],
+                    [0.0, 0.0, radius, centre.z],
+                    [0.0, 0.0, 0.0, 1.0],
+                ],
+            })
+            .collect();
+        pganeus_io::write_cameras_npz(&dir.join("cameras_sphere.npz"), &mats)?;
+        let info = CaptureInfo {
+            kind: if f.video {
+                CaptureKind::Video
+            } else {
+                CaptureKind::Static
+            },
+            subject: None,
+            fps: f.video.then_some(a.fps),
+            extra: Default::default(),
+        };
+        pganeus_io::write_capture_info(&dir.join("capture.json"), &info)?;
+        report_captures.push(capture_report(
+            f,
+            &written,
+            &skipped[fi],
+            &owners,
+            &c,
+            fi,
+            (centre, radius),
+            a.region.is_some(),
+        ));
+        outcome_cameras.push((f.name.clone(), written.iter().map(|(_, p)| *p).collect()));
+    }
+    drop(writing);
+    let report = json!({
+        "board": {"file": a.board, "dictionary": board.dictionary.name, "kind": format!("{:?}", board.spec.kind)},
+        "image_size": [size.0, size.1],
+        "lens": lens_json(&c.lens),
+        "lens_held": known_lens.is_some(),
+        "rms_px": c.rms,
+        "capture_size": [width, height],
+        "capture_K": [[capture_k_row(&target, 0)], [capture_k_row(&target, 1)], [[0.0, 0.0, 1.0]]],
+        "captures": report_captures,
+        "conventions": "lens.K: OpenCV's (pixel centres at integers), raw images; capture_K and cameras_sphere.npz: the captures' (pixel centres at integer + 0.5), undistorted images. World: the board's (origin at the pattern's centre, x right, y toward the print's top, z out of the board), metres.",
+    });
+    let text = serde_json::to_string_pretty(&report)?;
+    pganeus_io::write_atomic(&staged.path().join("calibration.json"), text.as_bytes())?;
+    staged.commit()?;
+    note(
+        observer,
+        format!(
+            "wrote {} captures and calibration.json to {}",
+            folders.len(),
+            a.out.display()
+        ),
+    );
+    Ok(CalibrateOutcome {
+        lens: c.lens,
+        rms: c.rms,
+        cameras: outcome_cameras,
+    })
+}
+
+fn capture_k_row(t: &Lens, row: usize) -> [f64; 3] {
+    match row {
+        0 => [t.fx, 0.0, t.cx + 0.5],
+        _ => [0.0, t.fy, t.cy + 0.5],
+    }
+}
+
+fn lens_json(l: &Lens) -> Value {
+    json!({"K": [[l.fx, 0.0, l.cx], [0.0, l.fy, l.cy], [0.0, 0.0, 1.0]], "distortion": l.distortion, "distortion_names": ["k1", "k2", "p1", "p2", "k3"]})
+}
+
+/// The input folders, each with its images sorted by name; names must be distinct.
+fn list_folders(a: &CalibrateArgs) -> Result<Vec<Folder>> {
+    if a.dirs.is_empty() && a.videos.is_empty() {
+        fail!(
+            Settings,
+            "no folders of images given: pganeus calibrate DIR... --board board.toml --out OUT"
+        );
+    }
+    let mut folders: Vec<Folder> = Vec::new();
+    for (dir, video) in a
+        .dirs
+        .iter()
+        .map(|d| (d, false))
+        .chain(a.videos.iter().map(|d| (d, true)))
+    {
+        let entries = std::fs::read_dir(dir).with_context(|| format!("cannot read the folder {}", dir.display()))?;
+        let mut images: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| pganeus_io::is_image_file(p))
+            .collect();
+        images.sort();
+        if images.is_empty() {
+            fail!(Input, "{}: no PNG or JPEG images in the folder", dir.display());
+        }
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "capture".into());
+        if let Some(other) = folders.iter().find(|f| f.name == name) {
+            fail!(
+                Input,
+                "{} and {} have the same name; each becomes OUT/{name}/",
+                other.dir.display(),
+                dir.display()
+            );
+        }
+        folders.push(Folder {
+            name,
+            dir: dir.clone(),
+            video,
+            images,
+        });
+    }
+    Ok(folders)
+}
+
+/// The one image size of the session (one camera), or an error naming the first image of another size.
+fn common_size(folders: &[Folder]) -> Result<(usize, usize)> {
+    let first = &folders[0].images[0];
+    let (w, h) = pganeus_io::read_image_size(first)?;
+    for f in folders {
+        for p in &f.images {
+            let s = pganeus_io::read_image_size(p)?;
+            if s != (w, h) {
+                fail!(Input, "{} is {}x{} but {} is {w}x{h}: one camera and zoom make one size; calibrate the other camera's images separately", p.display(), s.0, s.1, first.display());
+            }
+        }
+    }
+    Ok((w as usize, h as usize))
+}
+
+/// A lens from an earlier run's calibration.json (raw image size must match).
+fn read_lens(path: &Path, size: (usize, usize)) -> Result<Lens> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let v: Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let bad = || {
+        err!(
+            Input,
+            "{}: not a calibration.json (needs lens.K, lens.distortion and image_size)",
+            path.display()
+        )
+    };
+    let k = &v["lens"]["K"];
+    let num = |x: &Value| x.as_f64().ok_or_else(bad);
+    let d = v["lens"]["distortion"].as_array().ok_or_else(bad)?;
+    if d.len() != 5 {
+        return Err(bad());
+    }
+    let lens = Lens {
+        fx: num(&k[0][0])?,
+        fy: num(&k[1][1])?,
+        cx: num(&k[0][2])?,
+        cy: num(&k[1][2])?,
+        distortion: [num(&d[0])?, num(&d[1])?, num(&d[2])?, num(&d[3])?, num(&d[4])?],
+    };
+    let held = (num(&v["image_size"][0])? as usize, num(&v["image_size"][1])? as usize);
+    if held != size {
+        fail!(
+            Input,
+            "{}: that lens was calibrated on {}x{} images, these are {}x{}",
+            path.display(),
+            held.0,
+            held.1,
+            size.0,
+            size.1
+        );
+    }
+    Ok(lens)
+}
+
+/// An error when the board is nowhere: no marker of the dictionary, or only ids the board does not have.
+fn check_board_seen(board: &Board, spec: &Path, folders: &[Folder], seen: &[Vec<Seen>]) -> Result<()> {
+    for (f, s) in folders.iter().zip(seen) {
+        if s.iter().any(|x| x.markers > 0) {
+            continue;
+        }
+        let mut foreign: Vec<usize> = s.iter().flat_map(|x| x.foreign_ids.iter().copied()).collect();
+        foreign.sort();
+        foreign.dedup();
+        if let (Some(lo), Some(hi)) = (foreign.first(), foreign.last()) {
+            fail!(Input, "{}: markers of {} with ids {lo}..{hi} are in the images, but {} has ids {}..{}: is first_id (or size) in the board file right?", f.dir.display(), board.dictionary.name, spec.display(), board.spec.first_id, board.spec.first_id + board.markers.len() - 1);
+        }
+        fail!(Input, "{}: no marker of the board in any image; check that {} names the printed board's dictionary ({}), and that the board is in view, sharp and lit", f.dir.display(), spec.display(), board.dictionary.name);
+    }
+    Ok(())
+}
+
+/// Per video: the frames whose board points the video's one camera does not explain (the camera moved).
+fn video_motion(
+    folders: &[Folder],
+    seen: &[Vec<Seen>],
+    owners: &[(usize, Option<usize>)],
+    c: &Calibration,
+    min_markers: usize,
+) -> Vec<(String, Vec<String>)> {
+    let mut out = Vec::new();
+    for (vi, owner) in owners.iter().enumerate() {
+        if owner.1.is_some() {
+            continue;
+        }
+        let f = &folders[owner.0];
+        let pose = c.poses[vi];
+        let mut moved = Vec::new();
+        for (ii, x) in seen[owner.0].iter().enumerate() {
+            if x.markers < min_markers {
+                continue;
+            }
+            let off = rms_under(&x.points, &c.lens, &pose);
+            // The frame's own best camera explains it much better: the camera was elsewhere.
+            let own = calibrate(
+                std::slice::from_ref(&x.points),
+                (1, 1),
+                &CalibrationSettings {
+                    known_lens: Some(c.lens),
+                    ..Default::default()
+                },
+            )
+            .map(|o| o.rms)
+            .unwrap_or(off);
+            if off > 1.0_f64.max(3.0 * own) {
+                moved.push(format!("{} ({off:.1} px)", file_name(&f.images[ii])));
+            }
+        }
+        out.push((f.name.clone(), moved));
+    }
+    out
+}
+
+fn rms_under(points: &ViewPoints, lens: &Lens, pose: &BoardPose) -> f64 {
+    let sum: f64 = points
+        .board
+        .iter()
+        .zip(&points.image)
+        .map(|(b, i)| {
+            let [u, v] = lens.project(pose.rotation.rotate(Vec3::new(b[0], b[1], 0.0)) + pose.translation);
+            (u - i[0]).powi(2) + (v - i[1]).powi(2)
+        })
+        .sum();
+    (sum / points.board.len().max(1) as f64).sqrt()
+}
+
+/// The ball of a capture's scale_mat: `--region`'s box, or the region its cameras look at.
+fn capture_region(
+    a: &CalibrateArgs,
+    written: &[(usize, geom::Pose<f64>)],
+    target: &Lens,
+    width: u32,
+    height: u32,
+    name: &str,
+) -> Result<(Vec3<f64>, f64)> {
+    if let Some(r) = &a.region {
+        let (lo, hi) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
+        if !(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z) {
+            fail!(
+                Settings,
+                "--region {r:?}: x0,y0,z0,x1,y1,z1 with each upper bound above its lower one"
+            );
+        }
+        return Ok(((lo + hi) * 0.5, (hi - lo).norm() * 0.5));
+    }
+    let half_fov_tan = (0.5 * width as f64 / target.fx).min(0.5 * height as f64 / target.fy);
+    let cameras: Vec<Looking> = written
+        .iter()
+        .map(|(_, pose)| {
+            let c2w = pose.inverse();
+            Looking {
+                centre: c2w.t,
+                forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
+                half_fov_tan,
+            }
+        })
+        .collect();
+    looked_at_region(&cameras).ok_or_else(|| err!(Input, "{name}: its cameras do not look at the board, so its region cannot be found: give --region x0,y0,z0,x1,y1,z1"))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn capture_report(
+    f: &Folder,
+    written: &[(usize, geom::Pose<f64>)],
+    skipped: &[(String, String)],
+    owners: &[(usize, Option<usize>)],
+    c: &Calibration,
+    fi: usize,
+    region: (Vec3<f64>, f64),
+    given: bool,
+) -> Value {
+    let views: Vec<Value> = owners
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.0 == fi)
+        .map(|(vi, o)| {
+            let file = o.1.map(|ii| file_name(&f.images[ii])).unwrap_or_else(|| format!("{} frames pooled", f.images.len()));
+            json!({"source": file, "rms_px": c.view_rms[vi], "points": c.kept[vi].len(), "outliers": c.kept[vi].iter().filter(|k| !**k).count()})
+        })
+        .collect();
+    json!({
+        "name": f.name,
+        "source": f.dir,
+        "kind": if f.video { "video" } else { "static" },
+        "images": written.iter().map(|(ii, _)| file_name(&f.images[*ii])).collect::<Vec<_>>(),
+        "views": views,
+        "skipped": skipped.iter().map(|(file, reason)| json!({"file": file, "reason": reason})).collect::<Vec<_>>(),
+        "region": {"centre": region.0.to_array(), "radius": region.1, "rule": if given { "--region" } else { "the point nearest every optical axis; the median radius the cameras frame there" }},
+    })
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
