@@ -152,7 +152,7 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
             Refine::Edges => {
                 // The corners rotated back to clockwise-as-seen order are what the edge walk expects; the
                 // marker's order is a rotation of it, so the refined corners keep their places.
-                if let Some(refined) = edges::refine_by_edges(gray, &m.corners, cell) {
+                if let Some(refined) = edges::refine_by_edges(gray, &m.corners, cell, None) {
                     m.corners = refined;
                 }
             }
@@ -161,6 +161,17 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
     }
     markers.sort_by_key(|m| m.id);
     markers
+}
+
+/// The markers' corners refined again knowing the lens: the edges undistorted before the lines are fitted
+/// (see [`edges::refine_by_edges`]). For the second pass of a calibration.
+pub fn refine_with_lens(gray: &Gray, markers: &mut [DetectedMarker], dictionary: &Dictionary, lens: &crate::Lens) {
+    for m in markers {
+        let cell = side_mean(&m.corners) / (dictionary.marker_size + 2 * BORDER_BITS) as f64;
+        if let Some(refined) = edges::refine_by_edges(gray, &m.corners, cell, Some(lens)) {
+            m.corners = refined;
+        }
+    }
 }
 
 impl SubpixRule {

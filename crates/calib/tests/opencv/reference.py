@@ -8,6 +8,11 @@
         each case's image ({"image", "dictionary"}) through OpenCV's ArucoDetector with CORNER_REFINE_SUBPIX:
         {"<image>": {"ids": [...], "corners": [[[x, y] x 4], ...]}} in OUT.json
 
+    python reference.py calibrate CASE.json OUT.json
+        OpenCV's whole calibration of one session: ArucoDetector (CORNER_REFINE_SUBPIX), matchImagePoints,
+        calibrateCamera (k3 fixed at 0 unless "k3": true). CASE: {"images": [...], "board": a board case}.
+        OUT: {"K", "dist", "rms", "poses": [{"rvec", "tvec"} or null per image]}
+
 A board case: {"name", "kind": "aruco_grid"|"charuco", "dictionary", "size": [cols, rows], "marker_length",
 "marker_separation" | "square_length", "legacy", "first_id", "width", "height", "margin"}.
 """
@@ -69,11 +74,45 @@ def detect(cases_path, out_path):
     print(cv2.__version__)
 
 
+def calibrate(case_path, out_path):
+    case = json.loads(Path(case_path).read_text())
+    board = board_of(case["board"])
+    params = aruco.DetectorParameters()
+    params.cornerRefinementMethod = aruco.CORNER_REFINE_SUBPIX
+    detector = aruco.ArucoDetector(board.getDictionary(), params)
+    object_points, image_points, used = [], [], []
+    size = None
+    for path in case["images"]:
+        gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        size = (gray.shape[1], gray.shape[0])
+        corners, ids, _ = detector.detectMarkers(gray)
+        if ids is None or len(ids) < 3:
+            used.append(False)
+            continue
+        obj, img = board.matchImagePoints(corners, ids)
+        object_points.append(obj)
+        image_points.append(img)
+        used.append(True)
+    flags = 0 if case.get("k3") else cv2.CALIB_FIX_K3
+    rms, k, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, size, None, None, flags=flags)
+    poses, i = [], 0
+    for u in used:
+        if u:
+            poses.append({"rvec": rvecs[i].flatten().tolist(), "tvec": tvecs[i].flatten().tolist()})
+            i += 1
+        else:
+            poses.append(None)
+    Path(out_path).write_text(json.dumps({"K": k.tolist(), "dist": dist.flatten().tolist(), "rms": rms, "poses": poses}))
+    print(cv2.__version__)
+
+
 if __name__ == "__main__":
     command = sys.argv[1]
     if command == "boards":
         boards(sys.argv[2], sys.argv[3])
     elif command == "detect":
         detect(sys.argv[2], sys.argv[3])
+    elif command == "calibrate":
+        calibrate(sys.argv[2], sys.argv[3])
     else:
         sys.exit(f"unknown command {command}")
