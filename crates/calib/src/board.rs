@@ -6,13 +6,13 @@
 
 use std::path::Path;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::dictionary::{self, Dictionary};
 use crate::error::{CalibError, Result};
 
 /// Which of OpenCV's boards.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BoardKind {
     /// `cv::aruco::GridBoard`: markers in a grid, `marker_separation` apart.
@@ -22,7 +22,7 @@ pub enum BoardKind {
 }
 
 /// A board file as written (see FORMATS.md "Boards").
-#[derive(Clone, Debug, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoardSpec {
     /// Grid of markers or ChArUco.
@@ -34,10 +34,10 @@ pub struct BoardSpec {
     /// Metres, the printed black square of one marker.
     pub marker_length: f64,
     /// Metres between markers (aruco_grid).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_separation: Option<f64>,
     /// Metres, one chessboard square (charuco).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub square_length: Option<f64>,
     /// ChArUco as OpenCV drew it before 4.6 (boards with an even number of rows start with a white square).
     #[serde(default)]

@@ -79,12 +79,13 @@ impl View {
     }
 }
 
-/// The board seen by `view`: white paper (`paper`) with black ink (`ink`) on a grey table, `samples`² samples per
-/// pixel, Gaussian noise of `noise` (0–255).
+/// The board seen by `view`: white paper with black ink on a grey table, `samples`² samples per pixel
+/// averaged in linear light and encoded as a camera does (sRGB), then Gaussian noise of `noise` (0–255).
 pub fn render(board: &Board, view: &View, size: (usize, usize), samples: usize, noise: f64, seed: u64) -> Gray {
     let (w, h) = size;
     let mut rng = SplitMix64::new(seed);
-    let (paper, ink, table) = (225.0, 30.0, 110.0);
+    // Linear reflectances: paper, toner, a grey table.
+    let (paper, ink, table) = (0.78, 0.02, 0.16);
     let margin = 0.02;
     let mut data = vec![0.0f32; w * h];
     for y in 0..h {
@@ -112,13 +113,24 @@ pub fn render(board: &Board, view: &View, size: (usize, usize), samples: usize, 
                 }
             }
             let gauss = (-2.0 * rng.next_f64().max(1e-12).ln()).sqrt() * (std::f64::consts::TAU * rng.next_f64()).cos();
-            data[y * w + x] = (sum / (samples * samples) as f64 + noise * gauss).clamp(0.0, 255.0) as f32;
+            let linear = sum / (samples * samples) as f64;
+            data[y * w + x] = (255.0 * srgb(linear) + noise * gauss).clamp(0.0, 255.0) as f32;
         }
     }
     Gray {
         width: w,
         height: h,
         data,
+    }
+}
+
+/// The sRGB encoding of a linear value in 0–1.
+fn srgb(v: f64) -> f64 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
     }
 }
 

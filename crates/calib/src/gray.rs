@@ -33,6 +33,30 @@ impl Gray {
         }
     }
 
+    /// The image in linear light (0–255): the sRGB encoding cameras write undone, so that a pixel's value is
+    /// proportional to the light it got and edges can be located by halfway crossings.
+    pub fn to_linear(&self) -> Gray {
+        // A table of the 8-bit values, interpolated between them (the data may be fractional).
+        let table: Vec<f32> = (0..=256)
+            .map(|v| 255.0 * srgb_to_linear((v as f64 / 255.0).min(1.0)) as f32)
+            .collect();
+        let data = self
+            .data
+            .iter()
+            .map(|&v| {
+                let v = v.clamp(0.0, 255.0);
+                let i = v.floor() as usize;
+                let f = v - i as f32;
+                table[i] * (1.0 - f) + table[(i + 1).min(256)] * f
+            })
+            .collect();
+        Gray {
+            width: self.width,
+            height: self.height,
+            data,
+        }
+    }
+
     /// The value at pixel `(x, y)`, clamped to the image.
     pub fn at_clamped(&self, x: i64, y: i64) -> f32 {
         let x = x.clamp(0, self.width as i64 - 1) as usize;
@@ -85,5 +109,15 @@ impl Integral {
         let w = self.width + 1;
         let s = self.sums[y1 * w + x1] - self.sums[y0 * w + x1] - self.sums[y1 * w + x0] + self.sums[y0 * w + x0];
         (s / ((x1 - x0) * (y1 - y0)) as f64) as f32
+    }
+}
+
+/// The sRGB transfer function inverted: an encoded value (0–1) back to linear light.
+pub fn srgb_to_linear(v: f64) -> f64 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
     }
 }

@@ -32,7 +32,7 @@ mod paths;
 pub use atomic::{write_atomic, StagedDir};
 pub use error::{IoError, Result};
 pub use formats::image_file::{is_image_file, read_image, read_image_size};
-pub use formats::jpeg::{read_jpeg, read_jpeg_bytes};
+pub use formats::jpeg::{encode_jpeg, read_jpeg, read_jpeg_bytes, write_jpeg};
 pub use formats::mesh_file::read_mesh;
 pub use formats::neus::{
     open_capture, read_cameras_npz, read_capture_info, write_cameras_npz, write_capture_info, CameraMats, CaptureIndex,

@@ -298,6 +298,8 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         contact_sheet: true,
         physics: scene.physics,
         print_preset: None,
+        raw: None,
+        raw_seed: 1,
     };
     add("synth", x.synth, synth_args, StageJob::Synth(synth_job));
     let mut train = vec![("background".to_string(), "scene".to_string(), plan.scene_steps, x.scene)];

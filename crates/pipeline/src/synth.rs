@@ -75,6 +75,24 @@ pub struct SynthArgs {
     /// Print a preset's scene description as TOML and exit.
     #[cfg_attr(feature = "clap", arg(long, value_name = "PRESET"))]
     pub print_preset: Option<String>,
+    /// Also write the footage as a camera makes it (`raw/`: a printed board of this kind on the table,
+    /// handheld photos at three times the size through a lens with distortion, exposure and white balance
+    /// per photo, noise, JPEG, motion blur in the videos; no cameras, no masks) and `camera_truth.json`.
+    #[cfg_attr(feature = "clap", arg(long, value_enum))]
+    pub raw: Option<RawBoardArg>,
+    /// The seed of the raw footage's jitter and noise.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
+    pub raw_seed: u64,
+}
+
+/// The printed board of `synth --raw`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum RawBoardArg {
+    /// 6 x 4 DICT_5X5_1000 markers of 40 mm.
+    ArucoGrid,
+    /// 8 x 6 squares of 35 mm, DICT_6X6_250 markers of 26 mm.
+    Charuco,
 }
 
 pub fn scale(a: ScaleArg) -> Scale {
@@ -115,7 +133,11 @@ pub fn run(a: &SynthArgs, observer: &dyn Observer) -> Result<()> {
         }
         _ => fail!(Stage, "give --preset NAME or --scene FILE"),
     };
-    let mut scene = scene;
+    let mut scene = match a.raw {
+        Some(RawBoardArg::ArucoGrid) => synth::with_raw(scene, calib::BoardKind::ArucoGrid, a.raw_seed),
+        Some(RawBoardArg::Charuco) => synth::with_raw(scene, calib::BoardKind::Charuco, a.raw_seed),
+        None => scene,
+    };
     if let Some(p) = a.physics {
         scene.physics = match p {
             PhysicsArg::Pganeus => synth::Physics::Pganeus,

@@ -166,12 +166,34 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScen
     };
     let slab_pose = Pose::from_translation(Vec3::new(0.0, 0.0, -0.5 * b.thickness));
     let board_shape = Shape::Cuboid(slab);
+    let print = match &b.print {
+        Some(spec) => {
+            let board = calib::Board::new(spec.clone()).map_err(|e| field("board.print", e.to_string()))?;
+            let print = crate::print::Print { board, margin: 0.01 };
+            let [hx, hy] = print.half_paper();
+            if hx > b.half[0] || hy > b.half[1] {
+                return Err(field(
+                    "board.print",
+                    format!(
+                        "the print ({:.0} x {:.0} mm with its margin) is larger than the board ({:.0} x {:.0} mm)",
+                        2e3 * hx,
+                        2e3 * hy,
+                        2e3 * b.half[0],
+                        2e3 * b.half[1]
+                    ),
+                ));
+            }
+            Some(std::sync::Arc::new(print))
+        }
+        None => None,
+    };
     let mut objects = vec![RenderObject {
         shape: board_shape.clone(),
         pose: slab_pose,
         texture: b.texture.clone(),
         bound: Some((slab_pose.t, Vec3::cst(slab.half).norm())),
         mask_id: None,
+        print: print.clone(),
     }];
     let mut sim_parts = vec![board_shape.clone().transformed(slab_pose)];
     if let Some(texture) = &b.table {
@@ -185,6 +207,7 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScen
             texture: texture.clone(),
             bound: None,
             mask_id: None,
+            print: None,
         });
         sim_parts.push(table);
     }
@@ -228,6 +251,7 @@ pub(crate) fn build_static(scene: &SynthScene, base: &Path) -> Result<StaticScen
             texture: o.texture.clone(),
             bound: Some((pose.t, radius)),
             mask_id: None,
+            print: None,
         });
     }
     let centre = Vec3::new(0.0, 0.0, 0.5 * top);
@@ -306,5 +330,6 @@ pub(crate) fn body_object(body: &RigidBody, texture: &Texture, pose: Pose<f64>, 
         texture: texture.clone(),
         bound: Some((pose.t, body.bounding_radius * 1.01 + 1e-4)),
         mask_id: Some(mask_id),
+        print: None,
     }
 }

@@ -49,6 +49,10 @@ pub struct Board {
     /// two colours equal for a plain backdrop).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub table: Option<Texture>,
+    /// A calibration board (FORMATS.md "Boards") printed on white paper lying on the board, its pattern
+    /// centred on the world's origin; what `calibrate` finds the cameras of raw footage from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub print: Option<calib::BoardSpec>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -163,6 +167,65 @@ impl Physics {
     }
 }
 
+/// Footage as a camera makes it (`[raw]`): besides the captures with their true cameras, a raw session in
+/// `raw/` (FORMATS.md "A raw session"): the same views through a lens with distortion at the sensor's size,
+/// held by hand (roll, distance), with exposure and white balance that vary from photo to photo, sensor noise,
+/// JPEG, and motion blur in the videos, and close-ups of the printed board (`calibration/`); no cameras and
+/// no masks. Needs `board.print`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RawDesc {
+    /// The sensor's image size (the field of view is `cameras.fov_deg`, vertical). Default 960 × 720.
+    pub width: u32,
+    pub height: u32,
+    /// OpenCV's `[k1, k2, p1, p2, k3]` of the lens. Default a mild barrel, `[-0.12, 0.05, 0.0004, -0.0003, 0]`.
+    pub distortion: [f64; 5],
+    /// Sensor noise, standard deviation at mid grey (linear 0–1); shot noise grows with the square root of the
+    /// light. Default 0.008.
+    pub noise: f64,
+    /// JPEG quality, 1–100. Default 90.
+    pub jpeg_quality: u8,
+    /// Each photo's exposure is off by up to this share. Default 0.06.
+    pub exposure_jitter: f64,
+    /// Each photo's white balance (per channel) is off by up to this share. Default 0.02.
+    pub white_balance_jitter: f64,
+    /// A handheld photo is rolled by up to this many degrees about its axis. Default 12.
+    pub roll_deg: f64,
+    /// ... and its distance to what it looks at is off by up to this share. Default 0.1.
+    pub distance_jitter: f64,
+    /// How long the shutter is open in a video frame, seconds: moving bodies blur. Default 1/120.
+    pub shutter: f64,
+    /// Instants averaged over the shutter time. Default 5.
+    pub blur_samples: usize,
+    /// Seed of the jitter and the noise. Default 1.
+    pub seed: u64,
+    /// Close-ups of the printed board (`raw/calibration/`) for the lens. Default 12.
+    pub calibration_views: usize,
+    /// The lens's blur: a Gaussian point spread of this many pixels (σ) at the sensor. Default 0.7.
+    pub optical_blur: f64,
+}
+
+impl Default for RawDesc {
+    fn default() -> Self {
+        RawDesc {
+            width: 960,
+            height: 720,
+            distortion: [-0.12, 0.05, 0.0004, -0.0003, 0.0],
+            noise: 0.008,
+            jpeg_quality: 90,
+            exposure_jitter: 0.06,
+            white_balance_jitter: 0.02,
+            roll_deg: 12.0,
+            distance_jitter: 0.1,
+            shutter: 1.0 / 120.0,
+            blur_samples: 5,
+            seed: 1,
+            calibration_views: 12,
+            optical_blur: 0.7,
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SynthScene {
@@ -178,6 +241,9 @@ pub struct SynthScene {
     pub light: Light,
     pub cameras: CameraRig,
     pub videos: Vec<VideoDesc>,
+    /// Also write the footage as a camera makes it (`raw/`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raw: Option<RawDesc>,
 }
 
 fn is_default_physics(p: &Physics) -> bool {

@@ -34,6 +34,8 @@ struct CapturePlan {
     /// Mask folders: `mask` holds these bodies; `mask_<name>` one each.
     mask_bodies: Vec<usize>,
     per_body_masks: bool,
+    /// Raw footage of a video: each frame's instants over the shutter time (motion blur); empty otherwise.
+    instants: Vec<Vec<RenderScene>>,
 }
 
 /// What `generate` made.
@@ -239,9 +241,20 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         .iter()
         .flat_map(|m| m.vertices.iter().map(|v| Vec3::cst(*v)));
     let content: Vec<Vec3<f64>> = disc.chain(obstacles).collect();
+    let mut hand = scene.raw.as_ref().map(|r| (r, geom::SplitMix64::new(r.seed)));
+    if scene.raw.is_some() && scene.board.print.is_none() {
+        return Err(field(
+            "raw",
+            "raw footage needs board.print: calibrate finds the cameras from the printed board",
+        ));
+    }
+    let mut held = |cam: Camera<f64>, target: Vec3<f64>| match &mut hand {
+        Some((r, rng)) => crate::raw::handheld(&cam, (cam.center() - target).norm(), r, rng),
+        None => cam,
+    };
     let cams: Vec<_> = hemisphere_views(rig.views, rig.background_elevation)
         .iter()
-        .map(|&(e, a)| framed_orbit(centre, &content, e, a, SCENE_BORDER, k, w, h))
+        .map(|&(e, a)| held(framed_orbit(centre, &content, e, a, SCENE_BORDER, k, w, h), centre))
         .collect();
     for (i, c) in cams.iter().enumerate() {
         check_camera(c, &bg_scene, &format!("background view {i}"))?;
@@ -256,7 +269,49 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         region: stat.region,
         mask_bodies: vec![],
         per_body_masks: false,
+        instants: vec![],
     });
+
+    // Raw footage: close-ups of the printed board filling the frame from many sides, as a careful user shoots
+    // before the scene (the lens's distortion and principal point need the board near the image's edges).
+    if let (Some(r), Some(spec)) = (&scene.raw, &scene.board.print) {
+        let board = calib::Board::new(spec.clone()).map_err(|e| field("board.print", e.to_string()))?;
+        let mut rng = geom::SplitMix64::new(r.seed.wrapping_add(99));
+        let half_fov = (0.5 * w as f64 / k.fx).atan().min((0.5 * h as f64 / k.fy).atan());
+        let cams: Vec<Camera<f64>> = (0..r.calibration_views)
+            .map(|_| {
+                let fill = rng.range(0.55, 0.85);
+                let distance = 0.5 * board.extent[0] / (fill * half_fov.tan());
+                let target = Vec3::new(
+                    rng.range(-0.2, 0.2) * board.extent[0],
+                    rng.range(-0.2, 0.2) * board.extent[1],
+                    0.0,
+                );
+                let cam = orbit(target, distance, rng.range(45.0, 82.0), rng.range(0.0, 360.0), k, w, h);
+                let turned = crate::desc::RawDesc {
+                    roll_deg: 90.0,
+                    distance_jitter: 0.0,
+                    ..r.clone()
+                };
+                crate::raw::handheld(&cam, distance, &turned, &mut rng)
+            })
+            .collect();
+        plans.push(CapturePlan {
+            name: "calibration".into(),
+            kind: CaptureKind::Static,
+            subject: Some(CaptureSubject::Scene),
+            fps: None,
+            cameras: cams,
+            scenes: vec![RenderScene {
+                objects: stat.objects.clone(),
+                light: light.clone(),
+            }],
+            region: stat.region,
+            mask_bodies: vec![],
+            per_body_masks: false,
+            instants: vec![],
+        });
+    }
 
     // Each body alone on the board, upright and turned over; views from above.
     let mut truth_bodies = Vec::new();
@@ -276,7 +331,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             let dist = framing_distance(r_obj, &k, w, h, 1.6);
             let cams: Vec<_> = hemisphere_views(rig.views, rig.object_elevation)
                 .iter()
-                .map(|&(e, a)| orbit(pose.t, dist, e, a, k, w, h))
+                .map(|&(e, a)| held(orbit(pose.t, dist, e, a, k, w, h), pose.t))
                 .collect();
             let name = format!("{}_{suffix}", desc.name);
             for (i, c) in cams.iter().enumerate() {
@@ -292,6 +347,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
                 region: (pose.t, r_obj * 1.15 + 0.005),
                 mask_bodies: vec![bi],
                 per_body_masks: false,
+                instants: vec![],
             });
             statics.push(StaticCapture {
                 capture: name,
@@ -354,6 +410,33 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             })
             .collect();
         check_camera(&cam, &scenes[0], &format!("{f}.camera"))?;
+        // Raw footage: each frame over the shutter time, the bodies where the motion puts them then.
+        let instants: Vec<Vec<RenderScene>> = match &scene.raw {
+            Some(r) if r.shutter > 0.0 && r.blur_samples > 1 => (0..traj.frames.len())
+                .map(|fi| {
+                    (0..r.blur_samples)
+                        .map(|s| {
+                            let t =
+                                fi as f64 + r.shutter * vdesc.fps * ((s as f64 + 0.5) / r.blur_samples as f64 - 0.5);
+                            let mut objects = stat.objects.clone();
+                            for (slot, &bi) in ids.iter().enumerate() {
+                                objects.push(body_object(
+                                    &bodies.bodies[bi],
+                                    &bodies.textures[bi],
+                                    pose_at(traj, slot, t),
+                                    bi,
+                                ));
+                            }
+                            RenderScene {
+                                objects,
+                                light: light.clone(),
+                            }
+                        })
+                        .collect()
+                })
+                .collect(),
+            _ => vec![],
+        };
         plans.push(CapturePlan {
             name: vdesc.name.clone(),
             kind: CaptureKind::Video,
@@ -364,6 +447,7 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             region: stat.region,
             mask_bodies: ids.clone(),
             per_body_masks: true,
+            instants,
         });
         truth_videos.push(scene_file::trajectory_file(
             &vdesc.name,
@@ -389,6 +473,21 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         truth,
         meshes,
     })
+}
+
+/// Body `slot`'s pose at fractional frame `t`: between the two frames around it (translation linear,
+/// rotation along the shortest arc), held at the ends.
+fn pose_at(traj: &sim::Trajectory<f64>, slot: usize, t: f64) -> geom::Pose<f64> {
+    let last = traj.frames.len() - 1;
+    let t = t.clamp(0.0, last as f64);
+    let j = (t.floor() as usize).min(last.saturating_sub(1));
+    if last == 0 {
+        return traj.frames[0][slot].pose;
+    }
+    let (a, b) = (traj.frames[j][slot].pose, traj.frames[j + 1][slot].pose);
+    let alpha = t - j as f64;
+    let turn = (a.q.conj() * b.q).log();
+    geom::Pose::new((a.q * geom::Quat::exp(turn * alpha)).unit(), a.t + (b.t - a.t) * alpha)
 }
 
 fn concat(meshes: &[TriMesh]) -> TriMesh {
@@ -454,9 +553,78 @@ pub fn generate(scene: &SynthScene, base: &Path, out: &Path, on_image: OnImage) 
         )?;
     }
     pganeus_io::write_truth(&out.join("truth.json"), &truth)?;
+    if let Some(raw) = &scene.raw {
+        write_raw(&plans, scene, raw, out, on_image)?;
+    }
     let desc = toml::to_string(scene).map_err(|e| field("scene", e.to_string()))?;
     pganeus_io::write_atomic(&out.join("synth.toml"), desc.as_bytes())?;
     Ok(summary)
+}
+
+/// The raw session: `raw/board.toml` and a folder of JPEGs per capture (no cameras, no masks), and
+/// `camera_truth.json` beside `raw/`.
+fn write_raw(
+    plans: &[CapturePlan],
+    scene: &SynthScene,
+    raw: &crate::desc::RawDesc,
+    out: &Path,
+    on_image: OnImage,
+) -> Result<(), SynthError> {
+    let rig = &scene.cameras;
+    if raw.width * rig.height != raw.height * rig.width {
+        return Err(field(
+            "raw",
+            format!(
+                "the sensor's {}x{} must have the captures' aspect ({}x{})",
+                raw.width, raw.height, rig.width, rig.height
+            ),
+        ));
+    }
+    if !(raw.noise >= 0.0 && raw.exposure_jitter >= 0.0 && raw.white_balance_jitter >= 0.0 && raw.shutter >= 0.0) {
+        return Err(field("raw", "noise, jitters and shutter must be zero or more"));
+    }
+    let lens = crate::raw::raw_lens(scene, raw);
+    let dir = out.join("raw");
+    let spec = scene.board.print.as_ref().expect("checked in plan");
+    let board_toml = toml::to_string(spec).map_err(|e| field("board.print", e.to_string()))?;
+    crate::raw::write_text(&dir, "board.toml", &board_toml)?;
+    let mut rng = geom::SplitMix64::new(raw.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(7));
+    let mut listed = Vec::new();
+    for p in plans {
+        let video = p.kind == CaptureKind::Video;
+        let n = p.cameras.len();
+        let video_gain = crate::raw::photo_gain(raw, &mut rng);
+        let mut files = Vec::with_capacity(n);
+        for (i, cam) in p.cameras.iter().enumerate() {
+            let single;
+            let scenes: &[RenderScene] = if !p.instants.is_empty() {
+                &p.instants[i]
+            } else {
+                single = [if p.scenes.len() == 1 {
+                    p.scenes[0].clone()
+                } else {
+                    p.scenes[i].clone()
+                }];
+                &single
+            };
+            let r = crate::raw::render_raw(scenes, &cam.world_to_cam, &lens, raw, rig.spp);
+            let gain = if video {
+                video_gain
+            } else {
+                crate::raw::photo_gain(raw, &mut rng)
+            };
+            let image = crate::raw::develop(&r, gain, raw.noise, &mut rng);
+            let file = crate::raw::raw_name(&p.name, video, i);
+            pganeus_io::write_jpeg(&dir.join(&p.name).join(&file), &image, raw.jpeg_quality)?;
+            files.push(file);
+            on_image(&format!("raw/{}", p.name), i + 1, n);
+        }
+        listed.push((p.name.clone(), files));
+    }
+    let truth = crate::raw::camera_truth(&lens, raw, &listed);
+    let text = serde_json::to_string_pretty(&truth).map_err(|e| field("raw", e.to_string()))?;
+    crate::raw::write_text(out, "camera_truth.json", &text)?;
+    Ok(())
 }
 
 fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnImage) -> Result<(), SynthError> {

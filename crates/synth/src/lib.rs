@@ -9,11 +9,13 @@ pub mod contact_sheet;
 pub mod desc;
 pub mod generate;
 pub mod presets;
+pub mod print;
 mod rapier_motion;
+pub mod raw;
 pub mod render;
 pub mod texture;
 
 pub use build::SynthError;
-pub use desc::{Physics, SynthScene};
+pub use desc::{Physics, RawDesc, SynthScene};
 pub use generate::{frame_name, generate, simulate_videos, Summary};
-pub use presets::{contact_scenes, preset, Scale, CONTACT_SCENES, PRESETS};
+pub use presets::{contact_scenes, preset, with_raw, Scale, CONTACT_SCENES, PRESETS};

@@ -41,6 +41,7 @@ fn board() -> Board {
                 12,
             )
         }),
+        print: None,
     }
 }
 
@@ -59,6 +60,7 @@ fn backdrop_board_and_light() -> (Board, Light) {
             )
         },
         table: None,
+        print: None,
     };
     let grey = [0.55, 0.55, 0.55];
     let light = Light {
@@ -174,6 +176,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
     let n = frames(scale);
     Some(match name {
         "tabletop" => SynthScene {
+            raw: None,
             physics: Physics::default(),
             name: "tabletop".into(),
             board: board(),
@@ -220,6 +223,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
             ],
         },
         "two-body" => SynthScene {
+            raw: None,
             physics: Physics::default(),
             name: "two-body".into(),
             board: board(),
@@ -311,6 +315,7 @@ pub fn contact_scenes() -> Vec<SynthScene> {
     let base = preset("tabletop", Scale::Small).expect("the tabletop preset");
     let n = frames(Scale::Small);
     let with = |name: &str, obstacles: Vec<ObstacleDesc>, body: BodyDesc, v: VideoDesc| SynthScene {
+        raw: None,
         name: name.into(),
         obstacles,
         bodies: vec![body],
@@ -433,4 +438,41 @@ pub fn contact_scenes() -> Vec<SynthScene> {
             ),
         ),
     ]
+}
+
+/// `scene` as raw footage of a printed board of `kind` (`aruco_grid`: 6 × 4 `DICT_5X5_1000` markers of
+/// 40 mm, 290 × 190 mm; `charuco`: 8 × 6 squares of 35 mm with `DICT_6X6_250` markers of 26 mm, 280 × 210
+/// mm) lying at the board's centre, shot at three times the captures' size through a lens with distortion
+/// (the `[raw]` defaults), jittered from `seed`.
+pub fn with_raw(mut scene: SynthScene, kind: calib::BoardKind, seed: u64) -> SynthScene {
+    let spec = match kind {
+        calib::BoardKind::ArucoGrid => calib::BoardSpec {
+            kind,
+            dictionary: "DICT_5X5_1000".into(),
+            size: [6, 4],
+            marker_length: 0.04,
+            marker_separation: Some(0.01),
+            square_length: None,
+            legacy: false,
+            first_id: 0,
+        },
+        calib::BoardKind::Charuco => calib::BoardSpec {
+            kind,
+            dictionary: "DICT_6X6_250".into(),
+            size: [8, 6],
+            marker_length: 0.026,
+            marker_separation: None,
+            square_length: Some(0.035),
+            legacy: false,
+            first_id: 0,
+        },
+    };
+    scene.board.print = Some(spec);
+    scene.raw = Some(crate::desc::RawDesc {
+        width: 3 * scene.cameras.width,
+        height: 3 * scene.cameras.height,
+        seed,
+        ..Default::default()
+    });
+    scene
 }

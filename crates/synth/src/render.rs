@@ -52,6 +52,8 @@ pub struct RenderObject {
     pub bound: Option<(V, f64)>,
     /// Which mask the object belongs to (`Some(k)` for body k), `None` for scenery.
     pub mask_id: Option<usize>,
+    /// A board printed on the object's top face at world z = 0 (the board slab's), over its texture.
+    pub print: Option<std::sync::Arc<crate::print::Print>>,
 }
 
 impl RenderObject {
@@ -166,7 +168,11 @@ fn shade(scene: &RenderScene, ray: &Ray<f64>) -> ([f64; 3], Option<usize>) {
                 n = -n;
             }
             let local = o.pose.inverse_transform_point(p);
-            let albedo = o.texture.albedo(local);
+            let printed = match &o.print {
+                Some(print) if p.z > -1e-4 && n.z > 0.5 => print.albedo(p.x, p.y),
+                _ => None,
+            };
+            let albedo = printed.unwrap_or_else(|| o.texture.albedo(local));
             let l = V::cst(light.direction).normalize_or(V::new(0.0, 0.0, 1.0));
             let lambert = n.dot(l).max(0.0);
             let shadow = if lambert > 0.0 {
@@ -205,7 +211,19 @@ fn subpixel_offsets(spp: usize) -> Vec<(f64, f64)> {
 
 /// Render `scene` through `camera` with `spp` samples per pixel.
 pub fn render(scene: &RenderScene, camera: &Camera<f64>, spp: usize) -> Rendered {
-    let (w, h) = (camera.width as usize, camera.height as usize);
+    render_rays(scene, camera.width, camera.height, spp, &|u, v| camera.ray(u, v))
+}
+
+/// Render `scene` at `width` × `height` with `spp` samples per pixel, the ray through image position `(u, v)`
+/// (pixel centres at integer + 0.5) given by `ray`: any lens.
+pub fn render_rays(
+    scene: &RenderScene,
+    width: u32,
+    height: u32,
+    spp: usize,
+    ray: &(dyn Fn(f64, f64) -> Ray<f64> + Sync),
+) -> Rendered {
+    let (w, h) = (width as usize, height as usize);
     let offsets = subpixel_offsets(spp);
     type Row = (Vec<[f32; 3]>, Vec<Option<usize>>);
     let rows: Vec<Row> = (0..h)
@@ -214,11 +232,11 @@ pub fn render(scene: &RenderScene, camera: &Camera<f64>, spp: usize) -> Rendered
             let mut rgb = Vec::with_capacity(w);
             let mut ids = Vec::with_capacity(w);
             for x in 0..w {
-                let centre = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
+                let centre = ray(x as f64 + 0.5, y as f64 + 0.5);
                 let id = trace(scene, &centre).and_then(|(_, i)| scene.objects[i].mask_id);
                 let mut acc = [0.0; 3];
                 for &(dx, dy) in &offsets {
-                    let (c, _) = shade(scene, &camera.ray(x as f64 + dx, y as f64 + dy));
+                    let (c, _) = shade(scene, &ray(x as f64 + dx, y as f64 + dy));
                     for k in 0..3 {
                         acc[k] += c[k];
                     }
@@ -237,8 +255,8 @@ pub fn render(scene: &RenderScene, camera: &Camera<f64>, spp: usize) -> Rendered
         ids.extend(i);
     }
     Rendered {
-        width: camera.width,
-        height: camera.height,
+        width,
+        height,
         rgb,
         ids,
     }

@@ -145,6 +145,7 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
         }
     }
     let mut markers: Vec<DetectedMarker> = found.into_iter().map(|(m, _)| m).collect();
+    let linear = matches!(s.refine, Refine::Edges).then(|| gray.to_linear());
     for m in &mut markers {
         let cell = side_mean(&m.corners) / (dictionary.marker_size + 2 * BORDER_BITS) as f64;
         match s.refine {
@@ -152,7 +153,9 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
             Refine::Edges => {
                 // The corners rotated back to clockwise-as-seen order are what the edge walk expects; the
                 // marker's order is a rotation of it, so the refined corners keep their places.
-                if let Some(refined) = edges::refine_by_edges(gray, &m.corners, cell, None) {
+                if let Some(refined) =
+                    edges::refine_by_edges(linear.as_ref().expect("made for Edges"), &m.corners, cell, None)
+                {
                     m.corners = refined;
                 }
             }
@@ -166,9 +169,10 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
 /// The markers' corners refined again knowing the lens: the edges undistorted before the lines are fitted
 /// (see [`edges::refine_by_edges`]). For the second pass of a calibration.
 pub fn refine_with_lens(gray: &Gray, markers: &mut [DetectedMarker], dictionary: &Dictionary, lens: &crate::Lens) {
+    let linear = gray.to_linear();
     for m in markers {
         let cell = side_mean(&m.corners) / (dictionary.marker_size + 2 * BORDER_BITS) as f64;
-        if let Some(refined) = edges::refine_by_edges(gray, &m.corners, cell, Some(lens)) {
+        if let Some(refined) = edges::refine_by_edges(&linear, &m.corners, cell, Some(lens)) {
             m.corners = refined;
         }
     }

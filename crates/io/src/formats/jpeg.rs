@@ -75,3 +75,27 @@ pub fn read_jpeg_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
     image.check().map_err(|m| err(path, m))?;
     Ok(image)
 }
+
+/// `image` (gray or RGB; RGBA loses its alpha) as a baseline JPEG file's bytes at `quality` (1–100).
+pub fn encode_jpeg(image: &Image, quality: u8) -> std::result::Result<Vec<u8>, String> {
+    image.check()?;
+    if image.width > u16::MAX as u32 || image.height > u16::MAX as u32 || image.width == 0 || image.height == 0 {
+        return Err(format!("a JPEG cannot be {}x{}", image.width, image.height));
+    }
+    let (data, color) = match image.channels {
+        1 => (image.data.clone(), jpeg_encoder::ColorType::Luma),
+        3 => (image.data.clone(), jpeg_encoder::ColorType::Rgb),
+        _ => (image.to_rgb().data, jpeg_encoder::ColorType::Rgb),
+    };
+    let mut out = Vec::new();
+    jpeg_encoder::Encoder::new(&mut out, quality.clamp(1, 100))
+        .encode(&data, image.width as u16, image.height as u16, color)
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
+/// Writes `image` as a JPEG at `quality` (1–100), atomically.
+pub fn write_jpeg(path: &Path, image: &Image, quality: u8) -> Result<()> {
+    let bytes = encode_jpeg(image, quality).map_err(|msg| err(path, format!("cannot encode: {msg}")))?;
+    crate::atomic::write_atomic(path, &bytes)
+}
