@@ -69,7 +69,7 @@ fn a_raw_render_is_seen_through_its_lens() {
             480,
             360,
         );
-        let r = synth::raw::render_raw(&[scene.clone()], &cam.world_to_cam, &lens, &raw, 16);
+        let r = synth::raw::render_raw(std::slice::from_ref(&scene), &cam.world_to_cam, &lens, &raw, 16);
         let mut rng = geom::SplitMix64::new(1);
         let img = synth::raw::develop(&r, [1.0; 3], 0.0, &mut rng);
         let gray = calib::gray::Gray::from_image(&img);
