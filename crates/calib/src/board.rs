@@ -289,9 +289,9 @@ impl Board {
             return false;
         }
         let n = self.dictionary.marker_size;
-        let cells = n + 2 * crate::draw::BORDER_BITS;
+        let cells = n + 2 * crate::dictionary::BORDER_BITS;
         let (col, row) = ((u / ml * cells as f64) as usize, (v / ml * cells as f64) as usize);
-        let b = crate::draw::BORDER_BITS;
+        let b = crate::dictionary::BORDER_BITS;
         if col < b || row < b || col >= cells - b || row >= cells - b {
             return true;
         }

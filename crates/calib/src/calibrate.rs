@@ -91,6 +91,9 @@ pub struct Calibration {
     pub rms: f64,
     /// Per view, whether each point was kept (false: an outlier).
     pub kept: Vec<Vec<bool>>,
+    /// Per view, the standard deviation of its camera's centre (metres) that its points' scatter leaves,
+    /// the lens taken as known: a board small in the view, or a few markers, leave it large.
+    pub centre_sigma: Vec<f64>,
 }
 
 /// Calibrates from `views` of a board in images of `size` (width, height).
@@ -148,13 +151,64 @@ pub fn calibrate(views: &[ViewPoints], size: (usize, usize), s: &CalibrationSett
         total += sum;
         count += n;
     }
+    let rms = (total / count.max(1) as f64).sqrt();
+    let centre_sigma = views
+        .iter()
+        .zip(&poses)
+        .zip(&kept)
+        .map(|((v, p), k)| centre_sigma(v, k, &lens, p, rms))
+        .collect();
     Ok(Calibration {
         lens,
         poses,
         view_rms,
-        rms: (total / count.max(1) as f64).sqrt(),
+        rms,
         kept,
+        centre_sigma,
     })
+}
+
+/// The standard deviation of a view's camera centre (the root of its covariance's trace), from the pose block
+/// of the normal equations with each image coordinate's error `rms / √2`.
+fn centre_sigma(v: &ViewPoints, kept: &[bool], lens: &Lens, pose: &BoardPose, rms: f64) -> f64 {
+    const L: usize = LENS_PARAMETERS;
+    let mut vv = vec![0.0; 36];
+    for ((b, i), &keep) in v.board.iter().zip(&v.image).zip(kept) {
+        if !keep {
+            continue;
+        }
+        for comp in &residual_with_jacobian(lens, pose, *b, *i) {
+            for a in 0..6 {
+                for c in 0..6 {
+                    vv[a * 6 + c] += comp.eps[L + a] * comp.eps[L + c];
+                }
+            }
+        }
+    }
+    let Some(inv) = spd_inverse(&vv, 6) else {
+        return f64::INFINITY;
+    };
+    let variance = (rms * rms / 2.0).max(1e-6);
+    // The centre c = -Rᵀ exp(-φ) (t + δt): dc/dφ = -Rᵀ [t]×, dc/dδt = -Rᵀ.
+    let t = pose.translation;
+    let cross = [[0.0, -t.z, t.y], [t.z, 0.0, -t.x], [-t.y, t.x, 0.0]];
+    let r = pose.rotation.conj().to_mat().m;
+    let mut j = [[0.0f64; 6]; 3];
+    for row in 0..3 {
+        for col in 0..3 {
+            j[row][col] = -(0..3).map(|k| r[row][k] * cross[k][col]).sum::<f64>();
+            j[row][3 + col] = -r[row][col];
+        }
+    }
+    let mut trace = 0.0;
+    for row in 0..3 {
+        for a in 0..6 {
+            for b in 0..6 {
+                trace += j[row][a] * inv[a * 6 + b] * j[row][b];
+            }
+        }
+    }
+    (variance * trace).max(0.0).sqrt()
 }
 
 /// The lens parameters solved for, by index.
@@ -622,6 +676,11 @@ mod tests {
         );
         assert!((c.lens.distortion[0] - t.distortion[0]).abs() < 0.01, "{:?}", c.lens);
         assert!(c.rms < 0.25, "rms {}", c.rms);
+        assert!(
+            c.centre_sigma.iter().all(|s| *s > 0.0 && *s < 0.002),
+            "{:?}",
+            c.centre_sigma
+        );
         for (p, q) in c.poses.iter().zip(&truth) {
             let centre = |p: &BoardPose| p.rotation.conj().rotate(-p.translation);
             assert!(

@@ -19,6 +19,9 @@ pub struct Dictionary {
     codes: &'static [u64],
 }
 
+/// Bits of black border around a marker's inner bits (OpenCV's default `borderBits`).
+pub const BORDER_BITS: usize = 1;
+
 static SOURCE: &str = include_str!("../data/dictionaries.txt");
 
 struct Tables {

@@ -10,8 +10,7 @@ use pganeus_io::Image;
 
 use crate::board::{Board, BoardKind};
 
-/// Bits of black border around a marker's inner bits (OpenCV's default `borderBits`).
-pub const BORDER_BITS: usize = 1;
+pub use crate::dictionary::BORDER_BITS;
 
 /// The board drawn into a `width` × `height` gray image with `margin` white pixels on every side, as
 /// `board.generateImage((width, height), marginSize=margin, borderBits=1)` in OpenCV; `None` where OpenCV

@@ -29,7 +29,7 @@ use crate::{note, Observer, Result, Task};
   pganeus calibrate more_photos --board board.toml --out captures2 --intrinsics captures/calibration.json")
 )]
 pub struct CalibrateArgs {
-    /// Folders of photos of a static scene or object (PNG/JPEG, any order): a capture each, OUT/<folder name>/.
+    /// Folders of photos of a static scene or object (PNG/JPEG, any order): a capture each, `OUT/<folder name>/`.
     pub dirs: Vec<PathBuf>,
     /// The board file (FORMATS.md "Boards").
     #[cfg_attr(feature = "clap", arg(long))]
@@ -65,6 +65,10 @@ pub struct CalibrateArgs {
     /// The fewest board markers a photo must show to be used.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 3))]
     pub min_markers: usize,
+    /// A photo is left out of its capture when its camera's centre is not known to within this (the standard
+    /// deviation the scatter of its board points leaves: too little of the board in view), mm.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 2.0))]
+    pub camera_tolerance_mm: f64,
 }
 
 impl CalibrateArgs {
@@ -82,6 +86,7 @@ impl CalibrateArgs {
             k3: false,
             fps: 30.0,
             min_markers: 3,
+            camera_tolerance_mm: 2.0,
         }
     }
 }
@@ -219,7 +224,7 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             observer,
         )?,
     };
-    let (views, owners, skipped) = views_of(
+    let (views, owners, mut skipped) = views_of(
         &folders,
         &seen,
         &|f: &Folder| !f.lens_only || lens.is_none(),
@@ -238,6 +243,34 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
     );
     if c.rms > 2.0 {
         fail!(Input, "{}: the board's corners are {:.1} px (rms) from where the board file puts them; check that marker_length, marker_separation or square_length, and the kind match the print", a.board.display(), c.rms);
+    }
+    // Photos whose camera the board leaves uncertain are left out of their captures.
+    let limit = a.camera_tolerance_mm / 1000.0;
+    let mut uncertain = vec![false; owners.len()];
+    for (vi, owner) in owners.iter().enumerate() {
+        let sigma = c.centre_sigma[vi];
+        match owner.1 {
+            Some(ii) if sigma > limit => {
+                let f = &folders[owner.0];
+                let reason = format!(
+                    "its camera is known only to ±{:.1} mm (--camera-tolerance-mm {}): too little of the board in view",
+                    1000.0 * sigma,
+                    a.camera_tolerance_mm
+                );
+                note(observer, format!("leaving out {}: {reason}", f.images[ii].display()));
+                skipped[owner.0].push((file_name(&f.images[ii]), reason));
+                uncertain[vi] = true;
+            }
+            None if sigma > limit => note(
+                observer,
+                format!(
+                    "{}: the video's camera is known only to ±{:.1} mm: more of the board in its view would pin it",
+                    folders[owner.0].dir.display(),
+                    1000.0 * sigma
+                ),
+            ),
+            _ => {}
+        }
     }
     let moved = video_motion(&folders, &seen, &owners, &c, a.min_markers);
     if let Some((name, frames)) = moved.iter().find(|(_, f)| !f.is_empty()) {
@@ -263,7 +296,7 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
         // Each image written: its source and its world-to-camera pose.
         let mut written: Vec<(usize, geom::Pose<f64>)> = Vec::new();
         for (vi, owner) in owners.iter().enumerate() {
-            if owner.0 != fi {
+            if owner.0 != fi || uncertain[vi] {
                 continue;
             }
             let BoardPose { rotation, translation } = c.poses[vi];
@@ -272,6 +305,9 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
                 Some(ii) => written.push((ii, pose)),
                 None => written.extend((0..f.images.len()).map(|ii| (ii, pose))),
             }
+        }
+        if written.is_empty() {
+            fail!(Input, "{}: no photo's camera is known to within {} mm (the board too small or too little of it in view): photograph the scene with more of the board in each view, or raise --camera-tolerance-mm", f.dir.display(), a.camera_tolerance_mm);
         }
         let (centre, radius) = capture_region(a, &written, &target, width, height, &f.name)?;
         let dir = staged.path().join(&f.name);
@@ -573,6 +609,9 @@ fn views_of(
             owners.push((fi, None));
             continue;
         }
+        if s.iter().all(|x| x.markers.len() < min_markers) {
+            fail!(Input, "{}: none of its {} photos shows {min_markers} markers of the board; a capture's cameras are found from the board it sees: keep the board in view, nearer or larger", f.dir.display(), s.len());
+        }
         for (ii, x) in s.iter().enumerate() {
             if x.markers.len() < min_markers {
                 let reason = format!("{} board markers seen, {min_markers} needed", x.markers.len());
@@ -709,7 +748,7 @@ fn capture_report(
         .filter(|(_, o)| o.0 == fi)
         .map(|(vi, o)| {
             let file = o.1.map(|ii| file_name(&f.images[ii])).unwrap_or_else(|| format!("{} frames pooled", f.images.len()));
-            json!({"source": file, "rms_px": c.view_rms[vi], "points": c.kept[vi].len(), "outliers": c.kept[vi].iter().filter(|k| !**k).count()})
+            json!({"source": file, "rms_px": c.view_rms[vi], "centre_sigma_mm": 1000.0 * c.centre_sigma[vi], "points": c.kept[vi].len(), "outliers": c.kept[vi].iter().filter(|k| !**k).count()})
         })
         .collect();
     json!({

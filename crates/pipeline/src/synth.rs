@@ -91,7 +91,7 @@ pub struct SynthArgs {
 pub enum RawBoardArg {
     /// 6 x 4 DICT_5X5_1000 markers of 40 mm.
     ArucoGrid,
-    /// 8 x 6 squares of 35 mm, DICT_6X6_250 markers of 26 mm.
+    /// 7 x 5 squares of 40 mm, DICT_4X4_50 markers of 30 mm.
     Charuco,
 }
 

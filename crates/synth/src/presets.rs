@@ -441,7 +441,7 @@ pub fn contact_scenes() -> Vec<SynthScene> {
 }
 
 /// `scene` as raw footage of a printed board of `kind` (`aruco_grid`: 6 × 4 `DICT_5X5_1000` markers of
-/// 40 mm, 290 × 190 mm; `charuco`: 8 × 6 squares of 35 mm with `DICT_6X6_250` markers of 26 mm, 280 × 210
+/// 40 mm, 290 × 190 mm; `charuco`: 7 × 5 squares of 40 mm with `DICT_4X4_50` markers of 30 mm, 280 × 200
 /// mm) lying at the board's centre, shot at three times the captures' size through a lens with distortion
 /// (the `[raw]` defaults), jittered from `seed`.
 pub fn with_raw(mut scene: SynthScene, kind: calib::BoardKind, seed: u64) -> SynthScene {
@@ -458,11 +458,11 @@ pub fn with_raw(mut scene: SynthScene, kind: calib::BoardKind, seed: u64) -> Syn
         },
         calib::BoardKind::Charuco => calib::BoardSpec {
             kind,
-            dictionary: "DICT_6X6_250".into(),
-            size: [8, 6],
-            marker_length: 0.026,
+            dictionary: "DICT_4X4_50".into(),
+            size: [7, 5],
+            marker_length: 0.03,
             marker_separation: None,
-            square_length: Some(0.035),
+            square_length: Some(0.04),
             legacy: false,
             first_id: 0,
         },

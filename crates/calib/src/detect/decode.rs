@@ -1,8 +1,8 @@
 //! Reading a candidate's bits: the marker's cells sampled through the homography of its corners, split into
 //! black and white by Otsu's threshold, the border checked, the inner bits identified in the dictionary.
 
+use crate::dictionary::BORDER_BITS;
 use crate::dictionary::{Dictionary, Identified};
-use crate::draw::BORDER_BITS;
 use crate::gray::Gray;
 use crate::homography::{apply, fit};
 

@@ -11,7 +11,7 @@ mod edges;
 mod quad;
 
 use crate::dictionary::Dictionary;
-use crate::draw::BORDER_BITS;
+use crate::dictionary::BORDER_BITS;
 use crate::gray::{Gray, Integral};
 use crate::subpix::{corner_subpix, SubpixSettings};
 pub use decode::DecodeSettings;
@@ -54,7 +54,7 @@ pub struct DetectorSettings {
 pub enum Refine {
     /// The corners where the lines of the outline's pixels meet (about half a pixel inside).
     None,
-    /// Lines through each side's subpixel edge, intersected ([`edges`]); the default, unbiased at a black
+    /// Lines through each side's subpixel edge (in linear light), intersected; the default, unbiased at a black
     /// square's corner.
     Edges,
     /// OpenCV's `CORNER_REFINE_SUBPIX` (for comparisons with OpenCV: about 0.3 px inside a marker's corner).
@@ -167,7 +167,7 @@ pub fn detect_markers(gray: &Gray, dictionary: &Dictionary, s: &DetectorSettings
 }
 
 /// The markers' corners refined again knowing the lens: the edges undistorted before the lines are fitted
-/// (see [`edges::refine_by_edges`]). For the second pass of a calibration.
+/// (a lens bends the sides, and lines through bent sides miss the corners). For the second pass of a calibration.
 pub fn refine_with_lens(gray: &Gray, markers: &mut [DetectedMarker], dictionary: &Dictionary, lens: &crate::Lens) {
     let linear = gray.to_linear();
     for m in markers {
