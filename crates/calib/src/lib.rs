@@ -5,6 +5,7 @@
 //! - [`draw`]: a board's image exactly as OpenCV draws it, and a true-size SVG to print.
 //! - [`detect`]: ArUco markers in an image (ids and subpixel corners); [`subpix`]: OpenCV's `cornerSubPix`.
 //! - [`charuco`]: a ChArUco board's chessboard corners between its detected markers.
+//! - [`colmap`]: COLMAP sparse models (text and binary) read into lenses and poses.
 //! - [`calibrate`]: the lens (OpenCV's model, [`lens`]) and each view's pose from a board seen in several views.
 //! - [`undistort`]: images through an ideal pinhole, at any size.
 //! - [`region`]: the region a capture's cameras look at (its `scale_mat`).
@@ -15,6 +16,7 @@ pub mod board;
 pub mod board_views;
 pub mod calibrate;
 pub mod charuco;
+pub mod colmap;
 pub mod detect;
 pub mod dictionary;
 pub mod draw;
