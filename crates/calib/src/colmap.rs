@@ -244,13 +244,18 @@ impl Bytes<'_> {
     }
 }
 
+/// A model file's bytes, the error naming it.
+fn read_file(path: &Path) -> Result<Vec<u8>, ColmapError> {
+    std::fs::read(path).map_err(|e| ColmapError {
+        path: path.to_path_buf(),
+        msg: e.to_string(),
+    })
+}
+
 fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
     let mut model = ColmapModel::default();
     let path = dir.join("cameras.bin");
-    let data = std::fs::read(&path).map_err(|e| ColmapError {
-        path: path.clone(),
-        msg: e.to_string(),
-    })?;
+    let data = read_file(&path)?;
     let mut b = Bytes {
         data: &data,
         at: 0,
@@ -282,10 +287,7 @@ fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
         );
     }
     let path = dir.join("images.bin");
-    let data = std::fs::read(&path).map_err(|e| ColmapError {
-        path: path.clone(),
-        msg: e.to_string(),
-    })?;
+    let data = read_file(&path)?;
     let mut b = Bytes {
         data: &data,
         at: 0,
