@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use geom::{Pose, Quat, Vec3};
 
 use crate::lens::Lens;
+use crate::reconstruction::{Reconstruction, RegisteredImage};
 
 /// One COLMAP camera: its size and lens (OpenCV's convention).
 #[derive(Clone, Debug, PartialEq)]
@@ -39,6 +40,36 @@ pub struct ColmapModel {
     pub images: Vec<ColmapImage>,
     /// Point id → position (world).
     pub points: BTreeMap<u64, Vec3<f64>>,
+}
+
+impl ColmapModel {
+    /// Its registered images and points (`dir`, the model's folder, names it in errors).
+    pub fn reconstruction(&self, dir: &Path) -> Result<Reconstruction, ColmapError> {
+        let images = self
+            .images
+            .iter()
+            .map(|i| {
+                let c = self.cameras.get(&i.camera_id).ok_or_else(|| ColmapError {
+                    path: dir.to_path_buf(),
+                    msg: format!(
+                        "image {} names camera {}, which the model does not have",
+                        i.name, i.camera_id
+                    ),
+                })?;
+                Ok(RegisteredImage {
+                    name: i.name.clone(),
+                    width: c.width,
+                    height: c.height,
+                    lens: c.lens,
+                    pose: i.pose,
+                })
+            })
+            .collect::<Result<_, ColmapError>>()?;
+        Ok(Reconstruction {
+            images,
+            points: self.points.values().copied().collect(),
+        })
+    }
 }
 
 /// Why a model could not be read: the file and what is wrong.

@@ -7,7 +7,7 @@ mod docs_check;
 
 use clap::{Parser, Subcommand};
 use commands::Bars;
-use pipeline::{board, calibrate, demo, eval, render, report_page, surfaces, synth, train};
+use pipeline::{board, calibrate, demo, eval, import, render, report_page, surfaces, synth, train};
 
 #[derive(Parser)]
 #[command(
@@ -28,6 +28,10 @@ enum Command {
     Board(board::BoardArgs),
     /// The lens and every camera from photos and videos of a printed board; NeuS captures in the board's metric world.
     Calibrate(calibrate::CalibrateArgs),
+    /// A NeuS capture from a COLMAP sparse model, put into the board's metric world (or the table's, with a scale).
+    ImportColmap(import::ImportColmapArgs),
+    /// A NeuS capture from a nerfstudio / instant-ngp transforms.json, put into the board's metric world.
+    ImportTransforms(import::ImportTransformsArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
@@ -86,6 +90,8 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Demo(a) => demo::run(&a, &demo::Library, &bars).map(|_| ())?,
         Command::Board(a) => board::run(&a, &bars).map(|_| ())?,
         Command::Calibrate(a) => calibrate::run(&a, &bars).map(|_| ())?,
+        Command::ImportColmap(a) => import::import_colmap(&a, &bars).map(|_| ())?,
+        Command::ImportTransforms(a) => import::import_transforms(&a, &bars).map(|_| ())?,
         Command::Synth(a) => synth::run(&a, &bars)?,
         Command::Train(a) => train::run(&a, &bars)?,
         Command::Render(a) => render::run(&a, &bars)?,

@@ -12,6 +12,7 @@ pub mod quat;
 pub mod real;
 pub mod rng;
 pub mod silhouette;
+pub mod similarity;
 pub mod trimesh;
 pub mod vec3;
 
@@ -23,5 +24,6 @@ pub use quat::{rotation_distance, Quat};
 pub use real::Real;
 pub use rng::SplitMix64;
 pub use silhouette::{coverage_iou, silhouette};
+pub use similarity::Similarity;
 pub use trimesh::{bounding_box, TriMesh};
 pub use vec3::{Mat3, Vec3};

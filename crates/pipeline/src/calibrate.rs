@@ -8,14 +8,15 @@ use calib::calibrate::{calibrate, BoardPose, Calibration, CalibrationSettings, V
 use calib::charuco::chessboard_corners;
 use calib::detect::{detect_markers, refine_with_lens, DetectedMarker, DetectorSettings};
 use calib::gray::Gray;
-use calib::region::{looked_at_region, Looking};
-use calib::undistort::{scaled_pinhole, undistort_image};
 use calib::{Board, Lens};
 use geom::Vec3;
-use pganeus_io::{CameraMats, CaptureInfo, CaptureKind};
+use pganeus_io::{CaptureInfo, CaptureKind};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
+use crate::capture_writer::{
+    capture_intrinsics, capture_pinhole, capture_region, capture_size, write_capture, SourceImage,
+};
 use crate::error::{err, fail, Context};
 use crate::{note, Observer, Result, Task};
 
@@ -101,12 +102,36 @@ struct Folder {
     images: Vec<PathBuf>,
 }
 
-/// What was found in one image.
-struct Seen {
-    points: ViewPoints,
-    markers: Vec<DetectedMarker>,
+/// What was found of the board in one image.
+pub(crate) struct Seen {
+    /// The board's points seen: marker corners, and (ChArUco) chessboard corners.
+    pub(crate) points: ViewPoints,
+    pub(crate) markers: Vec<DetectedMarker>,
     chess: Vec<calib::charuco::ChessCorner>,
+    /// Markers of the dictionary that are not on the board.
     foreign_ids: Vec<usize>,
+}
+
+impl Seen {
+    /// The board's markers (and chessboard corners) in an image.
+    pub(crate) fn find(gray: &Gray, board: &Board) -> Seen {
+        let markers = detect_markers(gray, board.dictionary, &DetectorSettings::default());
+        let (on_board, foreign): (Vec<DetectedMarker>, Vec<DetectedMarker>) =
+            markers.into_iter().partition(|m| board.marker(m.id).is_some());
+        let chess = chessboard_corners(gray, board, &on_board);
+        Seen {
+            points: ViewPoints::from_detections(board, &on_board, &chess),
+            markers: on_board,
+            chess,
+            foreign_ids: foreign.iter().map(|m| m.id).collect(),
+        }
+    }
+
+    /// The markers' corners found again from their edges, undistorted by `lens`.
+    pub(crate) fn refine(&mut self, gray: &Gray, board: &Board, lens: &Lens) {
+        refine_with_lens(gray, &mut self.markers, board.dictionary, lens);
+        self.points = ViewPoints::from_detections(board, &self.markers, &self.chess);
+    }
 }
 
 /// What `calibrate` found (also in `calibration.json`).
@@ -140,19 +165,9 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             .images
             .par_iter()
             .map(|path| {
-                let image = pganeus_io::read_image(path)?;
-                let gray = Gray::from_image(&image);
-                let markers = detect_markers(&gray, board.dictionary, &DetectorSettings::default());
-                let (on_board, foreign): (Vec<DetectedMarker>, Vec<DetectedMarker>) =
-                    markers.into_iter().partition(|m| board.marker(m.id).is_some());
-                let chess = chessboard_corners(&gray, &board, &on_board);
+                let gray = Gray::from_image(&pganeus_io::read_image(path)?);
                 task.inc(1);
-                Ok(Seen {
-                    points: ViewPoints::from_detections(&board, &on_board, &chess),
-                    markers: on_board,
-                    chess,
-                    foreign_ids: foreign.iter().map(|m| m.id).collect(),
-                })
+                Ok(Seen::find(&gray, &board))
             })
             .collect();
         seen.push(found.into_iter().collect::<Result<_>>()?);
@@ -278,13 +293,8 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
     }
 
     // The captures.
-    let width = a.width.unwrap_or(size.0 as u32);
-    if width < 16 || width as usize > 4 * size.0 {
-        fail!(Settings, "--width {width}: between 16 and {} pixels", 4 * size.0);
-    }
-    let scale = width as f64 / size.0 as f64;
-    let height = (size.1 as f64 * scale).round() as u32;
-    let target = scaled_pinhole(&Lens::pinhole(c.lens.fx, c.lens.fy, c.lens.cx, c.lens.cy), scale);
+    let (width, height, scale) = capture_size(size, a.width.unwrap_or(size.0 as u32))?;
+    let target = capture_pinhole(&c.lens, scale);
     let staged = pganeus_io::StagedDir::new(&a.out)?;
     let mut report_captures = Vec::new();
     let mut outcome_cameras = Vec::new();
@@ -309,47 +319,15 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
         if written.is_empty() {
             fail!(Input, "{}: no photo's camera is known to within {} mm (the board too small or too little of it in view): photograph the scene with more of the board in each view, or raise --camera-tolerance-mm", f.dir.display(), a.camera_tolerance_mm);
         }
-        let (centre, radius) = capture_region(a, &written, &target, width, height, &f.name)?;
-        let dir = staged.path().join(&f.name);
-        let digits = written.len().to_string().len().max(3);
-        let results: Vec<Result<()>> = written
-            .par_iter()
-            .enumerate()
-            .map(|(k, (ii, _))| {
-                let image = pganeus_io::read_image(&f.images[*ii])?;
-                let out = undistort_image(&image, &c.lens, &target, width, height);
-                pganeus_io::write_png(&dir.join("image").join(format!("{k:0digits$}.png")), &out)?;
-                writing.inc(1);
-                Ok(())
-            })
-            .collect();
-        results.into_iter().collect::<Result<()>>()?;
-        let capture_k = geom::Intrinsics {
-            fx: target.fx,
-            fy: target.fy,
-            cx: target.cx + 0.5,
-            cy: target.cy + 0.5,
-            skew: 0.0,
-        };
-        let mats: Vec<CameraMats> = written
+        let sources: Vec<SourceImage> = written
             .iter()
-            .map(|(_, pose)| CameraMats {
-                world_mat: geom::Camera {
-                    k: capture_k,
-                    world_to_cam: *pose,
-                    width,
-                    height,
-                }
-                .world_mat(),
-                scale_mat: [
-                    [radius, 0.0, 0.0, centre.x],
-                    [0.0, radius, 0.0, centre.y],
-                    [0.0, 0.0, radius, centre.z],
-                    [0.0, 0.0, 0.0, 1.0],
-                ],
+            .map(|(ii, pose)| SourceImage {
+                path: f.images[*ii].clone(),
+                lens: c.lens,
+                pose: *pose,
             })
             .collect();
-        pganeus_io::write_cameras_npz(&dir.join("cameras_sphere.npz"), &mats)?;
+        let region = capture_region(a.region.as_deref(), &sources, scale, (width, height), &f.name)?;
         let info = CaptureInfo {
             kind: if f.video {
                 CaptureKind::Video
@@ -360,7 +338,15 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             fps: f.video.then_some(a.fps),
             extra: Default::default(),
         };
-        pganeus_io::write_capture_info(&dir.join("capture.json"), &info)?;
+        write_capture(
+            &staged.path().join(&f.name),
+            &sources,
+            (width, height),
+            scale,
+            region,
+            &info,
+            &writing,
+        )?;
         report_captures.push(capture_report(
             f,
             &written,
@@ -368,7 +354,7 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             &owners,
             &c,
             fi,
-            (centre, radius),
+            region,
             a.region.is_some(),
         ));
         outcome_cameras.push((f.name.clone(), written.iter().map(|(_, p)| *p).collect()));
@@ -381,7 +367,7 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
         "lens_held": known_lens.is_some(),
         "rms_px": c.rms,
         "capture_size": [width, height],
-        "capture_K": [[capture_k_row(&target, 0)], [capture_k_row(&target, 1)], [[0.0, 0.0, 1.0]]],
+        "capture_K": capture_intrinsics(&target).matrix().m,
         "captures": report_captures,
         "conventions": "lens.K: OpenCV's (pixel centres at integers), raw images; capture_K and cameras_sphere.npz: the captures' (pixel centres at integer + 0.5), undistorted images. World: the board's (origin at the pattern's centre, x right, y toward the print's top, z out of the board), metres.",
     });
@@ -401,13 +387,6 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
         rms: c.rms,
         cameras: outcome_cameras,
     })
-}
-
-fn capture_k_row(t: &Lens, row: usize) -> [f64; 3] {
-    match row {
-        0 => [t.fx, 0.0, t.cx + 0.5],
-        _ => [0.0, t.fy, t.cy + 0.5],
-    }
 }
 
 fn lens_json(l: &Lens) -> Value {
@@ -565,8 +544,7 @@ fn refine_corners(
             .map(|(path, x)| {
                 if x.markers.len() >= min_markers {
                     let gray = Gray::from_image(&pganeus_io::read_image(path)?);
-                    refine_with_lens(&gray, &mut x.markers, board.dictionary, lens);
-                    x.points = ViewPoints::from_detections(board, &x.markers, &x.chess);
+                    x.refine(&gray, board, lens);
                 }
                 task.inc(1);
                 Ok(())
@@ -695,40 +673,6 @@ fn rms_under(points: &ViewPoints, lens: &Lens, pose: &BoardPose) -> f64 {
         })
         .sum();
     (sum / points.board.len().max(1) as f64).sqrt()
-}
-
-/// The ball of a capture's scale_mat: `--region`'s box, or the region its cameras look at.
-fn capture_region(
-    a: &CalibrateArgs,
-    written: &[(usize, geom::Pose<f64>)],
-    target: &Lens,
-    width: u32,
-    height: u32,
-    name: &str,
-) -> Result<(Vec3<f64>, f64)> {
-    if let Some(r) = &a.region {
-        let (lo, hi) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
-        if !(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z) {
-            fail!(
-                Settings,
-                "--region {r:?}: x0,y0,z0,x1,y1,z1 with each upper bound above its lower one"
-            );
-        }
-        return Ok(((lo + hi) * 0.5, (hi - lo).norm() * 0.5));
-    }
-    let half_fov_tan = (0.5 * width as f64 / target.fx).min(0.5 * height as f64 / target.fy);
-    let cameras: Vec<Looking> = written
-        .iter()
-        .map(|(_, pose)| {
-            let c2w = pose.inverse();
-            Looking {
-                centre: c2w.t,
-                forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
-                half_fov_tan,
-            }
-        })
-        .collect();
-    looked_at_region(&cameras).ok_or_else(|| err!(Input, "{name}: its cameras do not look at the board, so its region cannot be found: give --region x0,y0,z0,x1,y1,z1"))
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -6,6 +6,7 @@
 //! | --- | --- | --- |
 //! | a printable calibration board | [`board`] | — |
 //! | cameras, lens and NeuS captures from photos and videos of the board | [`calibrate`] | — |
+//! | NeuS captures from COLMAP models and `transforms.json`, in the board's metric world | [`import`] | — |
 //! | synthetic datasets with their truth | [`synth`] | — |
 //! | NeuS training of objects and scenes | [`train`] | Sec. 3.2, Eq. 1–2 |
 //! | views, depth and normals of a field; objects moving in their scene | [`render`], [`render_trajectory`] | Eq. 3–7 |
@@ -22,11 +23,13 @@
 pub mod board;
 pub mod calibrate;
 pub mod cameras;
+mod capture_writer;
 pub mod demo;
 mod error;
 pub mod eval;
 pub mod fit;
 pub mod images;
+pub mod import;
 mod objects;
 mod observer;
 pub mod render;
