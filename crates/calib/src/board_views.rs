@@ -2,7 +2,7 @@
 //! board on a grey table, each pixel the mean of a grid of samples over its area (the sensor integrates
 //! light), with noise.
 
-use crate::gray::Gray;
+use crate::gray::{linear_to_srgb, Gray};
 use crate::{Board, Lens};
 use geom::{Quat, SplitMix64, Vec3};
 
@@ -114,23 +114,13 @@ pub fn render(board: &Board, view: &View, size: (usize, usize), samples: usize, 
             }
             let gauss = (-2.0 * rng.next_f64().max(1e-12).ln()).sqrt() * (std::f64::consts::TAU * rng.next_f64()).cos();
             let linear = sum / (samples * samples) as f64;
-            data[y * w + x] = (255.0 * srgb(linear) + noise * gauss).clamp(0.0, 255.0) as f32;
+            data[y * w + x] = (255.0 * linear_to_srgb(linear) + noise * gauss).clamp(0.0, 255.0) as f32;
         }
     }
     Gray {
         width: w,
         height: h,
         data,
-    }
-}
-
-/// The sRGB encoding of a linear value in 0–1.
-fn srgb(v: f64) -> f64 {
-    let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
     }
 }
 

@@ -121,3 +121,27 @@ pub fn srgb_to_linear(v: f64) -> f64 {
         ((v + 0.055) / 1.055).powf(2.4)
     }
 }
+
+/// The sRGB transfer function: linear light (0–1) to the encoded value (0–1) a camera writes.
+pub fn linear_to_srgb(v: f64) -> f64 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn srgb_encoding_and_decoding_are_inverse() {
+        for i in 0..=1000 {
+            let v = i as f64 / 1000.0;
+            assert!(
+                (super::linear_to_srgb(super::srgb_to_linear(v)) - v).abs() < 1e-12,
+                "{v}"
+            );
+        }
+    }
+}

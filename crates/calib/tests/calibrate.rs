@@ -1,10 +1,13 @@
 //! Calibration from rendered views of a printed board through a lens with distortion: detection, then the
 //! lens and the poses against the truth.
 
+mod common;
+
 use calib::board_views::{render, View};
 use calib::calibrate::{calibrate, CalibrationSettings, ViewPoints};
 use calib::detect::{detect_markers, DetectorSettings};
 use calib::{Board, BoardSpec, Lens};
+use common::opencv_reference;
 use geom::Vec3;
 use std::path::Path;
 
@@ -168,21 +171,7 @@ fn at_least_as_accurate_as_opencvs_calibration_on_the_same_images() {
 
     let case = serde_json::json!({"images": paths, "board": {"kind": "aruco_grid", "dictionary": "DICT_5X5_1000", "size": [8, 6], "marker_length": 0.03, "marker_separation": 0.006, "first_id": 0}});
     std::fs::write(dir.join("case.json"), case.to_string()).unwrap();
-    let python = std::env::var("PGANEUS_OPENCV_PYTHON").unwrap_or_else(|_| "python3".into());
-    let out = std::process::Command::new(python)
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/opencv/reference.py"))
-        .args([
-            "calibrate",
-            &dir.join("case.json").to_string_lossy(),
-            &dir.join("opencv.json").to_string_lossy(),
-        ])
-        .output()
-        .expect("run Python; set PGANEUS_OPENCV_PYTHON to a Python with opencv-contrib-python-headless");
-    assert!(
-        out.status.success(),
-        "OpenCV's reference failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let version = opencv_reference("calibrate", &dir.join("case.json"), &dir.join("opencv.json"));
     let cv: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("opencv.json")).unwrap()).unwrap();
     let k = |r: usize, c: usize| cv["K"][r][c].as_f64().unwrap();
@@ -222,7 +211,7 @@ fn at_least_as_accurate_as_opencvs_calibration_on_the_same_images() {
     eprintln!(
         "OpenCV {}: rms {:.3} px, focal {:.3} %, principal point {cv_principal:.2} px, centres {:.2} / {:.2} mm, rotations {:.3} / {:.3} deg ({} views)\n\
          ours: rms {:.3} px, focal {:.3} %, principal point {principal:.2} px, centres {:.2} / {:.2} mm, rotations {:.3} / {:.3} deg ({} views)",
-        String::from_utf8_lossy(&out.stdout).trim(),
+        version,
         cv["rms"].as_f64().unwrap(),
         cv_focal * 100.0,
         cv_centres[0] * 1000.0,

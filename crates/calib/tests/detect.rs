@@ -1,9 +1,12 @@
 //! Markers found in rendered views of a board: every fully visible marker, no other id, corners near the
 //! truth.
 
+mod common;
+
 use calib::board_views::{render, View};
 use calib::detect::{detect_markers, DetectorSettings};
 use calib::{Board, BoardSpec};
+use common::opencv_reference;
 use std::path::Path;
 
 fn board(text: &str) -> Board {
@@ -97,23 +100,9 @@ fn every_visible_marker_of_a_charuco_board_is_found() {
 /// OpenCV's detections of the images `cases` lists (`[{"image", "dictionary"}]`), by `tests/opencv/reference.py`.
 fn opencv_detections(dir: &Path, cases: &serde_json::Value) -> (serde_json::Value, String) {
     std::fs::write(dir.join("cases.json"), cases.to_string()).unwrap();
-    let python = std::env::var("PGANEUS_OPENCV_PYTHON").unwrap_or_else(|_| "python3".into());
-    let out = std::process::Command::new(python)
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/opencv/reference.py"))
-        .args([
-            "detect",
-            &dir.join("cases.json").to_string_lossy(),
-            &dir.join("opencv.json").to_string_lossy(),
-        ])
-        .output()
-        .expect("run Python; set PGANEUS_OPENCV_PYTHON to a Python with opencv-contrib-python-headless");
-    assert!(
-        out.status.success(),
-        "OpenCV's reference failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let version = opencv_reference("detect", &dir.join("cases.json"), &dir.join("opencv.json"));
     let json = serde_json::from_str(&std::fs::read_to_string(dir.join("opencv.json")).unwrap()).unwrap();
-    (json, String::from_utf8_lossy(&out.stdout).trim().to_string())
+    (json, version)
 }
 
 #[test]

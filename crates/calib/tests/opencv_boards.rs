@@ -4,8 +4,11 @@
 //! `tests/opencv/reference.py boards`); the slow one asks OpenCV itself for many more boards (the Python of
 //! `PGANEUS_OPENCV_PYTHON`, else `python3`, with opencv-contrib-python-headless, as `.ci/run` installs it).
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+use common::opencv_reference;
 
 use calib::board::{Board, BoardKind, BoardSpec};
 use calib::draw::board_image;
@@ -85,11 +88,6 @@ fn boards_equal_the_images_opencv_drew() {
     assert_eq!((drawn, refused), (5, 1));
 }
 
-/// The Python with OpenCV the slow tests use.
-pub fn opencv_python() -> String {
-    std::env::var("PGANEUS_OPENCV_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
 #[test]
 #[ignore = "slow: asks OpenCV (Python) to draw 60 boards (a second: slow only for needing Python and OpenCV)"]
 fn boards_equal_opencvs_for_many_specs() {
@@ -143,25 +141,9 @@ fn boards_equal_opencvs_for_many_specs() {
     }
     let dir = testkit::scratch_dir("calib", "opencv_boards");
     std::fs::write(dir.join("cases.json"), serde_json::to_string(&cases).unwrap()).unwrap();
-    let out = Command::new(opencv_python())
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/opencv/reference.py"))
-        .args([
-            "boards",
-            &dir.join("cases.json").to_string_lossy(),
-            &dir.to_string_lossy(),
-        ])
-        .output()
-        .expect("run Python; set PGANEUS_OPENCV_PYTHON to a Python with opencv-contrib-python-headless");
-    assert!(
-        out.status.success(),
-        "OpenCV's reference failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let version = opencv_reference("boards", &dir.join("cases.json"), &dir);
     let (drawn, refused) = compare_with(&cases, &dir);
-    eprintln!(
-        "OpenCV {}: {drawn} boards equal, {refused} refused by both",
-        String::from_utf8_lossy(&out.stdout).trim()
-    );
+    eprintln!("OpenCV {version}: {drawn} boards equal, {refused} refused by both");
     assert!(
         drawn >= 35 && drawn + refused == cases.len(),
         "only {drawn} of {} cases drawn",

@@ -92,18 +92,7 @@ fn a_synth_raw_session_calibrates_to_its_truth() {
             serde_json::from_str(&std::fs::read_to_string(root.join("out/calibration.json")).unwrap()).unwrap();
         let (mut worst_centre, mut worst_angle) = (0.0f64, 0.0f64);
         for (name, cameras) in &outcome.cameras {
-            let truth_capture = pganeus_io::open_capture(&root.join("data").join(name)).unwrap();
-            let files: Vec<String> = truth["captures"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .find(|c| c["name"] == name.as_str())
-                .unwrap()["files"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|f| f.as_str().unwrap().to_string())
-                .collect();
+            let truth = truth_cameras(&root.join("data"), name);
             let written = report["captures"]
                 .as_array()
                 .unwrap()
@@ -114,15 +103,9 @@ fn a_synth_raw_session_calibrates_to_its_truth() {
                 .unwrap()
                 .clone();
             for (pose, file) in cameras.iter().zip(&written) {
-                let i = files.iter().position(|f| f == file.as_str().unwrap()).unwrap();
-                let t = geom::Camera::from_world_mat(
-                    &truth_capture.cameras[i].world_mat,
-                    truth_capture.width,
-                    truth_capture.height,
-                )
-                .unwrap();
-                worst_centre = worst_centre.max((pose.inverse().t - t.center()).norm());
-                worst_angle = worst_angle.max(geom::rotation_distance(pose.q, t.world_to_cam.q).to_degrees());
+                let t = &truth.iter().find(|(f, _)| f == file.as_str().unwrap()).unwrap().1;
+                worst_centre = worst_centre.max((pose.inverse().t - t.inverse().t).norm());
+                worst_angle = worst_angle.max(geom::rotation_distance(pose.q, t.q).to_degrees());
             }
         }
         eprintln!(
