@@ -264,14 +264,20 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
     let mut uncertain = vec![false; owners.len()];
     for (vi, owner) in owners.iter().enumerate() {
         let sigma = c.centre_sigma[vi];
+        // A camera under the table's printed face cannot have seen it: the pose is wrong, whatever its error.
+        let behind = !calib::calibrate::sees_printed_face(&c.poses[vi]);
         match owner.1 {
-            Some(ii) if sigma > limit => {
+            Some(ii) if sigma > limit || behind => {
                 let f = &folders[owner.0];
-                let reason = format!(
-                    "its camera is known only to ±{:.1} mm (--camera-tolerance-mm {}): too little of the board in view",
-                    1000.0 * sigma,
-                    a.camera_tolerance_mm
-                );
+                let reason = if behind {
+                    "its camera comes out under the board, which no photo of its printed face can be: too little of the board in view to fix the pose".to_string()
+                } else {
+                    format!(
+                        "its camera is known only to ±{:.1} mm (--camera-tolerance-mm {}): too little of the board in view",
+                        1000.0 * sigma,
+                        a.camera_tolerance_mm
+                    )
+                };
                 note(observer, format!("leaving out {}: {reason}", f.images[ii].display()));
                 skipped[owner.0].push((file_name(&f.images[ii]), reason));
                 uncertain[vi] = true;

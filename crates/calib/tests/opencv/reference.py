@@ -79,14 +79,24 @@ def calibrate(case_path, out_path):
     board = board_of(case["board"])
     params = aruco.DetectorParameters()
     params.cornerRefinementMethod = aruco.CORNER_REFINE_SUBPIX
-    detector = aruco.ArucoDetector(board.getDictionary(), params)
+    charuco = case["board"]["kind"] == "charuco"
+    if charuco:
+        # A ChArUco board as OpenCV's users calibrate it: the chessboard corners between the markers.
+        detector = aruco.CharucoDetector(board, aruco.CharucoParameters(), params)
+    else:
+        detector = aruco.ArucoDetector(board.getDictionary(), params)
     object_points, image_points, used = [], [], []
     size = None
     for path in case["images"]:
         gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
         size = (gray.shape[1], gray.shape[0])
-        corners, ids, _ = detector.detectMarkers(gray)
-        if ids is None or len(ids) < 3:
+        if charuco:
+            corners, ids, _, _ = detector.detectBoard(gray)
+            enough = ids is not None and len(ids) >= 6
+        else:
+            corners, ids, _ = detector.detectMarkers(gray)
+            enough = ids is not None and len(ids) >= 3
+        if not enough:
             used.append(False)
             continue
         obj, img = board.matchImagePoints(corners, ids)
