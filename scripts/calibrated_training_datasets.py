@@ -7,7 +7,8 @@ For the background and toy_a, on the photos calibrate kept, writes three dataset
   OUT/truth_cameras     the raw JPEGs undistorted with the true lens to the truth capture's pinhole, the
                         truth's cameras, region and masks;
   OUT/calibrated        calibrate's images and cameras, synth's region, the truth's masks;
-  OUT/calibrated_region calibrate's images, cameras and region, the truth's masks.
+  OUT/calibrated_region calibrate's images, cameras and region, the truth's masks;
+  OUT/truth_renders     synth's clean renders of the same views with the truth's cameras, region and masks.
 Needs numpy and OpenCV (opencv-contrib-python-headless, as .ci/run installs).
 """
 
@@ -33,7 +34,7 @@ def main() -> None:
     report = json.load(open(f"{calibrated}/calibration.json"))
     lens_k = np.array(truth["lens"]["K"])
     lens_d = np.array(truth["lens"]["distortion"])
-    for kind in ["truth_cameras", "calibrated", "calibrated_region"]:
+    for kind in ["truth_cameras", "calibrated", "calibrated_region", "truth_renders"]:
         d = f"{out}/{kind}"
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
@@ -62,6 +63,10 @@ def main() -> None:
                     m1, m2 = cv2.initUndistortRectifyMap(lens_k, lens_d, None, target, (w, h), cv2.CV_32FC1)
                     small = cv2.resize(cv2.remap(raw, m1, m2, cv2.INTER_LINEAR), (w // 3, h // 3), interpolation=cv2.INTER_AREA)
                     cv2.imwrite(f"{cd}/image/{k:03d}.png", small)
+                    mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
+                elif kind == "truth_renders":
+                    renders = sorted(os.listdir(f"{session}/{name}/image"))
+                    shutil.copy(f"{session}/{name}/image/{renders[i]}", f"{cd}/image/{k:03d}.png")
                     mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
                 else:
                     shutil.copy(f"{calibrated}/{name}/image/{cal_images[k]}", f"{cd}/image/{k:03d}.png")
