@@ -70,6 +70,8 @@ impl TrainArgs {
     }
 }
 
+/// `--kind`'s parser (the flag exists with the clap feature only).
+#[cfg(feature = "clap")]
 fn parse_kind(s: &str) -> Result<CaptureSubject, String> {
     match s {
         "object" => Ok(CaptureSubject::Object),
