@@ -148,25 +148,7 @@ fn triangulate(rec: &Reconstruction, obs: &[Sighting]) -> Option<Vec3<f64>> {
     if widest > MIN_RAY_ANGLE_DEG.to_radians().cos() {
         return None;
     }
-    // Σ (I - d dᵀ) p = Σ (I - d dᵀ) c
-    let mut a = [[0.0; 3]; 3];
-    let mut b = [0.0; 3];
-    for (c, d) in &rays {
-        let (c, d) = (c.to_array(), d.to_array());
-        for i in 0..3 {
-            for j in 0..3 {
-                let m = if i == j { 1.0 } else { 0.0 } - d[i] * d[j];
-                a[i][j] += m;
-                b[i] += m * c[j];
-            }
-        }
-    }
-    let inv = crate::homography::invert3(&a)?;
-    let p = Vec3::new(
-        inv[0][0] * b[0] + inv[0][1] * b[1] + inv[0][2] * b[2],
-        inv[1][0] * b[0] + inv[1][1] * b[1] + inv[1][2] * b[2],
-        inv[2][0] * b[0] + inv[2][1] * b[1] + inv[2][2] * b[2],
-    );
+    let (p, _) = crate::region::nearest_point_to_lines(&rays)?;
     rays.iter().all(|(c, d)| (p - *c).dot(*d) > 0.0).then_some(p)
 }
 
@@ -301,15 +283,6 @@ mod tests {
     use crate::reconstruction::RegisteredImage;
     use geom::Pose;
 
-    fn camera_at(centre: Vec3<f64>, target: Vec3<f64>) -> Pose<f64> {
-        let f = (target - centre) * (1.0 / (target - centre).norm());
-        let x = f.cross(Vec3::new(0.0, 0.0, 1.0));
-        let x = x * (1.0 / x.norm());
-        let y = f.cross(x);
-        let r = Quat::from_mat(&geom::Mat3::from_rows([x.to_array(), y.to_array(), f.to_array()])).unit();
-        Pose::new(r, r.rotate(centre) * -1.0)
-    }
-
     /// A board seen by cameras in a world moved by a known similarity: aligning gives that similarity's
     /// inverse back, and a table of points gives its plane.
     #[test]
@@ -335,7 +308,9 @@ mod tests {
         let truth: Vec<Pose<f64>> = (0..5)
             .map(|i| {
                 let a = i as f64 * 1.2;
-                camera_at(Vec3::new(0.4 * a.cos(), 0.4 * a.sin(), 0.35), Vec3::new(0.0, 0.0, 0.0))
+                let eye = Vec3::new(0.4 * a.cos(), 0.4 * a.sin(), 0.35);
+                let k = geom::Intrinsics::centred(600.0, 640, 480);
+                geom::Camera::look_at(eye, Vec3::zero(), Vec3::new(0.0, 0.0, 1.0), k, 640, 480).world_to_cam
             })
             .collect();
         let secret = Similarity {

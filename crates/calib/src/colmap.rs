@@ -49,12 +49,14 @@ impl ColmapModel {
             .images
             .iter()
             .map(|i| {
-                let c = self.cameras.get(&i.camera_id).ok_or_else(|| ColmapError {
-                    path: dir.to_path_buf(),
-                    msg: format!(
-                        "image {} names camera {}, which the model does not have",
-                        i.name, i.camera_id
-                    ),
+                let c = self.cameras.get(&i.camera_id).ok_or_else(|| {
+                    error(
+                        dir,
+                        format!(
+                            "image {} names camera {}, which the model does not have",
+                            i.name, i.camera_id
+                        ),
+                    )
                 })?;
                 Ok(RegisteredImage {
                     name: i.name.clone(),
@@ -80,11 +82,15 @@ pub struct ColmapError {
     pub msg: String,
 }
 
-fn fail<T>(path: &Path, msg: impl Into<String>) -> Result<T, ColmapError> {
-    Err(ColmapError {
+fn error(path: &Path, msg: impl Into<String>) -> ColmapError {
+    ColmapError {
         path: path.to_path_buf(),
         msg: msg.into(),
-    })
+    }
+}
+
+fn fail<T>(path: &Path, msg: impl Into<String>) -> Result<T, ColmapError> {
+    Err(error(path, msg))
 }
 
 /// The lens of a COLMAP camera model and its parameters; `None` for models the OpenCV lens cannot hold.
@@ -109,6 +115,9 @@ fn lens_of(model: &str, p: &[f64]) -> Option<Lens> {
         distortion: d,
     })
 }
+
+/// What a model with another camera can do.
+const READ_MODELS: &str = "pganeus reads SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV and FULL_OPENCV without k4-k6 (re-run COLMAP's image_undistorter, or pick one of those)";
 
 const MODELS: [(&str, usize); 11] = [
     ("SIMPLE_PINHOLE", 3),
@@ -141,10 +150,7 @@ pub fn read_model(dir: &Path) -> Result<ColmapModel, ColmapError> {
 fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
     let mut model = ColmapModel::default();
     let path = dir.join("cameras.txt");
-    let text = std::fs::read_to_string(&path).map_err(|e| ColmapError {
-        path: path.clone(),
-        msg: e.to_string(),
-    })?;
+    let text = std::fs::read_to_string(&path).map_err(|e| error(&path, e.to_string()))?;
     for (n, line) in text
         .lines()
         .enumerate()
@@ -156,15 +162,20 @@ fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
             at("CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]".into())?;
         }
         let num = |s: &str| {
-            s.parse::<f64>().map_err(|_| ColmapError {
-                path: path.clone(),
-                msg: format!("line {}: `{s}` is not a number", n + 1),
-            })
+            s.parse::<f64>()
+                .map_err(|_| error(&path, format!("line {}: `{s}` is not a number", n + 1)))
         };
         let params: Vec<f64> = w[4..].iter().map(|s| num(s)).collect::<Result<_, _>>()?;
-        let lens = lens_of(w[1], &params).ok_or_else(|| ColmapError {
-            path: path.clone(),
-            msg: format!("line {}: camera model {} with {} parameters: pganeus reads SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL and OPENCV (re-run COLMAP's undistorter, or pick one of those)", n + 1, w[1], params.len()),
+        let lens = lens_of(w[1], &params).ok_or_else(|| {
+            error(
+                &path,
+                format!(
+                    "line {}: camera model {} with {} parameters: {READ_MODELS}",
+                    n + 1,
+                    w[1],
+                    params.len()
+                ),
+            )
         })?;
         let id = num(w[0])? as u32;
         model.cameras.insert(
@@ -178,10 +189,7 @@ fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
         );
     }
     let path = dir.join("images.txt");
-    let text = std::fs::read_to_string(&path).map_err(|e| ColmapError {
-        path: path.clone(),
-        msg: e.to_string(),
-    })?;
+    let text = std::fs::read_to_string(&path).map_err(|e| error(&path, e.to_string()))?;
     let lines: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
     let mut i = 0;
     while i < lines.len() {
@@ -198,10 +206,8 @@ fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
             );
         }
         let num = |s: &str| {
-            s.parse::<f64>().map_err(|_| ColmapError {
-                path: path.clone(),
-                msg: format!("`{s}` is not a number"),
-            })
+            s.parse::<f64>()
+                .map_err(|_| error(&path, format!("`{s}` is not a number")))
         };
         let q = Quat::new(num(w[1])?, num(w[2])?, num(w[3])?, num(w[4])?).unit();
         let t = Vec3::new(num(w[5])?, num(w[6])?, num(w[7])?);
@@ -244,7 +250,11 @@ struct Bytes<'a> {
     path: &'a Path,
 }
 
-impl Bytes<'_> {
+impl<'a> Bytes<'a> {
+    fn new(data: &'a [u8], path: &'a Path) -> Self {
+        Bytes { data, at: 0, path }
+    }
+
     fn take(&mut self, n: usize) -> Result<&[u8], ColmapError> {
         if self.at + n > self.data.len() {
             return fail(self.path, format!("truncated at byte {}", self.at));
@@ -277,36 +287,24 @@ impl Bytes<'_> {
 
 /// A model file's bytes, the error naming it.
 fn read_file(path: &Path) -> Result<Vec<u8>, ColmapError> {
-    std::fs::read(path).map_err(|e| ColmapError {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })
+    std::fs::read(path).map_err(|e| error(path, e.to_string()))
 }
 
 fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
     let mut model = ColmapModel::default();
     let path = dir.join("cameras.bin");
     let data = read_file(&path)?;
-    let mut b = Bytes {
-        data: &data,
-        at: 0,
-        path: &path,
-    };
+    let mut b = Bytes::new(&data, &path);
     for _ in 0..b.u64()? {
         let id = b.u32()?;
         let model_id = b.i32()?;
-        let (name, n) = *MODELS.get(model_id as usize).ok_or_else(|| ColmapError {
-            path: path.clone(),
-            msg: format!("unknown camera model id {model_id}"),
-        })?;
+        let (name, n) = *MODELS
+            .get(model_id as usize)
+            .ok_or_else(|| error(&path, format!("unknown camera model id {model_id}")))?;
         let (width, height) = (b.u64()? as u32, b.u64()? as u32);
         let params: Vec<f64> = (0..n).map(|_| b.f64()).collect::<Result<_, _>>()?;
-        let lens = lens_of(name, &params).ok_or_else(|| ColmapError {
-            path: path.clone(),
-            msg: format!(
-                "camera {id}: model {name}: pganeus reads SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL and OPENCV"
-            ),
-        })?;
+        let lens =
+            lens_of(name, &params).ok_or_else(|| error(&path, format!("camera {id}: model {name}: {READ_MODELS}")))?;
         model.cameras.insert(
             id,
             ColmapCamera {
@@ -319,11 +317,7 @@ fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
     }
     let path = dir.join("images.bin");
     let data = read_file(&path)?;
-    let mut b = Bytes {
-        data: &data,
-        at: 0,
-        path: &path,
-    };
+    let mut b = Bytes::new(&data, &path);
     for _ in 0..b.u64()? {
         let _id = b.u32()?;
         let q = Quat::new(b.f64()?, b.f64()?, b.f64()?, b.f64()?).unit();
@@ -344,11 +338,7 @@ fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
     }
     let path = dir.join("points3D.bin");
     if let Ok(data) = std::fs::read(&path) {
-        let mut b = Bytes {
-            data: &data,
-            at: 0,
-            path: &path,
-        };
+        let mut b = Bytes::new(&data, &path);
         for _ in 0..b.u64()? {
             let id = b.u64()?;
             let p = Vec3::new(b.f64()?, b.f64()?, b.f64()?);
@@ -368,8 +358,7 @@ mod tests {
 
     #[test]
     fn a_text_model_is_read_with_opencvs_pixel_centres() {
-        let dir = std::env::temp_dir().join(format!("pganeus-colmap-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = testkit::scratch_dir("calib", "colmap_text");
         std::fs::write(dir.join("cameras.txt"), "# Camera list\n1 OPENCV 640 480 500 502 320.5 240.5 -0.1 0.01 0.001 0.0005\n2 SIMPLE_RADIAL 640 480 510 320 240 -0.05\n").unwrap();
         std::fs::write(dir.join("images.txt"), "# Image list\n1 1 0 0 0 0.1 0.2 0.3 1 a.jpg\n100.5 200.5 7 50 60 -1\n2 0.7071068 0.7071068 0 0 0 0 1 2 b c.jpg\n\n").unwrap();
         std::fs::write(dir.join("points3D.txt"), "7 0.1 0.2 0.3 255 0 0 0.5 1 0\n").unwrap();

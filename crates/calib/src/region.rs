@@ -15,18 +15,25 @@ pub struct Looking {
     pub half_fov_tan: f64,
 }
 
-/// The ball (centre, radius) the cameras look at; `None` when the axes are parallel (one camera, or a
-/// video) and none meets the board: then the region must be given.
-pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
-    if cameras.is_empty() {
-        return None;
+impl Looking {
+    /// The camera of a world-to-camera pose (OpenCV's axes: it looks along its +z).
+    pub fn from_pose(world_to_cam: &geom::Pose<f64>, half_fov_tan: f64) -> Looking {
+        let c2w = world_to_cam.inverse();
+        Looking {
+            centre: c2w.t,
+            forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
+            half_fov_tan,
+        }
     }
-    // Σ (I - d dᵀ) p = Σ (I - d dᵀ) c
+}
+
+/// The point nearest a set of lines (each an origin and a unit direction) in least squares,
+/// `Σ (I − d dᵀ) p = Σ (I − d dᵀ) c`, with that system's matrix; `None` when it is singular.
+pub fn nearest_point_to_lines(lines: &[(Vec3<f64>, Vec3<f64>)]) -> Option<(Vec3<f64>, [[f64; 3]; 3])> {
     let mut a = [[0.0f64; 3]; 3];
     let mut b = [0.0f64; 3];
-    for cam in cameras {
-        let d = cam.forward.to_array();
-        let c = cam.centre.to_array();
+    for (c, d) in lines {
+        let (c, d) = (c.to_array(), d.to_array());
         for i in 0..3 {
             for j in 0..3 {
                 let m = if i == j { 1.0 } else { 0.0 } - d[i] * d[j];
@@ -35,12 +42,24 @@ pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
             }
         }
     }
-    let centre = match crate::homography::invert3(&a) {
-        Some(inv) if cameras.len() > 1 && condition_ok(&a) => Vec3::new(
-            (0..3).map(|j| inv[0][j] * b[j]).sum(),
-            (0..3).map(|j| inv[1][j] * b[j]).sum(),
-            (0..3).map(|j| inv[2][j] * b[j]).sum(),
-        ),
+    let inv = crate::homography::invert3(&a)?;
+    let p = Vec3::new(
+        (0..3).map(|j| inv[0][j] * b[j]).sum(),
+        (0..3).map(|j| inv[1][j] * b[j]).sum(),
+        (0..3).map(|j| inv[2][j] * b[j]).sum(),
+    );
+    Some((p, a))
+}
+
+/// The ball (centre, radius) the cameras look at; `None` when the axes are parallel (one camera, or a
+/// video) and none meets the board: then the region must be given.
+pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
+    if cameras.is_empty() {
+        return None;
+    }
+    let axes: Vec<(Vec3<f64>, Vec3<f64>)> = cameras.iter().map(|c| (c.centre, c.forward)).collect();
+    let centre = match nearest_point_to_lines(&axes) {
+        Some((p, a)) if cameras.len() > 1 && condition_ok(&a) => p,
         _ => {
             // One camera (or parallel axes): where the mean axis meets the board.
             let n = cameras.len() as f64;

@@ -181,8 +181,7 @@ mod tests {
 
     #[test]
     fn a_file_is_read_with_half_pixel_centres_and_refused_for_fisheye() {
-        let dir = std::env::temp_dir().join(format!("pganeus-transforms-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = testkit::scratch_dir("calib", "transforms");
         let path = dir.join("transforms.json");
         std::fs::write(&path, r#"{"camera_model": "OPENCV", "fl_x": 500, "fl_y": 502, "cx": 320.5, "cy": 240, "w": 640, "h": 480, "k1": -0.1, "p2": 0.001,
             "frames": [{"file_path": "images/a.png", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,2],[0,0,0,1]]},

@@ -71,12 +71,10 @@ pub fn capture_region(
         .iter()
         .map(|i| {
             let target = capture_pinhole(&i.lens, scale);
-            let c2w = i.pose.inverse();
-            Looking {
-                centre: c2w.t,
-                forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
-                half_fov_tan: (0.5 * size.0 as f64 / target.fx).min(0.5 * size.1 as f64 / target.fy),
-            }
+            Looking::from_pose(
+                &i.pose,
+                (0.5 * size.0 as f64 / target.fx).min(0.5 * size.1 as f64 / target.fy),
+            )
         })
         .collect();
     looked_at_region(&cameras).ok_or_else(|| err!(Input, "{name}: its cameras do not look at the board, so its region cannot be found: give --region x0,y0,z0,x1,y1,z1"))

@@ -396,14 +396,7 @@ fn plane_alignment(
     let looking: Vec<Looking> = rec
         .images
         .iter()
-        .map(|i| {
-            let c2w = i.pose.inverse();
-            Looking {
-                centre: c2w.t,
-                forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
-                half_fov_tan: 0.5 * i.width as f64 / i.lens.fx,
-            }
-        })
+        .map(|i| Looking::from_pose(&i.pose, 0.5 * i.width as f64 / i.lens.fx))
         .collect();
     let centre = looked_at_region(&looking)
         .map(|r| r.0)
