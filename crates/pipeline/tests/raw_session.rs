@@ -194,6 +194,26 @@ fn colmaps_model_of_a_raw_session_imports_to_the_true_cameras() {
     );
     eprintln!("pycolmap: {}", report.trim());
 
+    // The model as COLMAP wrote it (binary) holds the lens it was given in its own pixel convention: read
+    // back, it is the true lens in OpenCV's (the half pixel) to the digits COLMAP keeps.
+    let model = calib::colmap::read_model(&root.join("colmap/sparse/0")).unwrap();
+    assert_eq!(model.cameras.len(), 1, "one camera for every photo");
+    let read = model.cameras.values().next().unwrap().lens;
+    let (fx, fy, cx, cy) = (k(0, 0), k(1, 1), k(0, 2), k(1, 2));
+    for (found, truth) in [(read.fx, fx), (read.fy, fy), (read.cx, cx), (read.cy, cy)] {
+        assert!(
+            (found - truth).abs() < 1e-6,
+            "COLMAP's lens read as {read:?}; the truth fx {fx} fy {fy} cx {cx} cy {cy}"
+        );
+    }
+    for (found, truth) in read.distortion[..4].iter().zip(&d) {
+        assert!(
+            (found - truth).abs() < 1e-9,
+            "distortion {:?} against {d:?}",
+            read.distortion
+        );
+    }
+
     let mut import = ImportArgs::new(root.join("imported"));
     import.board = Some(data.join("raw/board.toml"));
     import.width = Some(160);
