@@ -1,8 +1,10 @@
 //! The region a capture's cameras look at, which becomes its `scale_mat` (the field's unit sphere).
 //!
-//! The rule: the centre is the point nearest every camera's optical axis (least squares), not below the
-//! board; the radius is what the cameras frame there, the median over cameras of their distance to the
-//! centre times the tangent of half their narrower field of view.
+//! Two rules. An object's ([`looked_at_region`]): the centre is the point nearest every camera's optical
+//! axis (least squares), not below the board; the radius is what the cameras frame there, the median over
+//! cameras of their distance to the centre times the tangent of half their narrower field of view. A
+//! scene's ([`seen_table_region`]): the part of the board's plane that at least half of the cameras see,
+//! where the bodies will move, not only the spot the cameras aim at.
 
 use geom::Vec3;
 
@@ -24,6 +26,12 @@ impl Looking {
             forward: c2w.transform_vector(Vec3::new(0.0, 0.0, 1.0)),
             half_fov_tan,
         }
+    }
+
+    /// A camera with its intrinsics and image size.
+    pub fn from_camera(camera: &geom::Camera<f64>) -> Looking {
+        let tan = (0.5 * camera.width as f64 / camera.k.fx).min(0.5 * camera.height as f64 / camera.k.fy);
+        Looking::from_pose(&camera.world_to_cam, tan)
     }
 }
 
@@ -80,6 +88,53 @@ pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
     Some((centre, radii[radii.len() / 2]))
 }
 
+/// A scene's ball: around the part of the plane z = 0 that at least half of `cameras` see (inside the
+/// image, in front), its centre on the plane, its radius reaching that part's farthest point; `None` when
+/// the cameras do not look at the plane or no part of it is seen by half of them.
+pub fn seen_table_region(cameras: &[geom::Camera<f64>]) -> Option<(Vec3<f64>, f64)> {
+    let looking: Vec<Looking> = cameras.iter().map(Looking::from_camera).collect();
+    let (aim, framed) = looked_at_region(&looking)?;
+    // A grid over the plane around where the cameras aim, wide enough for what a camera sees beside it.
+    const CELLS: usize = 160;
+    let half = 6.0 * framed;
+    let cell = 2.0 * half / CELLS as f64;
+    let needed = cameras.len().div_ceil(2);
+    let mut seen = Vec::new();
+    for j in 0..=CELLS {
+        for i in 0..=CELLS {
+            let p = Vec3::new(aim.x - half + i as f64 * cell, aim.y - half + j as f64 * cell, 0.0);
+            let views = cameras
+                .iter()
+                .filter(|c| {
+                    let (u, v, depth) = c.project(p);
+                    depth > 0.0 && (0.0..=c.width as f64).contains(&u) && (0.0..=c.height as f64).contains(&v)
+                })
+                .count();
+            if views >= needed {
+                seen.push(p);
+            }
+        }
+    }
+    if seen.is_empty() {
+        return None;
+    }
+    let (lo, hi) = seen.iter().fold(
+        (
+            Vec3::new(f64::INFINITY, f64::INFINITY, 0.0),
+            Vec3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, 0.0),
+        ),
+        |(lo, hi), p| {
+            (
+                Vec3::new(lo.x.min(p.x), lo.y.min(p.y), 0.0),
+                Vec3::new(hi.x.max(p.x), hi.y.max(p.y), 0.0),
+            )
+        },
+    );
+    let centre = (lo + hi) * 0.5;
+    let radius = seen.iter().map(|p| (*p - centre).norm()).fold(0.0, f64::max) + cell;
+    Some((centre, radius))
+}
+
 /// Whether the axes constrain the point in every direction (not all parallel).
 fn condition_ok(a: &[[f64; 3]; 3]) -> bool {
     let (values, _) = geom::symmetric_eigen(*a);
@@ -112,5 +167,42 @@ mod tests {
         assert!((r - 0.5 * 0.4).abs() < 1e-9);
         let one = looked_at_region(&cams[..1]).unwrap();
         assert!(one.0.z.abs() < 1e-12, "one camera: where its axis meets the board");
+    }
+
+    /// Cameras all round a table, each aimed at a point of a 0.3 × 0.2 m rectangle near its own side: they
+    /// aim near the middle, but what half of them see is the rectangle and a margin, which the scene's rule
+    /// holds and the object's rule (what they frame at the aim point) does not.
+    #[test]
+    fn a_scene_region_holds_the_table_half_of_the_cameras_see() {
+        let k = geom::Intrinsics::centred(400.0, 320, 240);
+        let cams: Vec<geom::Camera<f64>> = (0..12)
+            .map(|n| {
+                let a = n as f64 * std::f64::consts::TAU / 12.0;
+                let target = Vec3::new(0.15 * a.cos(), 0.1 * a.sin(), 0.0);
+                let eye = Vec3::new(0.45 * a.cos(), 0.45 * a.sin(), 0.4);
+                geom::Camera::look_at(eye, target, Vec3::new(0.0, 0.0, 1.0), k, 320, 240)
+            })
+            .collect();
+        let (centre, radius) = seen_table_region(&cams).unwrap();
+        assert!(centre.norm() < 0.02, "centred on the table: {centre:?}");
+        assert!(radius > 0.2 && radius < 0.45, "the rectangle and a margin: {radius}");
+        let looking: Vec<Looking> = cams.iter().map(Looking::from_camera).collect();
+        let (_, framed) = looked_at_region(&looking).unwrap();
+        assert!(
+            radius > 1.2 * framed,
+            "the scene's region is wider than what the cameras frame: {radius} {framed}"
+        );
+        // Every point of the rectangle is seen by half of the cameras and lies in the ball.
+        for (x, y) in [(0.15, 0.1), (-0.15, 0.1), (0.15, -0.1), (-0.15, -0.1)] {
+            assert!((Vec3::new(x, y, 0.0) - centre).norm() < radius);
+        }
+        let away: Vec<geom::Camera<f64>> = cams
+            .iter()
+            .map(|c| geom::Camera::look_at(c.center(), c.center() * 2.0, Vec3::new(0.0, 0.0, 1.0), k, 320, 240))
+            .collect();
+        assert!(
+            seen_table_region(&away).is_none(),
+            "cameras looking away from the table"
+        );
     }
 }

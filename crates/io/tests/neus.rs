@@ -66,6 +66,7 @@ fn make_capture(name: &str, n: usize) -> TempDir {
         kind: CaptureKind::Video,
         subject: None,
         fps: Some(30.0),
+        shutter: None,
         extra: Map::new(),
     };
     write_capture_info(&dir.0.join("capture.json"), &info).unwrap();
@@ -420,6 +421,7 @@ fn capture_info_round_trips_extra_keys() {
         kind: CaptureKind::Video,
         subject: None,
         fps: Some(f64::NAN),
+        shutter: None,
         extra: Map::new(),
     };
     assert!(matches!(
@@ -431,4 +433,18 @@ fn capture_info_round_trips_extra_keys() {
         info,
         "a failed write leaves the old file"
     );
+    // A shutter longer than a frame is refused; one within it reads back.
+    let blurred = CaptureInfo {
+        fps: Some(30.0),
+        shutter: Some(0.05),
+        ..video.clone()
+    };
+    let e = write_capture_info(&path, &blurred).unwrap_err().to_string();
+    assert!(e.contains("shutter") && e.contains("longer than a frame"), "{e}");
+    let blurred = CaptureInfo {
+        shutter: Some(1.0 / 60.0),
+        ..blurred
+    };
+    write_capture_info(&path, &blurred).unwrap();
+    assert_eq!(read_capture_info(&path).unwrap(), blurred);
 }

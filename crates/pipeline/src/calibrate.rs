@@ -10,12 +10,12 @@ use calib::detect::{detect_markers, refine_with_lens, DetectedMarker, DetectorSe
 use calib::gray::Gray;
 use calib::{Board, Lens};
 use geom::Vec3;
-use pganeus_io::{CaptureInfo, CaptureKind};
+use pganeus_io::{CaptureInfo, CaptureKind, CaptureSubject};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::capture_writer::{
-    capture_intrinsics, capture_pinhole, capture_region, capture_size, write_capture, SourceImage,
+    capture_intrinsics, capture_pinhole, capture_region, capture_size, write_capture, SourceImage, Subject,
 };
 use crate::error::{err, fail, Context};
 use crate::{note, Observer, Result, Task};
@@ -38,6 +38,11 @@ pub struct CalibrateArgs {
     /// The output folder: calibration.json and one capture per input folder.
     #[cfg_attr(feature = "clap", arg(long))]
     pub out: PathBuf,
+    /// A folder of photos of the scene (the table where the bodies will move), a capture like the others
+    /// whose region is the part of the table half of its photos see, marked a scene in its capture.json
+    /// (repeatable).
+    #[cfg_attr(feature = "clap", arg(long = "scene"))]
+    pub scenes: Vec<PathBuf>,
     /// A folder of a video's frames from a fixed camera, in time order by name (repeatable).
     #[cfg_attr(feature = "clap", arg(long = "video"))]
     pub videos: Vec<PathBuf>,
@@ -79,6 +84,7 @@ impl CalibrateArgs {
             dirs,
             board: board.into(),
             out: out.into(),
+            scenes: Vec::new(),
             videos: Vec::new(),
             lens_only: Vec::new(),
             width: None,
@@ -97,6 +103,8 @@ struct Folder {
     name: String,
     dir: PathBuf,
     video: bool,
+    /// Photos of the scene (`--scene`).
+    scene: bool,
     /// Used for the lens, not written as a capture.
     lens_only: bool,
     images: Vec<PathBuf>,
@@ -333,15 +341,17 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
                 pose: *pose,
             })
             .collect();
-        let region = capture_region(a.region.as_deref(), &sources, scale, (width, height), &f.name)?;
+        let subject = if f.scene { Subject::Scene } else { Subject::Object };
+        let (region, rule) = capture_region(a.region.as_deref(), subject, &sources, scale, (width, height), &f.name)?;
         let info = CaptureInfo {
             kind: if f.video {
                 CaptureKind::Video
             } else {
                 CaptureKind::Static
             },
-            subject: None,
+            subject: f.scene.then_some(CaptureSubject::Scene),
             fps: f.video.then_some(a.fps),
+            shutter: None,
             extra: Default::default(),
         };
         write_capture(
@@ -353,16 +363,7 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             &info,
             &writing,
         )?;
-        report_captures.push(capture_report(
-            f,
-            &written,
-            &skipped[fi],
-            &owners,
-            &c,
-            fi,
-            region,
-            a.region.is_some(),
-        ));
+        report_captures.push(capture_report(f, &written, &skipped[fi], &owners, &c, fi, region, rule));
         outcome_cameras.push((f.name.clone(), written.iter().map(|(_, p)| *p).collect()));
     }
     drop(writing);
@@ -401,16 +402,18 @@ fn lens_json(l: &Lens) -> Value {
 
 /// The input folders, each with its images sorted by name; names must be distinct.
 fn list_folders(a: &CalibrateArgs) -> Result<Vec<Folder>> {
-    if a.dirs.is_empty() && a.videos.is_empty() {
+    if a.dirs.is_empty() && a.scenes.is_empty() && a.videos.is_empty() {
         fail!(
             Settings,
             "no folders of images given: pganeus calibrate DIR... --board board.toml --out OUT"
         );
     }
     let mut folders: Vec<Folder> = Vec::new();
-    let inputs = a.dirs.iter().map(|d| (d, false, false));
-    let inputs = inputs.chain(a.videos.iter().map(|d| (d, true, false)));
-    for (dir, video, lens_only) in inputs.chain(a.lens_only.iter().map(|d| (d, false, true))) {
+    // (folder, video, scene, lens only)
+    let inputs = a.dirs.iter().map(|d| (d, false, false, false));
+    let inputs = inputs.chain(a.scenes.iter().map(|d| (d, false, true, false)));
+    let inputs = inputs.chain(a.videos.iter().map(|d| (d, true, false, false)));
+    for (dir, video, scene, lens_only) in inputs.chain(a.lens_only.iter().map(|d| (d, false, false, true))) {
         let entries = std::fs::read_dir(dir).with_context(|| format!("cannot read the folder {}", dir.display()))?;
         let mut images: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
@@ -436,6 +439,7 @@ fn list_folders(a: &CalibrateArgs) -> Result<Vec<Folder>> {
             name,
             dir: dir.clone(),
             video,
+            scene,
             lens_only,
             images,
         });
@@ -690,7 +694,7 @@ fn capture_report(
     c: &Calibration,
     fi: usize,
     region: (Vec3<f64>, f64),
-    given: bool,
+    rule: &str,
 ) -> Value {
     let views: Vec<Value> = owners
         .iter()
@@ -705,10 +709,11 @@ fn capture_report(
         "name": f.name,
         "source": f.dir,
         "kind": if f.video { "video" } else { "static" },
+        "subject": if f.scene { Some("scene") } else { None },
         "images": written.iter().map(|(ii, _)| file_name(&f.images[*ii])).collect::<Vec<_>>(),
         "views": views,
         "skipped": skipped.iter().map(|(file, reason)| json!({"file": file, "reason": reason})).collect::<Vec<_>>(),
-        "region": {"centre": region.0.to_array(), "radius": region.1, "rule": if given { "--region" } else { "the point nearest every optical axis; the median radius the cameras frame there" }},
+        "region": {"centre": region.0.to_array(), "radius": region.1, "rule": rule},
     })
 }
 

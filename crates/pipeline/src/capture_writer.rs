@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use calib::region::{looked_at_region, Looking};
+use calib::region::{looked_at_region, seen_table_region, Looking};
 use calib::undistort::{scaled_pinhole, undistort_image};
 use calib::Lens;
 use geom::{Pose, Vec3};
@@ -48,15 +48,26 @@ pub fn capture_intrinsics(pinhole: &Lens) -> geom::Intrinsics {
     }
 }
 
-/// The region (ball: centre, radius) a capture's `scale_mat` maps to the unit sphere: the box `region`
-/// (`x0,y0,z0,x1,y1,z1`, metres) when given, else the region its cameras look at.
+/// What a capture shows, which sets the rule for its region.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subject {
+    /// An object the cameras look at: the region is what they frame there.
+    Object,
+    /// A scene: the region is the part of the table half of the cameras see.
+    Scene,
+}
+
+/// The region (ball: centre, radius) a capture's `scale_mat` maps to the unit sphere, and the rule that
+/// gave it: the box `region` (`x0,y0,z0,x1,y1,z1`, metres) when given, else by `subject`'s rule
+/// (`calib::region`).
 pub fn capture_region(
     region: Option<&[f64]>,
+    subject: Subject,
     images: &[SourceImage],
     scale: f64,
     size: (u32, u32),
     name: &str,
-) -> Result<(Vec3<f64>, f64)> {
+) -> Result<((Vec3<f64>, f64), &'static str)> {
     if let Some(r) = region {
         let (lo, hi) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
         if !(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z) {
@@ -65,19 +76,35 @@ pub fn capture_region(
                 "--region {r:?}: x0,y0,z0,x1,y1,z1 with each upper bound above its lower one"
             );
         }
-        return Ok(((lo + hi) * 0.5, (hi - lo).norm() * 0.5));
+        return Ok((((lo + hi) * 0.5, (hi - lo).norm() * 0.5), "--region"));
     }
-    let cameras: Vec<Looking> = images
+    let cameras: Vec<geom::Camera<f64>> = images
         .iter()
-        .map(|i| {
-            let target = capture_pinhole(&i.lens, scale);
-            Looking::from_pose(
-                &i.pose,
-                (0.5 * size.0 as f64 / target.fx).min(0.5 * size.1 as f64 / target.fy),
-            )
+        .map(|i| geom::Camera {
+            k: capture_intrinsics(&capture_pinhole(&i.lens, scale)),
+            world_to_cam: i.pose,
+            width: size.0,
+            height: size.1,
         })
         .collect();
-    looked_at_region(&cameras).ok_or_else(|| err!(Input, "{name}: its cameras do not look at the board, so its region cannot be found: give --region x0,y0,z0,x1,y1,z1"))
+    let found = match subject {
+        Subject::Object => {
+            let looking: Vec<Looking> = cameras.iter().map(Looking::from_camera).collect();
+            looked_at_region(&looking).map(|r| {
+                (
+                    r,
+                    "the point nearest every optical axis; the median radius the cameras frame there",
+                )
+            })
+        }
+        Subject::Scene => seen_table_region(&cameras).map(|r| {
+            (
+                r,
+                "a scene: the part of the board's plane at least half of the cameras see, on the plane",
+            )
+        }),
+    };
+    found.ok_or_else(|| err!(Input, "{name}: its cameras do not look at the board, so its region cannot be found: give --region x0,y0,z0,x1,y1,z1"))
 }
 
 /// Writes the capture into `dir` (`image/NNN.png` in `images`' order, `cameras_sphere.npz`,

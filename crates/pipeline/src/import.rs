@@ -16,12 +16,12 @@ use calib::reconstruction::Reconstruction;
 use calib::region::{looked_at_region, Looking};
 use calib::Board;
 use geom::{Similarity, Vec3};
-use pganeus_io::{CaptureInfo, CaptureKind};
+use pganeus_io::{CaptureInfo, CaptureKind, CaptureSubject};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::calibrate::Seen;
-use crate::capture_writer::{capture_region, capture_size, write_capture, SourceImage};
+use crate::capture_writer::{capture_region, capture_size, write_capture, SourceImage, Subject};
 use crate::error::{err, fail};
 use crate::{note, Observer, Result, Task};
 
@@ -51,6 +51,10 @@ pub struct ImportArgs {
         arg(long, value_delimiter = ',', num_args = 6, allow_hyphen_values = true)
     )]
     pub region: Option<Vec<f64>>,
+    /// The images show the scene (the table where the bodies will move): the region is the part of the
+    /// table half of them see, and capture.json says `scene`.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub scene: bool,
     /// The fewest board markers an image must show for its board points to be used.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 3))]
     pub min_markers: usize,
@@ -66,6 +70,7 @@ impl ImportArgs {
             scale: None,
             width: None,
             region: None,
+            scene: false,
             min_markers: 3,
         }
     }
@@ -232,13 +237,15 @@ fn import(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let region = capture_region(a.region.as_deref(), &sources, scale, (width, height), &name)?;
+    let subject = if a.scene { Subject::Scene } else { Subject::Object };
+    let (region, rule) = capture_region(a.region.as_deref(), subject, &sources, scale, (width, height), &name)?;
     let staged = pganeus_io::StagedDir::new(&a.out)?;
     let task = Task::start(observer, "writing the capture", sources.len() as u64);
     let info = CaptureInfo {
         kind: CaptureKind::Static,
-        subject: None,
+        subject: a.scene.then_some(CaptureSubject::Scene),
         fps: None,
+        shutter: None,
         extra: Default::default(),
     };
     write_capture(staged.path(), &sources, (width, height), scale, region, &info, &task)?;
@@ -249,7 +256,7 @@ fn import(
         "similarity": {"scale_m_per_unit": similarity.scale, "rotation_wxyz": similarity.rotation.to_array(), "translation_m": similarity.translation.to_array(), "maps": "the reconstruction's world to the capture's: x' = scale * R x + t"},
         "images": moved.images.iter().map(|i| json!({"name": i.name, "centre_m": i.pose.inverse().t.to_array()})).collect::<Vec<_>>(),
         "capture_size": [width, height],
-        "region": {"centre": region.0.to_array(), "radius": region.1, "rule": if a.region.is_some() { "--region" } else { "the point nearest every optical axis; the median radius the cameras frame there" }},
+        "region": {"centre": region.0.to_array(), "radius": region.1, "rule": rule},
         "conventions": "World: the board's (origin at the pattern's centre, x right, y toward the print's top, z out of the board) or the table plane's (z = 0, z up, origin under the point the cameras look at), metres. Images numbered in the source's order.",
     });
     let text = serde_json::to_string_pretty(&report)?;

@@ -327,6 +327,7 @@ pub fn run(job: TrajectoryJob<'_>, observer: &dyn Observer) -> Result<()> {
             kind: CaptureKind::Video,
             subject: None,
             fps: Some(fps),
+            shutter: None,
             extra: Default::default(),
         },
     )?;

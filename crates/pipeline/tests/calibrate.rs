@@ -24,7 +24,8 @@ fn session(name: &str) -> (PathBuf, Vec<View>, View) {
 #[test]
 fn a_session_gives_the_true_cameras_in_the_boards_world() {
     let (root, photos, fixed) = session("calibrate_session");
-    let mut a = CalibrateArgs::new(vec![root.join("background")], root.join("board.toml"), root.join("out"));
+    let mut a = CalibrateArgs::new(vec![], root.join("board.toml"), root.join("out"));
+    a.scenes = vec![root.join("background")];
     a.videos = vec![root.join("drop")];
     a.width = Some(320);
     let outcome = run(&a, &Quiet).unwrap();
@@ -64,6 +65,28 @@ fn a_session_gives_the_true_cameras_in_the_boards_world() {
     assert!(report["rms_px"].as_f64().unwrap() < 0.3);
     let info = pganeus_io::read_capture_info(&root.join("out/drop/capture.json")).unwrap();
     assert_eq!(info.kind, pganeus_io::CaptureKind::Video);
+    // The scene's region holds the whole printed board (its photos all see it), centred on the table.
+    let info = pganeus_io::read_capture_info(&root.join("out/background/capture.json")).unwrap();
+    assert_eq!(info.subject, Some(pganeus_io::CaptureSubject::Scene));
+    let region = &report["captures"][0]["region"];
+    assert!(region["rule"].as_str().unwrap().starts_with("a scene"), "{region}");
+    let centre: Vec<f64> = serde_json::from_value(region["centre"].clone()).unwrap();
+    let radius = region["radius"].as_f64().unwrap();
+    eprintln!("scene region {centre:?} r {radius}");
+    assert!(centre[2].abs() < 1e-9 && centre[0].hypot(centre[1]) < 0.05, "{region}");
+    let [half_x, half_y] = [0.5 * b.extent[0], 0.5 * b.extent[1]];
+    for (x, y) in [
+        (half_x, half_y),
+        (-half_x, half_y),
+        (half_x, -half_y),
+        (-half_x, -half_y),
+    ] {
+        assert!(
+            (x - centre[0]).hypot(y - centre[1]) < radius,
+            "board corner ({x}, {y}) outside {region}"
+        );
+    }
+    assert!(radius < 0.5, "{region}");
 }
 
 #[test]

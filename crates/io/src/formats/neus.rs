@@ -8,7 +8,7 @@
 //!                               order: DTU's image/000000.png goes with mask/000.png); white (>127) = the object
 //!   mask_<name>/000.png ...     optional extra masks (e.g. one per body), same rules
 //!   cameras_sphere.npz          world_mat_i and scale_mat_i per image i (float64, 4x4)
-//!   capture.json                optional: {"kind": "static" | "video", "fps": 30.0, "subject": "scene" | "object"}
+//!   capture.json                optional: {"kind": "static" | "video", "fps": 30.0, "shutter": 0.008, "subject": "scene" | "object"}
 //! ```
 //!
 //! [`open_capture`] lists and checks a capture without decoding any pixels;
@@ -80,6 +80,10 @@ pub struct CaptureInfo {
     /// Frames per second (> 0), for a video.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
+    /// How long the shutter is open in each frame of a video, seconds (a moving body blurs over it);
+    /// absent: not known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shutter: Option<f64>,
     /// Keys not listed above, kept as they were.
     #[serde(flatten)]
     pub extra: Map<String, Value>,
@@ -129,7 +133,7 @@ impl CaptureIndex {
     }
 }
 
-/// Reads and checks a `capture.json` (`fps`, if present, must be finite and > 0).
+/// Reads and checks a `capture.json` (`fps`, if present, finite and > 0; `shutter` 0 or more and at most a frame).
 pub fn read_capture_info(path: &Path) -> Result<CaptureInfo> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
@@ -155,14 +159,28 @@ pub fn write_capture_info(path: &Path, info: &CaptureInfo) -> Result<()> {
 }
 
 fn check_info(info: &CaptureInfo, path: &Path) -> Result<()> {
-    match info.fps {
-        Some(fps) if !(fps.is_finite() && fps > 0.0) => Err(IoError::Invalid {
-            path: path.to_path_buf(),
-            field: "fps".to_string(),
-            msg: format!("must be finite and > 0, is {fps}"),
-        }),
-        _ => Ok(()),
+    let invalid = |field: &str, msg: String| IoError::Invalid {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        msg,
+    };
+    if let Some(fps) = info.fps {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(invalid("fps", format!("must be finite and > 0, is {fps}")));
+        }
     }
+    if let Some(shutter) = info.shutter {
+        if !(shutter.is_finite() && shutter >= 0.0) {
+            return Err(invalid("shutter", format!("must be 0 or more seconds, is {shutter}")));
+        }
+        if let Some(fps) = info.fps.filter(|&fps| shutter * fps > 1.0) {
+            return Err(invalid(
+                "shutter",
+                format!("{shutter} s is longer than a frame at {fps} fps"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 const IDENTITY: [[f64; 4]; 4] = [
