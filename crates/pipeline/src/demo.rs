@@ -299,7 +299,9 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         physics: scene.physics,
         print_preset: None,
         raw: None,
+        camera_like: false,
         raw_seed: 1,
+        raw_size: None,
     };
     add("synth", x.synth, synth_args, StageJob::Synth(synth_job));
     let mut train = vec![("background".to_string(), "scene".to_string(), plan.scene_steps, x.scene)];

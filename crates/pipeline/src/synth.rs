@@ -80,9 +80,32 @@ pub struct SynthArgs {
     /// per photo, noise, JPEG, motion blur in the videos; no cameras, no masks) and `camera_truth.json`.
     #[cfg_attr(feature = "clap", arg(long, value_enum))]
     pub raw: Option<RawBoardArg>,
+    /// Render the captures themselves as a camera makes them, their true cameras and masks kept: exposure
+    /// and white balance per photo, a video's exposure drifting, noise, JPEG, motion blur over a 1/60 s
+    /// shutter (the scene file's `[camera_like]` sets each).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub camera_like: bool,
     /// The seed of the raw footage's jitter and noise.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
     pub raw_seed: u64,
+    /// The raw footage's sensor size, `WIDTHxHEIGHT` (default three times the captures' size): e.g. 960x720
+    /// beside the small scale's 160 x 120 captures, a sensor six times the training's size at a third of
+    /// the large scale's rendering.
+    #[cfg_attr(feature = "clap", arg(long, value_name = "WxH", value_parser = parse_size, requires = "raw"))]
+    pub raw_size: Option<[u32; 2]>,
+}
+
+/// `960x720` → `[960, 720]`.
+#[cfg(feature = "clap")]
+fn parse_size(text: &str) -> std::result::Result<[u32; 2], String> {
+    let bad = || format!("\"{text}\": give the size as WIDTHxHEIGHT, e.g. 960x720");
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    let w: u32 = w.trim().parse().map_err(|_| bad())?;
+    let h: u32 = h.trim().parse().map_err(|_| bad())?;
+    if w < 16 || h < 16 {
+        return Err(format!("\"{text}\": a sensor smaller than 16 x 16 pixels"));
+    }
+    Ok([w, h])
 }
 
 /// The printed board of `synth --raw`.
@@ -138,6 +161,13 @@ pub fn run(a: &SynthArgs, observer: &dyn Observer) -> Result<()> {
         Some(RawBoardArg::Charuco) => synth::with_raw(scene, calib::BoardKind::Charuco, a.raw_seed),
         None => scene,
     };
+    if a.camera_like && scene.camera_like.is_none() {
+        scene.camera_like = Some(synth::CameraLike::default());
+    }
+    if let (Some(raw), Some([w, h])) = (&mut scene.raw, a.raw_size) {
+        raw.width = w;
+        raw.height = h;
+    }
     if let Some(p) = a.physics {
         scene.physics = match p {
             PhysicsArg::Pganeus => synth::Physics::Pganeus,
@@ -190,4 +220,18 @@ pub fn run(a: &SynthArgs, observer: &dyn Observer) -> Result<()> {
         ),
     );
     Ok(())
+}
+
+#[cfg(all(test, feature = "clap"))]
+mod tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes_read_as_width_by_height_and_bad_ones_say_how_to_write_them() {
+        assert_eq!(parse_size("960x720"), Ok([960, 720]));
+        assert_eq!(parse_size("640X480"), Ok([640, 480]));
+        assert!(parse_size("960").unwrap_err().contains("WIDTHxHEIGHT"));
+        assert!(parse_size("960x-1").unwrap_err().contains("WIDTHxHEIGHT"));
+        assert!(parse_size("8x8").unwrap_err().contains("smaller than 16"));
+    }
 }

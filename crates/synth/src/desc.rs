@@ -244,6 +244,51 @@ pub struct SynthScene {
     /// Also write the footage as a camera makes it (`raw/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub raw: Option<RawDesc>,
+    /// Render the captures themselves as a camera makes them (with their true cameras and masks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_like: Option<CameraLike>,
+}
+
+/// The captures as a camera makes them (`[camera_like]`), at their own size and through their true
+/// cameras, their truth (cameras, masks, poses) kept: exposure and white balance that change from photo to
+/// photo, a video's auto exposure drifting over its frames, sensor noise, JPEG, and moving bodies blurred
+/// over the shutter time (each video's `capture.json` gives it). A video frame's masks are the bodies at
+/// the frame's instant, the middle of its shutter time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraLike {
+    /// Sensor noise, standard deviation at mid grey (linear 0–1), growing with the square root of the
+    /// light. Default 0.01.
+    pub noise: f64,
+    /// JPEG quality, 1–100 (the image is JPEG-compressed, then stored as the capture's PNG). Default 85.
+    pub jpeg_quality: u8,
+    /// Each photo's exposure is off by up to this share. Default 0.1.
+    pub exposure_jitter: f64,
+    /// Each photo's white balance (per channel) is off by up to this share. Default 0.02.
+    pub white_balance_jitter: f64,
+    /// A video's exposure drifts over its frames by up to this share (auto exposure). Default 0.08.
+    pub exposure_drift: f64,
+    /// How long the shutter is open in a video frame, seconds. Default 1/60.
+    pub shutter: f64,
+    /// Instants averaged over the shutter time, odd (the middle one is the frame's). Default 7.
+    pub blur_samples: usize,
+    /// Seed of the jitter and the noise. Default 1.
+    pub seed: u64,
+}
+
+impl Default for CameraLike {
+    fn default() -> Self {
+        CameraLike {
+            noise: 0.01,
+            jpeg_quality: 85,
+            exposure_jitter: 0.1,
+            white_balance_jitter: 0.02,
+            exposure_drift: 0.08,
+            shutter: 1.0 / 60.0,
+            blur_samples: 7,
+            seed: 1,
+        }
+    }
 }
 
 fn is_default_physics(p: &Physics) -> bool {

@@ -7,7 +7,7 @@ use crate::build::{
 use crate::cameras::{framed_orbit, framing_distance, hemisphere_views, intrinsics, orbit, scale_mat};
 use crate::desc::{Physics, SynthScene};
 use crate::rapier_motion::simulate_with_rapier;
-use crate::render::{render, scene_distance, RenderScene, Rendered};
+use crate::render::{render, render_instants, scene_distance, RenderScene, Rendered};
 use geom::{Camera, TriMesh, Vec3};
 use pganeus_io::{
     CameraMats, CaptureInfo, CaptureKind, CaptureSubject, Image, PlyEncoding, PlyMesh, Pose as IoPose, StaticCapture,
@@ -34,8 +34,13 @@ struct CapturePlan {
     /// Mask folders: `mask` holds these bodies; `mask_<name>` one each.
     mask_bodies: Vec<usize>,
     per_body_masks: bool,
-    /// Raw footage of a video: each frame's instants over the shutter time (motion blur); empty otherwise.
+    /// Raw footage of a video: each frame's instants over the raw shutter time (motion blur); empty otherwise.
+    raw_instants: Vec<Vec<RenderScene>>,
+    /// A camera-like video: each frame's instants over its shutter time, the middle one the frame's; empty
+    /// otherwise.
     instants: Vec<Vec<RenderScene>>,
+    /// A camera-like video's shutter time, seconds (capture.json's `shutter`).
+    shutter: Option<f64>,
 }
 
 /// What `generate` made.
@@ -213,6 +218,20 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             ));
         }
     }
+    if let Some(c) = &scene.camera_like {
+        if !(c.noise >= 0.0 && c.exposure_jitter >= 0.0 && c.white_balance_jitter >= 0.0 && c.exposure_drift >= 0.0) {
+            return Err(field("camera_like", "noise, jitters and drift must be zero or more"));
+        }
+        if !(1..=100).contains(&c.jpeg_quality) {
+            return Err(field("camera_like.jpeg_quality", "must be 1 to 100"));
+        }
+        if !(c.shutter >= 0.0) || c.blur_samples % 2 == 0 {
+            return Err(field(
+                "camera_like",
+                "shutter must be zero or more and blur_samples odd (its middle instant is the frame's)",
+            ));
+        }
+    }
     let stat = build_static(scene, base)?;
     let bodies = build_bodies(scene, base)?;
     let videos = simulate_built(scene, &stat, &bodies)?;
@@ -269,7 +288,9 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         region: stat.region,
         mask_bodies: vec![],
         per_body_masks: false,
+        raw_instants: vec![],
         instants: vec![],
+        shutter: None,
     });
 
     // Raw footage: close-ups of the printed board filling the frame from many sides, as a careful user shoots
@@ -309,7 +330,9 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             region: stat.region,
             mask_bodies: vec![],
             per_body_masks: false,
+            raw_instants: vec![],
             instants: vec![],
+            shutter: None,
         });
     }
 
@@ -347,7 +370,9 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
                 region: (pose.t, r_obj * 1.15 + 0.005),
                 mask_bodies: vec![bi],
                 per_body_masks: false,
+                raw_instants: vec![],
                 instants: vec![],
+                shutter: None,
             });
             statics.push(StaticCapture {
                 capture: name,
@@ -410,14 +435,17 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             })
             .collect();
         check_camera(&cam, &scenes[0], &format!("{f}.camera"))?;
-        // Raw footage: each frame over the shutter time, the bodies where the motion puts them then.
-        let instants: Vec<Vec<RenderScene>> = match &scene.raw {
-            Some(r) if r.shutter > 0.0 && r.blur_samples > 1 => (0..traj.frames.len())
+        // Each frame over a shutter time, the bodies where the motion puts them then (the middle instant is
+        // the frame's own): for the raw footage and for camera-like captures, each with its shutter.
+        let over_shutter = |shutter: f64, samples: usize| -> Vec<Vec<RenderScene>> {
+            if shutter <= 0.0 || samples < 2 {
+                return vec![];
+            }
+            (0..traj.frames.len())
                 .map(|fi| {
-                    (0..r.blur_samples)
+                    (0..samples)
                         .map(|s| {
-                            let t =
-                                fi as f64 + r.shutter * vdesc.fps * ((s as f64 + 0.5) / r.blur_samples as f64 - 0.5);
+                            let t = fi as f64 + shutter * vdesc.fps * ((s as f64 + 0.5) / samples as f64 - 0.5);
                             let mut objects = stat.objects.clone();
                             for (slot, &bi) in ids.iter().enumerate() {
                                 objects.push(body_object(
@@ -434,8 +462,23 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
                         })
                         .collect()
                 })
-                .collect(),
-            _ => vec![],
+                .collect()
+        };
+        let raw_instants = scene
+            .raw
+            .as_ref()
+            .map_or(vec![], |r| over_shutter(r.shutter, r.blur_samples));
+        let (instants, shutter) = match &scene.camera_like {
+            Some(c) => {
+                if c.shutter * vdesc.fps > 1.0 {
+                    return Err(field(
+                        "camera_like.shutter",
+                        format!("{} s is longer than a frame of {f} at {} fps", c.shutter, vdesc.fps),
+                    ));
+                }
+                (over_shutter(c.shutter, c.blur_samples), Some(c.shutter))
+            }
+            None => (vec![], None),
         };
         plans.push(CapturePlan {
             name: vdesc.name.clone(),
@@ -447,7 +490,9 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
             region: stat.region,
             mask_bodies: ids.clone(),
             per_body_masks: true,
+            raw_instants,
             instants,
+            shutter,
         });
         truth_videos.push(scene_file::trajectory_file(
             &vdesc.name,
@@ -593,12 +638,12 @@ fn write_raw(
     for p in plans {
         let video = p.kind == CaptureKind::Video;
         let n = p.cameras.len();
-        let video_gain = crate::raw::photo_gain(raw, &mut rng);
+        let video_gain = crate::raw::photo_gain(raw.exposure_jitter, raw.white_balance_jitter, &mut rng);
         let mut files = Vec::with_capacity(n);
         for (i, cam) in p.cameras.iter().enumerate() {
             let single;
-            let scenes: &[RenderScene] = if !p.instants.is_empty() {
-                &p.instants[i]
+            let scenes: &[RenderScene] = if !p.raw_instants.is_empty() {
+                &p.raw_instants[i]
             } else {
                 single = [if p.scenes.len() == 1 {
                     p.scenes[0].clone()
@@ -611,7 +656,7 @@ fn write_raw(
             let gain = if video {
                 video_gain
             } else {
-                crate::raw::photo_gain(raw, &mut rng)
+                crate::raw::photo_gain(raw.exposure_jitter, raw.white_balance_jitter, &mut rng)
             };
             let image = crate::raw::develop(&r, gain, raw.noise, &mut rng);
             let file = crate::raw::raw_name(&p.name, video, i);
@@ -632,15 +677,40 @@ fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnIm
     let n = p.cameras.len();
     let mut mats = Vec::with_capacity(n);
     let smat = scale_mat(p.region.0, p.region.1);
+    let mut camera = scene.camera_like.as_ref().map(|c| CameraEffects::new(c, p));
     for (i, cam) in p.cameras.iter().enumerate() {
         let rs = if p.scenes.len() == 1 {
             &p.scenes[0]
         } else {
             &p.scenes[i]
         };
-        let r = render(rs, cam, scene.cameras.spp);
         let file = frame_name(i, n);
-        pganeus_io::write_png(&dir.join("image").join(&file), &rgb_image(&r))?;
+        let (r, image) = match &mut camera {
+            None => {
+                let r = render(rs, cam, scene.cameras.spp);
+                let image = rgb_image(&r);
+                (r, image)
+            }
+            Some(effects) => {
+                let instants = if p.instants.is_empty() {
+                    std::slice::from_ref(rs)
+                } else {
+                    &p.instants[i]
+                };
+                let ray = |u: f64, v: f64| cam.ray(u, v);
+                let r = render_instants(
+                    instants,
+                    cam.width,
+                    cam.height,
+                    scene.cameras.spp,
+                    Some(instants.len() / 2),
+                    &ray,
+                );
+                let image = effects.develop(&r, i, &dir.join("image").join(&file))?;
+                (r, image)
+            }
+        };
+        pganeus_io::write_png(&dir.join("image").join(&file), &image)?;
         if !p.mask_bodies.is_empty() {
             let ids = &p.mask_bodies;
             pganeus_io::write_png(&dir.join("mask").join(&file), &mask_image(&r, |id| ids.contains(&id)))?;
@@ -662,8 +732,58 @@ fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnIm
         kind: p.kind,
         subject: p.subject,
         fps: p.fps,
+        shutter: p.shutter,
         extra: Default::default(),
     };
     pganeus_io::write_capture_info(&dir.join("capture.json"), &info)?;
     Ok(())
+}
+
+/// What a camera does to one capture's images (`[camera_like]`): a gain per photo, or a video's gain
+/// drifting over its frames; noise; JPEG.
+struct CameraEffects<'a> {
+    desc: &'a crate::desc::CameraLike,
+    rng: geom::SplitMix64,
+    video: bool,
+    frames: usize,
+    /// A video's gain before its drift, and the drift's phase.
+    base_gain: [f64; 3],
+    phase: f64,
+}
+
+impl<'a> CameraEffects<'a> {
+    fn new(desc: &'a crate::desc::CameraLike, p: &CapturePlan) -> Self {
+        // Each capture's own draws, whatever captures come before it.
+        let name_hash = p.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+        });
+        let mut rng = geom::SplitMix64::new(desc.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ name_hash);
+        let base_gain = crate::raw::photo_gain(desc.exposure_jitter, desc.white_balance_jitter, &mut rng);
+        let phase = rng.range(0.0, std::f64::consts::TAU);
+        CameraEffects {
+            desc,
+            rng,
+            video: p.kind == CaptureKind::Video,
+            frames: p.cameras.len(),
+            base_gain,
+            phase,
+        }
+    }
+
+    /// Image `i` as the camera records it, through JPEG (`path` names it in errors).
+    fn develop(&mut self, r: &Rendered, i: usize, path: &Path) -> Result<Image, SynthError> {
+        let d = self.desc;
+        let gain = if self.video {
+            // Auto exposure: a slow swing over the video, up to `exposure_drift`.
+            let u = i as f64 / self.frames.saturating_sub(1).max(1) as f64;
+            let drift = 1.0 + d.exposure_drift * (self.phase + 1.5 * std::f64::consts::PI * u).sin();
+            self.base_gain.map(|g| g * drift)
+        } else {
+            crate::raw::photo_gain(d.exposure_jitter, d.white_balance_jitter, &mut self.rng)
+        };
+        let image = crate::raw::develop(r, gain, d.noise, &mut self.rng);
+        let bytes =
+            pganeus_io::encode_jpeg(&image, d.jpeg_quality).map_err(|e| field("camera_like.jpeg_quality", e))?;
+        Ok(pganeus_io::read_jpeg_bytes(&bytes, path)?)
+    }
 }

@@ -16,6 +16,6 @@ pub mod render;
 pub mod texture;
 
 pub use build::SynthError;
-pub use desc::{Physics, RawDesc, SynthScene};
+pub use desc::{CameraLike, Physics, RawDesc, SynthScene};
 pub use generate::{frame_name, generate, simulate_videos, Summary};
 pub use presets::{contact_scenes, preset, with_raw, Scale, CONTACT_SCENES, PRESETS};

@@ -177,6 +177,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
     Some(match name {
         "tabletop" => SynthScene {
             raw: None,
+            camera_like: None,
             physics: Physics::default(),
             name: "tabletop".into(),
             board: board(),
@@ -224,6 +225,7 @@ pub fn preset(name: &str, scale: Scale) -> Option<SynthScene> {
         },
         "two-body" => SynthScene {
             raw: None,
+            camera_like: None,
             physics: Physics::default(),
             name: "two-body".into(),
             board: board(),
@@ -316,6 +318,7 @@ pub fn contact_scenes() -> Vec<SynthScene> {
     let n = frames(Scale::Small);
     let with = |name: &str, obstacles: Vec<ObstacleDesc>, body: BodyDesc, v: VideoDesc| SynthScene {
         raw: None,
+        camera_like: None,
         name: name.into(),
         obstacles,
         bodies: vec![body],

@@ -4,7 +4,7 @@
 //! lens beside them in `camera_truth.json`.
 
 use crate::desc::{RawDesc, SynthScene};
-use crate::render::{render_rays, RenderScene, Rendered};
+use crate::render::{render_instants, RenderScene, Rendered};
 use calib::Lens;
 use geom::{Camera, Pose, Quat, Ray, SplitMix64, Vec3};
 use pganeus_io::Image;
@@ -63,27 +63,8 @@ pub fn render_raw(
     raw: &RawDesc,
     spp: usize,
 ) -> Rendered {
-    let per_instant = spp.div_ceil(scenes.len()).max(1);
     let ray = |u: f64, v: f64| lens_ray(lens, world_to_cam, u, v);
-    let mut out: Option<Rendered> = None;
-    for s in scenes {
-        let r = render_rays(s, raw.width, raw.height, per_instant, &ray);
-        match &mut out {
-            None => out = Some(r),
-            Some(acc) => {
-                for (a, b) in acc.rgb.iter_mut().zip(&r.rgb) {
-                    for k in 0..3 {
-                        a[k] += b[k];
-                    }
-                }
-            }
-        }
-    }
-    let mut out = out.expect("at least one instant");
-    let n = scenes.len() as f32;
-    for px in &mut out.rgb {
-        *px = px.map(|v| v / n);
-    }
+    let mut out = render_instants(scenes, raw.width, raw.height, spp, None, &ray);
     optical_blur(&mut out, raw.optical_blur);
     out
 }
@@ -141,10 +122,10 @@ pub fn develop(r: &Rendered, gain: [f64; 3], noise: f64, rng: &mut SplitMix64) -
     img
 }
 
-/// Exposure and white balance of one photo.
-pub fn photo_gain(raw: &RawDesc, rng: &mut SplitMix64) -> [f64; 3] {
-    let exposure = 1.0 + rng.range(-raw.exposure_jitter, raw.exposure_jitter);
-    std::array::from_fn(|_| exposure * (1.0 + rng.range(-raw.white_balance_jitter, raw.white_balance_jitter)))
+/// Exposure and white balance of one photo: each off by up to its share.
+pub fn photo_gain(exposure_jitter: f64, white_balance_jitter: f64, rng: &mut SplitMix64) -> [f64; 3] {
+    let exposure = 1.0 + rng.range(-exposure_jitter, exposure_jitter);
+    std::array::from_fn(|_| exposure * (1.0 + rng.range(-white_balance_jitter, white_balance_jitter)))
 }
 
 /// The raw file name of image `i` of a capture: photos `IMG_0001.jpg`, a video's frames `<name>_0000.jpg`.
