@@ -1,5 +1,5 @@
 //! Checkpoints in safetensors: the field's parameters, Adam's moments, the
-//! occupancy grid, and (in the header) the full training config with the
+//! occupancy grid, the views' colour maps, and (in the header) the full training config with the
 //! architecture, the step, the random state and the unit-sphere frame, so a
 //! checkpoint loads without its config file and training resumes exactly.
 
@@ -102,6 +102,12 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
         }
         metadata.insert("average_count".into(), trainer.average.count.to_string());
     }
+    // The views' colour maps and their optimiser (a training state: a field renders without them).
+    let app = &trainer.appearance;
+    tensors.insert("appearance".into(), f32_tensor(&app.params));
+    tensors.insert("adam.appearance.m".into(), f32_tensor(&app.adam.m));
+    tensors.insert("adam.appearance.v".into(), f32_tensor(&app.adam.v));
+    metadata.insert("appearance_adam_step".into(), app.adam.step.to_string());
     metadata.insert("rng".into(), trainer.rng.0.to_string());
     let bg_steps = trainer.bg_optim.iter().flat_map(|o| o.adam.iter().map(|a| a.step));
     metadata.insert(
@@ -221,6 +227,15 @@ pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError
         adam.m = floats(&st, path, &format!("adam.{name}.m"), n)?;
         adam.v = floats(&st, path, &format!("adam.{name}.v"), n)?;
         adam.step = step;
+    }
+    // Checkpoints from before the colour maps existed have none: the identity, as they trained.
+    if st.tensors.contains_key("appearance") {
+        let app = &mut t.appearance;
+        let n = app.params.len();
+        app.params = floats(&st, path, "appearance", n)?;
+        app.adam.m = floats(&st, path, "adam.appearance.m", n)?;
+        app.adam.v = floats(&st, path, "adam.appearance.v", n)?;
+        app.adam.step = parse(path, "appearance_adam_step", meta(&st, path, "appearance_adam_step")?)?;
     }
     if let Some(count) = st.metadata.get("average_count") {
         t.average.count = parse(path, "average_count", count)?;

@@ -69,6 +69,16 @@ pub struct TrainConfig {
     /// Checkpoints written before the setting existed load with 0, as they trained.
     #[serde(default)]
     pub average_last: f32,
+    /// Learn a colour map (a gain per channel) for each training view (`neus::appearance`), their mean held
+    /// at one: a camera's exposure and white balance, which change from photo to photo, stay out of the
+    /// field; held-out views are then scored with a map fitted on their left half.
+    /// Default true. Checkpoints written before the setting existed trained without, and load so.
+    #[serde(default)]
+    pub per_view_appearance: bool,
+    /// Weight of the pull of the views' mean gain toward one (squared distance, summed over channels).
+    /// Default 1.
+    #[serde(default = "default_appearance_weight")]
+    pub appearance_weight: f32,
     /// Hash levels active at the start (progressive activation). Default 4.
     pub level_start: usize,
     /// One more level every this many steps (0 = all levels from the start). Default 100.
@@ -83,6 +93,10 @@ pub struct TrainConfig {
 
 fn jitter_before_the_setting() -> bool {
     true
+}
+
+fn default_appearance_weight() -> f32 {
+    1.0
 }
 
 impl Default for TrainConfig {
@@ -109,6 +123,8 @@ impl Default for TrainConfig {
             mask_weight: 0.1,
             pixel_jitter: false,
             average_last: 0.2,
+            per_view_appearance: true,
+            appearance_weight: default_appearance_weight(),
             level_start: 4,
             level_every: 100,
             holdout_every: 8,
@@ -197,6 +213,7 @@ impl TrainConfig {
             ("overhang_weight", self.overhang_weight),
             ("stereo_weight", self.stereo_weight),
             ("mask_weight", self.mask_weight),
+            ("appearance_weight", self.appearance_weight),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ConfigError::new(name, format!("must be ≥ 0, got {v}")));

@@ -1,12 +1,14 @@
 //! How a trainer's held-out views are rendered and scored: PSNR, and for an object capture with masks
 //! the rendered silhouette against the masks.
 
+use crate::appearance::psnr_right_half;
 use crate::render_view::{psnr, render_view, RenderSettings, STOP_TRANSMITTANCE};
 use crate::{CaptureSubject, NeusTrainer};
 
 /// What a trainer's held-out views say.
 pub struct Holdout {
-    /// Mean PSNR (inside the masks when there are masks).
+    /// Mean PSNR (inside the masks when there are masks); with per-view appearance, of each view's right
+    /// half through the colour map fitted on its left half.
     pub psnr: f32,
     /// The rendered silhouette against the masks; empty (no area) for a scene or a capture without masks.
     pub silhouette: SilhouetteTally,
@@ -37,7 +39,12 @@ pub fn score(t: &NeusTrainer, views: &[usize]) -> Holdout {
     for &i in views {
         let v = &t.data.views[i];
         let img = render_view(&t.field, &t.occupancy, &set, &v.camera);
-        psnr_sum += psnr(&img.rgb, &v.rgb, v.mask.as_deref());
+        psnr_sum += if t.config.per_view_appearance {
+            // The view's exposure is not known: fitted on its left half, the right half scored.
+            psnr_right_half(&img.rgb, &v.rgb, v.mask.as_deref(), t.data.width as usize)
+        } else {
+            psnr(&img.rgb, &v.rgb, v.mask.as_deref())
+        };
         if let (true, Some(mask)) = (object_masks, &v.mask) {
             tally.add(&img.opacity, mask);
         }

@@ -6,7 +6,10 @@
 //! Objects start from a sphere; scenes start from the board plane and put
 //! what lies beyond the unit sphere in a background field (NeRF++), with
 //! multi-view stereo points pulling the zero level onto obstacles early.
+//! Each training view's exposure and white balance are learned beside the
+//! field (`appearance`), so a camera's changes stay out of it.
 
+pub mod appearance;
 pub mod background_field;
 pub mod checkpoint;
 pub mod compose;

@@ -8,6 +8,7 @@
 //! through rendering, the colour MLP, the SDF MLP and the hash grid; Adam
 //! (sparse on the hash tables).
 
+use crate::appearance::{recorded_l1, ViewAppearance};
 use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratch};
 use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
@@ -38,6 +39,10 @@ pub struct LossTerms {
     /// Mean max(0, −∂s/∂z) over the samples.
     #[serde(default)]
     pub overhang: f32,
+    /// Squared distance of the training views' mean gain from one, summed over channels (0 when the views'
+    /// colour maps are not learned).
+    #[serde(default)]
+    pub appearance: f32,
 }
 
 impl LossTerms {
@@ -48,6 +53,7 @@ impl LossTerms {
             + cfg.mask_weight * self.mask
             + cfg.stereo_weight_at(step) * self.stereo
             + cfg.overhang_weight * self.overhang
+            + cfg.appearance_weight * self.appearance
     }
 }
 
@@ -74,6 +80,8 @@ struct Scratch {
     rays_d: Vec<[f32; 3]>,
     gt: Vec<[f32; 3]>,
     mask: Vec<f32>,
+    /// The view each ray comes from.
+    view: Vec<usize>,
     offsets: Vec<usize>,
     t: Vec<f32>,
     dt: Vec<f32>,
@@ -104,6 +112,33 @@ impl BackgroundOptim {
     }
 }
 
+/// The views' colour maps (three gains a view) with their Adam state and gradients.
+pub(crate) struct AppearanceOptim {
+    pub(crate) params: Vec<f32>,
+    pub(crate) adam: Adam,
+    grads: Vec<f32>,
+}
+
+impl AppearanceOptim {
+    fn new(views: usize) -> Self {
+        Self {
+            params: vec![1.0; 3 * views],
+            adam: Adam::new(3 * views),
+            grads: vec![0.0; 3 * views],
+        }
+    }
+
+    fn map(&self, view: usize) -> ViewAppearance {
+        ViewAppearance {
+            gain: [
+                self.params[3 * view],
+                self.params[3 * view + 1],
+                self.params[3 * view + 2],
+            ],
+        }
+    }
+}
+
 pub struct NeusTrainer {
     pub config: TrainConfig,
     pub field: NeusField,
@@ -114,6 +149,8 @@ pub struct NeusTrainer {
     pub step: usize,
     pub(crate) adam: [Adam; 4],
     pub(crate) bg_optim: Option<BackgroundOptim>,
+    /// Each view's colour map (`appearance`); the identity for held-out views.
+    pub(crate) appearance: AppearanceOptim,
     pub(crate) rng: SplitMix64,
     /// The running mean of the parameters over the run's last steps (`average_last`), put into the field
     /// after the last step.
@@ -245,6 +282,7 @@ impl NeusTrainer {
             vec![0.0; field.extra.len()],
         ];
         let touched = Touched::new(&field.grid);
+        let data_views = data.views.len();
         Ok(Self {
             occupancy: OccupancyGrid::full(config.occupancy_res),
             rng: SplitMix64::new(config.seed ^ 0xA5A5),
@@ -256,6 +294,7 @@ impl NeusTrainer {
             step: 0,
             adam,
             bg_optim,
+            appearance: AppearanceOptim::new(data_views),
             average: ParamAverage::default(),
             touched,
             grads,
@@ -264,6 +303,11 @@ impl NeusTrainer {
             stereo_points: None,
             stereo_scratch: StereoScratch::default(),
         })
+    }
+
+    /// View `i`'s colour map: learned for a training view (with `per_view_appearance`), else the identity.
+    pub fn view_appearance(&self, i: usize) -> ViewAppearance {
+        self.appearance.map(i)
     }
 
     /// The stereo points the term pulls onto the zero level (found now if not yet).
@@ -350,6 +394,7 @@ impl NeusTrainer {
         sc.rays_d.clear();
         sc.gt.clear();
         sc.mask.clear();
+        sc.view.clear();
         sc.bg_jitter.clear();
         let (w, h) = (self.data.width as f64, self.data.height as f64);
         for _ in 0..r {
@@ -374,6 +419,7 @@ impl NeusTrainer {
             sc.rays_d.push(ray.dir);
             sc.gt.push(self.data.views[v].rgb[px]);
             sc.mask.push(weight);
+            sc.view.push(v);
             sc.bg_jitter.push(self.rng.next_f64() as f32);
         }
 
@@ -444,7 +490,7 @@ impl NeusTrainer {
         let ds = split_by(&mut sc.d_sdf0, &sc.offsets);
         let dc = split_by(&mut sc.d_cos, &sc.offsets);
         let dr = split_by(&mut sc.d_rgb, &sc.offsets);
-        let (offsets, sdf0, cos, dt, tt, rgb, gt, mask, behind) = (
+        let (offsets, sdf0, cos, dt, tt, rgb, gt, mask, behind, view) = (
             &sc.offsets,
             &self.pass.sdf,
             &self.pass.cos,
@@ -454,9 +500,13 @@ impl NeusTrainer {
             &sc.gt,
             &sc.mask,
             &sc.bg.out,
+            &sc.view,
         );
         let mask_w = cfg.mask_weight;
-        let per_ray: Vec<(f32, f32, f32, f32, [f32; 3])> = ds
+        let learn_appearance = cfg.per_view_appearance;
+        let appearance = &self.appearance;
+        type RayOut = (f32, f32, f32, f32, [f32; 3], [f32; 3]);
+        let per_ray: Vec<RayOut> = ds
             .into_par_iter()
             .zip(dc)
             .zip(dr)
@@ -479,15 +529,16 @@ impl NeusTrainer {
                     trans.resize(b - a, 0.0);
                     let o = render_ray(&x, alpha, trans);
                     let wm = mask[i];
-                    let mut l1 = 0.0;
-                    let mut se = 0.0;
-                    let mut d_rgb = [0.0; 3];
-                    for k in 0..3 {
-                        let diff = o.rgb[k] - gt[i][k];
-                        l1 += wm * diff.abs() / 3.0;
-                        se += wm * diff * diff / 3.0;
-                        d_rgb[k] = wm * diff.signum() / (3.0 * count);
-                    }
+                    // The colour the ray's view records: through its colour map when learned.
+                    let map = if learn_appearance {
+                        appearance.map(view[i])
+                    } else {
+                        ViewAppearance::IDENTITY
+                    };
+                    let (l1, d_rgb, d_map) = recorded_l1(&map, o.rgb, gt[i], wm);
+                    let (d_rgb, d_map) = (d_rgb.map(|d| d / count), d_map.map(|d| d / count));
+                    let recorded = map.apply(o.rgb);
+                    let se: f32 = (0..3).map(|k| wm * (recorded[k] - gt[i][k]).powi(2) / 3.0).sum();
                     let (mut bce, mut d_op) = (0.0, 0.0);
                     if object_masks {
                         let op = o.opacity.clamp(1e-3, 1.0 - 1e-3);
@@ -513,7 +564,7 @@ impl NeusTrainer {
                             background: &mut d_bg,
                         },
                     );
-                    (l1, se, bce, d_inv_s, d_bg)
+                    (l1, se, bce, d_inv_s, d_bg, d_map)
                 },
             )
             .collect();
@@ -521,12 +572,29 @@ impl NeusTrainer {
         let mut sq = 0.0f32;
         let mut d_inv_s = 0.0f32;
         sc.d_behind.clear();
-        for (l1, se, bce, dis, dbg) in &per_ray {
+        let app = &mut self.appearance;
+        app.grads.iter_mut().for_each(|g| *g = 0.0);
+        for ((l1, se, bce, dis, dbg, dmap), &v) in per_ray.iter().zip(&sc.view) {
             loss.rgb += l1;
             sq += se;
             loss.mask += bce;
             d_inv_s += dis;
             sc.d_behind.push(*dbg);
+            for (g, d) in app.grads[3 * v..3 * v + 3].iter_mut().zip(dmap) {
+                *g += d;
+            }
+        }
+        if learn_appearance {
+            // The gauge: all gains up and the field's colour down render the same, so the gains' mean over
+            // the training views is pulled to one (the field keeps the views' mean exposure).
+            let n = self.train_views.len() as f32;
+            for k in 0..3 {
+                let mean = self.train_views.iter().map(|&v| app.params[3 * v + k]).sum::<f32>() / n;
+                loss.appearance += (mean - 1.0).powi(2);
+                for &v in &self.train_views {
+                    app.grads[3 * v + k] += 2.0 * cfg.appearance_weight * (mean - 1.0) / n;
+                }
+            }
         }
         // Through the background field to the colour at infinity.
         let d_bg = match (&self.field.background, &mut self.bg_optim) {
@@ -605,6 +673,10 @@ impl NeusTrainer {
         as_.step_dense(&adam_cfg, lr, &mut self.field.sdf_params, gs);
         ac.step_dense(&adam_cfg, lr, &mut self.field.color_params, gc);
         ae.step_dense(&adam_cfg, lr * 0.1, &mut self.field.extra, ge);
+        if learn_appearance {
+            let AppearanceOptim { params, adam, grads } = &mut self.appearance;
+            adam.step_dense(&adam_cfg, lr, params, grads);
+        }
         if let (Some(b), Some(opt)) = (&mut self.field.background, &mut self.bg_optim) {
             let [gg, gd, gc] = &mut opt.grads;
             let [ag, ad, ac] = &mut opt.adam;

@@ -221,7 +221,14 @@ pub fn run(a: &RenderArgs, observer: &dyn Observer) -> Result<()> {
         )?;
         let line = match job.reference {
             Some(Reference { rgb: gt, mask }) => {
-                let p = psnr(&img.rgb, gt, mask);
+                // A field trained with per-view appearance renders the views' mean exposure: each view is
+                // scored on its right half through a colour map fitted on its left half, as training's
+                // held-out views are.
+                let p = if field.config.per_view_appearance {
+                    neus::appearance::psnr_right_half(&img.rgb, gt, mask, img.width as usize)
+                } else {
+                    psnr(&img.rgb, gt, mask)
+                };
                 psnrs.push(p);
                 let mut one = SilhouetteTally::default();
                 if let (true, Some(m)) = (object, mask) {

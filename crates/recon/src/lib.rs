@@ -1,6 +1,7 @@
 //! Inverse problems on the differentiable simulator: the PGA step of Eq. 11
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
+pub mod brightness_drift;
 mod clearance;
 pub mod colliding_bodies;
 pub mod contact_penalty;
@@ -23,6 +24,7 @@ mod unknowns;
 pub mod value_ranges;
 pub mod video_fit;
 
+pub use brightness_drift::brightness_drift;
 pub use colliding_bodies::{
     colliding_value_ranges, first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies,
     ScheduleStep,

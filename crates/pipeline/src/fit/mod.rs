@@ -724,6 +724,41 @@ pub(crate) fn pose_of(t: [f64; 3], q: [f64; 4]) -> Pose<f64> {
     Pose::new(Quat::cst(q).unit(), Vec3::cst(t))
 }
 
+/// The video's brightness in each frame relative to its first, measured on the scene around the bodies
+/// (`recon::brightness_drift`): `bodies_in(k)` marks where any body is in frame `k`. Logged when it moves.
+pub(crate) fn video_drift(
+    frames: &[FrameTarget],
+    bodies_in: impl Fn(usize) -> Vec<bool>,
+    scene_pre: &[ComposedRay],
+) -> Vec<f64> {
+    let scene: Vec<[f32; 3]> = scene_pre.iter().map(|r| r.rgb).collect();
+    let rgb: Vec<&[[f32; 3]]> = frames.iter().map(|f| f.rgb.as_slice()).collect();
+    let masks: Vec<Vec<bool>> = (0..frames.len()).map(bodies_in).collect();
+    let width = frames.first().map_or(1, |f| f.camera.width as usize);
+    let drift = recon::brightness_drift(&rgb, &masks, &scene, width);
+    let (lo, hi) = drift.iter().fold((1.0f64, 1.0f64), |(l, h), &d| (l.min(d), h.max(d)));
+    if hi - lo > 0.005 {
+        tracing::info!(
+            "the video's brightness drifts from {:+.1} % to {:+.1} % of its first frame's (measured on the scene): each frame's exposure follows it",
+            100.0 * (lo - 1.0),
+            100.0 * (hi - 1.0)
+        );
+    }
+    drift
+}
+
+/// Values to four decimals, for the logs.
+pub(crate) fn rounded(values: &[f64]) -> Vec<f64> {
+    values.iter().map(|v| (v * 1e4).round() / 1e4).collect()
+}
+
+/// Every frame's exposure: `first`, the first frame's (measured at the first pose), times the frame's drift.
+pub(crate) fn set_exposures(frames: &mut [FrameTarget], first: f64, drift: &[f64]) {
+    for (f, d) in frames.iter_mut().zip(drift) {
+        f.exposure = first * d;
+    }
+}
+
 /// The video's brightness relative to `object`'s captures at a searched first pose (`--init auto`): the
 /// search's winner covers its mask, so the gain measured there holds for the first-pose fit too; a guess
 /// from markers, centimetres off, is refined as captured and measured after.

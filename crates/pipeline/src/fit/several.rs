@@ -47,6 +47,8 @@ struct Body {
 struct Multi<'a> {
     bodies: Vec<Body>,
     scene_pre: Vec<ComposedRay>,
+    /// Each frame's brightness relative to the first's (`super::video_drift`).
+    drift: Vec<f64>,
     world: World,
     fps: f64,
     capture: String,
@@ -131,12 +133,24 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, n, ctx.config, p.rigid)?;
     let scene_pre = scene_through(&p.scene_field, &cam);
+    // Where any body is in frame k: the union of the bodies' masks.
+    let any_body = |k: usize| {
+        let mut union = p.bodies[0].frames[k].mask.clone();
+        for b in &p.bodies[1..] {
+            for (u, m) in union.iter_mut().zip(&b.frames[k].mask) {
+                *u |= *m;
+            }
+        }
+        union
+    };
+    let drift = video_drift(&p.bodies[0].frames, any_body, &scene_pre);
     let mut log = Log::open(ctx.out)?;
     let guesses = p.guesses;
     let mut outcome = FitOutcome::default();
     let mut m = Multi {
         bodies: p.bodies,
         scene_pre,
+        drift,
         world,
         fps: p.fps,
         capture: capture_name(&a.video),
@@ -160,9 +174,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
             .unzip();
     time("first_pose", t);
     for (body, exposure) in m.bodies.iter_mut().zip(exposures) {
-        for f in &mut body.frames {
-            f.exposure = exposure;
-        }
+        set_exposures(&mut body.frames, exposure, &m.drift);
     }
     outcome.first_poses = first.clone();
     if !wanted.iter().any(|s| *s > Stage::First) {
@@ -344,9 +356,7 @@ fn stage_first(
                 &body.frames[0],
                 starts[b].0,
             )?;
-            for f in &mut m.bodies[b].frames {
-                f.exposure = exposure;
-            }
+            set_exposures(&mut m.bodies[b].frames, exposure, &m.drift);
         }
     }
     let m = &*m;
@@ -388,7 +398,7 @@ fn stage_first(
         fitted.push((fit.pose, exposure));
     }
     pb.finish();
-    let doc = json!({ "bodies": entries });
+    let doc = json!({ "bodies": entries, "brightness_drift": rounded(&m.drift) });
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     log.write(json!({"stage": "first_pose", "done": true}))?;
     Ok(fitted)

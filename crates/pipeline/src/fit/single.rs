@@ -47,6 +47,8 @@ struct Job<'a> {
     object: ObjectModel,
     frames: Vec<FrameTarget>,
     scene_pre: Vec<ComposedRay>,
+    /// Each frame's brightness relative to the first's (`super::video_drift`).
+    drift: Vec<f64>,
     world: World,
     fps: f64,
     capture: String,
@@ -115,11 +117,13 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, p.frames.len(), ctx.config, vec![p.body])?;
     let scene_pre = scene_through(&p.scene_field, &cam);
+    let drift = video_drift(&p.frames, |k| p.frames[k].mask.clone(), &scene_pre);
     let mut job = Job {
         name: p.name,
         object: p.object,
         frames: p.frames,
         scene_pre,
+        drift,
         world,
         fps: p.fps,
         capture: capture_name(&a.video),
@@ -144,9 +148,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let first = stage_first(&mut job, guess, wanted.contains(&Stage::First))?;
     time("first_pose", t);
     outcome.first_poses = vec![pose_of(first.t, first.q)];
-    for f in &mut job.frames {
-        f.exposure = first.exposure;
-    }
+    set_exposures(&mut job.frames, first.exposure, &job.drift);
     let last = wanted.iter().copied().max().unwrap_or(Stage::Pga);
     if last == Stage::First {
         return Ok(with_read_back(outcome, &job.log));
@@ -243,9 +245,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
     }
     if searched {
         let exposure = exposure_at(&job.cfg.first_pose, &job.object, &job.scene_pre, &job.frames[0], start)?;
-        for f in &mut job.frames {
-            f.exposure = exposure;
-        }
+        set_exposures(&mut job.frames, exposure, &job.drift);
     }
     let cfg: &PoseFitConfig = &job.cfg.first_pose;
     let n = (1 + job.cfg.launch_frames).min(job.frames.len());
@@ -372,7 +372,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
     pganeus_io::write_atomic(&path, serde_json::to_string_pretty(&first)?.as_bytes())?;
     job.log.write(
         json!({"stage": "first_pose", "done": true, "iou": first.iou, "v": v, "omega": omega,
-        "exposure": first.exposure}),
+        "exposure": first.exposure, "brightness_drift": rounded(&job.drift)}),
     )?;
     Ok(first)
 }
