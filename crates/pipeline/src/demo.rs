@@ -37,7 +37,7 @@ pub struct DemoArgs {
     #[cfg_attr(feature = "clap", arg(long, conflicts_with = "scale"))]
     pub quick: bool,
     /// The folder for everything: data/, runs/, merged/, scene.sdf, fits/, report.md, demo.json.
-    /// Default: out/demo, with the preset, `rapier`, `large` and `quick` added when given
+    /// Default: out/demo, with the preset, `rapier`, `large`, `camera` and `quick` added when given
     /// (out/demo-quick, out/demo-backdrop-rapier, ...).
     #[cfg_attr(feature = "clap", arg(long))]
     pub out: Option<PathBuf>,
@@ -57,6 +57,10 @@ pub struct DemoArgs {
     /// training (about an hour).
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "small"))]
     pub scale: ScaleArg,
+    /// The captures as a camera makes them (`synth --camera-like`): exposure and white balance per photo,
+    /// a video's drifting exposure, noise, JPEG and motion blur, the truth kept.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub camera_like: bool,
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
@@ -180,6 +184,7 @@ rays_per_step = 256
 struct Scene {
     preset: String,
     physics: Option<PhysicsArg>,
+    camera_like: bool,
     desc: synth::SynthScene,
 }
 
@@ -188,6 +193,7 @@ impl Scene {
         Ok(Scene {
             preset: a.preset.clone(),
             physics: a.physics,
+            camera_like: a.camera_like,
             desc: crate::synth::named_preset(&a.preset, crate::synth::scale(a.scale))?,
         })
     }
@@ -209,6 +215,9 @@ pub fn default_out(a: &DemoArgs) -> PathBuf {
     }
     if matches!(a.scale, ScaleArg::Large) {
         name += "-large";
+    }
+    if a.camera_like {
+        name += "-camera";
     }
     if a.quick {
         name += "-quick";
@@ -289,6 +298,9 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
     if let Some(p) = scene.physics_name() {
         synth_args.extend(["--physics".into(), p]);
     }
+    if scene.camera_like {
+        synth_args.push("--camera-like".into());
+    }
     let synth_job = SynthArgs {
         preset: Some(scene.preset.clone()),
         scene: None,
@@ -299,7 +311,7 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         physics: scene.physics,
         print_preset: None,
         raw: None,
-        camera_like: false,
+        camera_like: scene.camera_like,
         raw_seed: 1,
         raw_size: None,
     };
@@ -653,7 +665,8 @@ fn write_report(
         scene
             .physics_name()
             .map(|p| format!(" --physics {p}"))
-            .unwrap_or_default(),
+            .unwrap_or_default()
+            + if scene.camera_like { " --camera-like" } else { "" },
         plan.scene_steps,
         bodies.join(", "),
         plan.object_steps,
@@ -848,6 +861,7 @@ mod tests {
             preset: "tabletop".into(),
             physics: None,
             scale: ScaleArg::Small,
+            camera_like: false,
         }
     }
 
@@ -961,6 +975,17 @@ mod tests {
         // Two bodies in the fit: expected twice a one-body fit's time.
         assert_eq!(all[9].expected_s, 2.0 * QUICK.expected.fit_per_body);
         assert_eq!(default_out(&a), PathBuf::from("out/demo-two-body-rapier-quick"));
+        // Camera-like captures: synth makes them, the folder says so.
+        a.camera_like = true;
+        let camera = stages(&QUICK, &Scene::new(&a).unwrap(), &dir);
+        assert!(
+            camera[0].argv.iter().any(|x| x == "--camera-like"),
+            "{:?}",
+            camera[0].argv
+        );
+        assert!(matches!(&camera[0].job, StageJob::Synth(s) if s.camera_like));
+        assert_eq!(default_out(&a), PathBuf::from("out/demo-two-body-rapier-camera-quick"));
+        a.camera_like = false;
         // At 320×240 the objects train as long as the scene; the rest is the default's.
         let large = stages(&LARGE, &scene, &dir);
         assert!(large[0].argv.windows(2).any(|w| w == ["--scale", "large"]));
