@@ -159,11 +159,11 @@ mod tests {
         use pipeline::demo::{plan, DemoArgs, StageJob};
         use pipeline::synth::{PhysicsArg, ScaleArg};
         let mut checked = 0;
-        for (preset, physics, quick, scale) in [
-            ("tabletop", None, false, ScaleArg::Small),
-            ("tabletop", None, true, ScaleArg::Small),
-            ("backdrop", Some(PhysicsArg::Rapier), false, ScaleArg::Large),
-            ("two-body", Some(PhysicsArg::Pganeus), true, ScaleArg::Small),
+        for (preset, physics, quick, scale, camera_like) in [
+            ("tabletop", None, false, ScaleArg::Small, false),
+            ("tabletop", None, true, ScaleArg::Small, true),
+            ("backdrop", Some(PhysicsArg::Rapier), false, ScaleArg::Large, false),
+            ("two-body", Some(PhysicsArg::Pganeus), true, ScaleArg::Small, false),
         ] {
             let a = DemoArgs {
                 quick,
@@ -172,6 +172,7 @@ mod tests {
                 preset: preset.into(),
                 physics,
                 scale,
+                camera_like,
             };
             let (stages, _) = plan(&a).unwrap();
             for stage in stages {
