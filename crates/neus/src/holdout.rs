@@ -10,6 +10,9 @@ pub struct Holdout {
     /// Mean PSNR (inside the masks when there are masks); with per-view appearance, of each view's right
     /// half through the colour map fitted on its left half.
     pub psnr: f32,
+    /// Mean PSNR of each view's right half through the colour map fitted on its left half, whatever the
+    /// setting: runs with and without per-view appearance compared on one footing.
+    pub psnr_fitted: f32,
     /// The rendered silhouette against the masks; empty (no area) for a scene or a capture without masks.
     pub silhouette: SilhouetteTally,
 }
@@ -34,14 +37,16 @@ fn settings(t: &NeusTrainer) -> RenderSettings {
 pub fn score(t: &NeusTrainer, views: &[usize]) -> Holdout {
     let set = settings(t);
     let object_masks = t.config.kind == CaptureSubject::Object && t.data.has_masks();
-    let mut psnr_sum = 0.0f32;
+    let (mut psnr_sum, mut fitted_sum) = (0.0f32, 0.0f32);
     let mut tally = SilhouetteTally::default();
     for &i in views {
         let v = &t.data.views[i];
         let img = render_view(&t.field, &t.occupancy, &set, &v.camera);
+        // The view's exposure is not known: fitted on its left half, the right half scored.
+        let fitted = psnr_right_half(&img.rgb, &v.rgb, v.mask.as_deref(), t.data.width as usize);
+        fitted_sum += fitted;
         psnr_sum += if t.config.per_view_appearance {
-            // The view's exposure is not known: fitted on its left half, the right half scored.
-            psnr_right_half(&img.rgb, &v.rgb, v.mask.as_deref(), t.data.width as usize)
+            fitted
         } else {
             psnr(&img.rgb, &v.rgb, v.mask.as_deref())
         };
@@ -51,6 +56,7 @@ pub fn score(t: &NeusTrainer, views: &[usize]) -> Holdout {
     }
     Holdout {
         psnr: psnr_sum / views.len().max(1) as f32,
+        psnr_fitted: fitted_sum / views.len().max(1) as f32,
         silhouette: tally,
     }
 }

@@ -117,6 +117,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
                     "rays_per_s": (rays as f64 / window_secs).round(),
                     "samples_per_s": (samples as f64 / window_secs).round(),
                     "heldout_psnr": round(psnr as f64, 100.0),
+                    "heldout_psnr_fitted": round(held_out.psnr_fitted as f64, 100.0),
                     "heldout_silhouette_area_percent": held_out.silhouette.area_excess_percent().map(|v| round(v, 100.0)),
                     "chamfer_mm": round(full * 1e3, 100.0), "chamfer_visible_mm": round(visible * 1e3, 100.0),
                     "chamfer_pct_diameter": round(full / diameter * 100.0, 100.0),
