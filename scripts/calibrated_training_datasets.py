@@ -3,9 +3,10 @@
     python scripts/calibrated_training_datasets.py SESSION CALIBRATED OUT
 
 SESSION is `synth --raw`'s output, CALIBRATED is `calibrate`'s (run with --width 160 on SESSION/raw).
-For the background and toy_a, on the photos calibrate kept, writes three datasets for `bench-train`:
+For the background and toy_a, on the photos calibrate kept, writes these datasets for `bench-train`:
   OUT/truth_cameras     the raw JPEGs undistorted with the true lens to the truth capture's pinhole, the
                         truth's cameras, region and masks;
+  OUT/truth_cameras_region  the same with calibrate's region (what its region rule costs, cameras aside);
   OUT/calibrated        calibrate's images and cameras, synth's region, the truth's masks;
   OUT/calibrated_region calibrate's images, cameras and region, the truth's masks;
   OUT/truth_renders     synth's clean renders of the same views with the truth's cameras, region and masks.
@@ -34,7 +35,7 @@ def main() -> None:
     report = json.load(open(f"{calibrated}/calibration.json"))
     lens_k = np.array(truth["lens"]["K"])
     lens_d = np.array(truth["lens"]["distortion"])
-    for kind in ["truth_cameras", "calibrated", "calibrated_region", "truth_renders"]:
+    for kind in ["truth_cameras", "truth_cameras_region", "calibrated", "calibrated_region", "truth_renders"]:
         d = f"{out}/{kind}"
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
@@ -54,7 +55,7 @@ def main() -> None:
             mats = {}
             for k, image in enumerate(kept):
                 i = files.index(image)
-                if kind == "truth_cameras":
+                if kind.startswith("truth_cameras"):
                     # The truth capture's pinhole at the raw size (OpenCV's pixel centres), then a third.
                     kc = intrinsics(truth_mats[f"world_mat_{i}"])
                     target = np.array([[3 * kc[0, 0], 0, 3 * kc[0, 2] - 0.5], [0, 3 * kc[1, 1], 3 * kc[1, 2] - 0.5], [0, 0, 1]])
@@ -71,7 +72,7 @@ def main() -> None:
                 else:
                     shutil.copy(f"{calibrated}/{name}/image/{cal_images[k]}", f"{cd}/image/{k:03d}.png")
                     mats[f"world_mat_{k}"] = cal_mats[f"world_mat_{k}"]
-                region = cal_mats[f"scale_mat_{k}"] if kind == "calibrated_region" else truth_mats[f"scale_mat_{i}"]
+                region = cal_mats[f"scale_mat_{k}"] if kind.endswith("_region") else truth_mats[f"scale_mat_{i}"]
                 mats[f"scale_mat_{k}"] = region
                 if masks:
                     shutil.copy(f"{session}/{name}/mask/{masks[i]}", f"{cd}/mask/{k:03d}.png")
