@@ -77,6 +77,7 @@ fn colour_maps_follow_each_photos_exposure() {
             exposure_drift: 0.0,
             shutter: 0.0,
             blur_samples: 1,
+            sensor_scale: 1,
             seed: 5,
         }),
     );

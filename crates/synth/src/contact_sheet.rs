@@ -11,7 +11,7 @@ const GAP: u32 = 4;
 const COLUMNS: usize = 6;
 
 /// Box-filter `img` down (or nearest-neighbour up) to `w`×`h`, as RGB.
-fn resize(img: &Image, w: u32, h: u32) -> Image {
+pub(crate) fn resize(img: &Image, w: u32, h: u32) -> Image {
     let src = img.to_rgb();
     let mut out = Image::new(w, h, 3);
     let (sx, sy) = (src.width as f64 / w as f64, src.height as f64 / h as f64);

@@ -251,9 +251,9 @@ pub struct SynthScene {
 
 /// The captures as a camera makes them (`[camera_like]`), at their own size and through their true
 /// cameras, their truth (cameras, masks, poses) kept: exposure and white balance that change from photo to
-/// photo, a video's auto exposure drifting over its frames, sensor noise, JPEG, and moving bodies blurred
-/// over the shutter time (each video's `capture.json` gives it). A video frame's masks are the bodies at
-/// the frame's instant, the middle of its shutter time.
+/// photo, a video's auto exposure drifting over its frames, sensor noise and JPEG at the sensor's size
+/// (`sensor_scale`), and moving bodies blurred over the shutter time (each video's `capture.json` gives
+/// it). A video frame's masks are the bodies at the frame's instant, the middle of its shutter time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraLike {
@@ -272,6 +272,10 @@ pub struct CameraLike {
     pub shutter: f64,
     /// Instants averaged over the shutter time, odd (the middle one is the frame's). Default 7.
     pub blur_samples: usize,
+    /// The sensor is this many times the capture's size, odd: noise and JPEG are made there and the image
+    /// shrunk to the capture's size (mean of each block), as a phone's photo is downsampled for training,
+    /// which shrinks their artifacts as much. Default 3; 1 compresses at the capture's size.
+    pub sensor_scale: u32,
     /// Seed of the jitter and the noise. Default 1.
     pub seed: u64,
 }
@@ -286,6 +290,7 @@ impl Default for CameraLike {
             exposure_drift: 0.08,
             shutter: 1.0 / 60.0,
             blur_samples: 7,
+            sensor_scale: 3,
             seed: 1,
         }
     }

@@ -225,6 +225,12 @@ fn plan(scene: &SynthScene, base: &Path) -> Result<DatasetPlan, SynthError> {
         if !(1..=100).contains(&c.jpeg_quality) {
             return Err(field("camera_like.jpeg_quality", "must be 1 to 100"));
         }
+        if c.sensor_scale == 0 || c.sensor_scale % 2 == 0 {
+            return Err(field(
+                "camera_like.sensor_scale",
+                "must be odd (a capture pixel's centre is its middle sensor pixel's)",
+            ));
+        }
         if !(c.shutter >= 0.0) || c.blur_samples % 2 == 0 {
             return Err(field(
                 "camera_like",
@@ -697,17 +703,47 @@ fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnIm
                 } else {
                     &p.instants[i]
                 };
-                let ray = |u: f64, v: f64| cam.ray(u, v);
+                // The sensor: the capture's camera `k` times over, sampled as finely in all.
+                let k = effects.desc.sensor_scale.max(1);
+                let sensor = Camera {
+                    k: geom::Intrinsics {
+                        fx: cam.k.fx * k as f64,
+                        fy: cam.k.fy * k as f64,
+                        cx: cam.k.cx * k as f64,
+                        cy: cam.k.cy * k as f64,
+                        skew: cam.k.skew * k as f64,
+                    },
+                    width: cam.width * k,
+                    height: cam.height * k,
+                    ..*cam
+                };
+                let ray = |u: f64, v: f64| sensor.ray(u, v);
+                let spp = scene.cameras.spp.div_ceil((k * k) as usize).max(1);
                 let r = render_instants(
                     instants,
-                    cam.width,
-                    cam.height,
-                    scene.cameras.spp,
+                    sensor.width,
+                    sensor.height,
+                    spp,
                     Some(instants.len() / 2),
                     &ray,
                 );
                 let image = effects.develop(&r, i, &dir.join("image").join(&file))?;
-                (r, image)
+                let image = crate::contact_sheet::resize(&image, cam.width, cam.height);
+                // A capture pixel's mask is what its centre sees: the middle sensor pixel's (k is odd).
+                let (sw, half) = (sensor.width as usize, (k / 2) as usize);
+                let ids = (0..(cam.width * cam.height) as usize)
+                    .map(|q| {
+                        let (x, y) = (q % cam.width as usize, q / cam.width as usize);
+                        r.ids[(y * k as usize + half) * sw + x * k as usize + half]
+                    })
+                    .collect();
+                let at_capture = Rendered {
+                    width: cam.width,
+                    height: cam.height,
+                    rgb: Vec::new(),
+                    ids,
+                };
+                (at_capture, image)
             }
         };
         pganeus_io::write_png(&dir.join("image").join(&file), &image)?;

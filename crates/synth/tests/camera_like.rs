@@ -31,6 +31,7 @@ fn only(f: impl FnOnce(&mut CameraLike)) -> CameraLike {
         exposure_drift: 0.0,
         shutter: 0.0,
         blur_samples: 1,
+        sensor_scale: 1,
         seed: 3,
     };
     f(&mut c);
@@ -211,6 +212,42 @@ fn each_effect_is_what_its_setting_says_and_the_truth_is_kept() {
     eprintln!("blur changes up to {most} pixels of a frame");
     assert!(most > 20, "a moving body blurs: {most} pixels changed at most");
 
+    // JPEG made at a sensor three times the capture's size and shrunk, as a phone's photo is: nearer the
+    // clean render than JPEG at the capture's size, and the masks exactly the clean capture's.
+    let jpeg = |sensor_scale: u32, name: &str| {
+        let mut s = scene(Some(only(|c| {
+            c.jpeg_quality = 85;
+            c.sensor_scale = sensor_scale;
+        })));
+        s.videos[0].frames = 1; // the photos are compared
+        generate(&s, name)
+    };
+    let (small, large) = (jpeg(1, "camera-like-jpeg1"), jpeg(3, "camera-like-jpeg3"));
+    let off = |d: &Path| {
+        (0..n_static)
+            .map(|i| {
+                mean_diff(
+                    &linear(&image(&clean, "toy_a", i, n_static)),
+                    &linear(&image(d, "toy_a", i, n_static)),
+                )
+            })
+            .sum::<f64>()
+            / n_static as f64
+    };
+    let (at_capture, at_sensor) = (off(&small), off(&large));
+    eprintln!(
+        "JPEG q85 against the clean render: {at_capture:.4} at the capture's size, {at_sensor:.4} from a 3x sensor"
+    );
+    assert!(at_sensor < 0.8 * at_capture, "{at_sensor} {at_capture}");
+    for i in 0..n_static {
+        let name = synth::frame_name(i, n_static);
+        assert_eq!(
+            std::fs::read(clean.join("toy_a/mask").join(&name)).unwrap(),
+            std::fs::read(large.join("toy_a/mask").join(&name)).unwrap(),
+            "toy_a {i}: a capture pixel's mask is its centre's"
+        );
+    }
+
     // Everything on (the defaults) keeps the cameras.
     let all = generate(&scene(Some(CameraLike::default())), "camera-like-all");
     for capture in ["background", video.as_str()] {
@@ -219,7 +256,7 @@ fn each_effect_is_what_its_setting_says_and_the_truth_is_kept() {
             std::fs::read(all.join(capture).join("cameras_sphere.npz")).unwrap()
         );
     }
-    for d in [clean, gains, noisy, blurred, still, all] {
+    for d in [clean, gains, noisy, blurred, still, small, large, all] {
         let _ = std::fs::remove_dir_all(d);
     }
 }
