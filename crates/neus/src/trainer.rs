@@ -573,15 +573,19 @@ impl NeusTrainer {
         let mut d_inv_s = 0.0f32;
         sc.d_behind.clear();
         let app = &mut self.appearance;
-        app.grads.iter_mut().for_each(|g| *g = 0.0);
+        if learn_appearance {
+            app.grads.iter_mut().for_each(|g| *g = 0.0);
+        }
         for ((l1, se, bce, dis, dbg, dmap), &v) in per_ray.iter().zip(&sc.view) {
             loss.rgb += l1;
             sq += se;
             loss.mask += bce;
             d_inv_s += dis;
             sc.d_behind.push(*dbg);
-            for (g, d) in app.grads[3 * v..3 * v + 3].iter_mut().zip(dmap) {
-                *g += d;
+            if learn_appearance {
+                for (g, d) in app.grads[3 * v..3 * v + 3].iter_mut().zip(dmap) {
+                    *g += d;
+                }
             }
         }
         if learn_appearance {

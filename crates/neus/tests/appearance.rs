@@ -9,6 +9,8 @@ use neus::appearance::ViewAppearance;
 use neus::{Dataset, NeusTrainer, TrainConfig};
 use std::path::Path;
 
+mod common;
+
 /// A textured ball alone on the board: 12 views of 64×48 with masks, clean or with exposure and white
 /// balance jittered per photo.
 fn ball(dir: &Path, camera_like: Option<synth::CameraLike>) -> Dataset {
@@ -25,28 +27,13 @@ fn ball(dir: &Path, camera_like: Option<synth::CameraLike>) -> Dataset {
     Dataset::load(&dir.join("toy_a")).unwrap()
 }
 
+/// The tiny object training, longer, its colour view-independent throughout (see the module's note).
 fn config() -> TrainConfig {
-    let mut c = TrainConfig {
+    TrainConfig {
         iterations: 400,
-        batch_rays: 256,
-        steps_per_ray: 128,
-        max_samples_per_ray: 32,
-        occupancy_res: 32,
-        occupancy_warmup: 100,
-        anneal_end: 100,
-        level_start: 2,
-        level_every: 25,
-        holdout_every: 6,
         view_independent_steps: 400,
-        ..TrainConfig::default()
-    };
-    c.field.grid.levels = 8;
-    c.field.grid.log2_table_size = 14;
-    c.field.grid.base_resolution = 8;
-    c.field.grid.max_resolution = 256;
-    c.field.sdf_hidden = vec![32];
-    c.field.color_hidden = vec![32];
-    c
+        ..common::tiny_config()
+    }
 }
 
 /// What the map makes of mid grey, over the channels (a gain and a bias trade off over a narrow range of

@@ -5,6 +5,9 @@ use geom::Vec3;
 use neus::{checkpoint, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
+mod common;
+use common::tiny_config;
+
 fn scratch(name: &str) -> PathBuf {
     testkit::scratch_dir("neus", name)
 }
@@ -27,30 +30,6 @@ fn ball_capture_sized(dir: &Path, width: u32, height: u32) -> (PathBuf, f64, Vec
     let truth = pganeus_io::read_truth(&dir.join("truth.json")).unwrap();
     let centre = Vec3::cst(truth.bodies[0].static_captures[0].pose.t);
     (dir.join("toy_a"), 0.03, centre)
-}
-
-fn tiny_config() -> TrainConfig {
-    let mut c = TrainConfig {
-        iterations: 300,
-        batch_rays: 256,
-        steps_per_ray: 128,
-        max_samples_per_ray: 32,
-        occupancy_res: 32,
-        occupancy_warmup: 100,
-        anneal_end: 100,
-        level_start: 2,
-        level_every: 25,
-        holdout_every: 6,
-        checkpoint_every: 100,
-        ..TrainConfig::default()
-    };
-    c.field.grid.levels = 8;
-    c.field.grid.log2_table_size = 14;
-    c.field.grid.base_resolution = 8;
-    c.field.grid.max_resolution = 256;
-    c.field.sdf_hidden = vec![32];
-    c.field.color_hidden = vec![32];
-    c
 }
 
 #[test]
