@@ -559,6 +559,7 @@ mod tests {
             rgb: img.rgb.iter().map(|&c| relight(c)).collect(),
             mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
             exposure: 1.0,
+            shutter: 0.0,
         };
         let defaults = FirstPoseSearchConfig::default();
         let cfg = FirstPoseSearchConfig {

@@ -25,12 +25,17 @@
 //! stand ([`Occluder`]): a body in front hides the fitted one as it does in
 //! the frame, whose per-body masks are what each body shows.
 //!
+//! A moving body in a frame with a shutter time is drawn as the mean of its
+//! renders over the time the shutter is open ([`crate::shutter`]); the other
+//! bodies are drawn at their instant.
+//!
 //! The pose gradient is on the tangent `(δt, δω)`: world axes, rotation about
 //! the body origin (the composed renderer's convention).
 
 use crate::exposure_gain::ExposureGain;
+use crate::shutter::{shutter_ends, shutter_poses, Motion};
 use geom::{silhouette, Camera, Pose, SplitMix64, TriMesh, Vec3};
-use neus::compose::{Behind, ComposedRay, Composer, FixedSamples, Layer, RayGradient};
+use neus::compose::{Behind, ComposedRay, Composer, FixedSamples, Layer, PooledComposer, RayGradient};
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
 use std::sync::{Mutex, MutexGuard};
@@ -45,6 +50,9 @@ pub struct FrameTarget {
     /// multiplied by it before they are compared, where the weights do not fit a gain of their own
     /// ([`ImageLossWeights::exposure_gain`]). 1: as captured. `fit` sets it from the first pose.
     pub exposure: f64,
+    /// Seconds the shutter was open (0: an instant). A body whose motion is known
+    /// ([`PreparedFrame::set_motion`]) is then drawn as the mean over that time ([`crate::shutter`]).
+    pub shutter: f64,
 }
 
 impl FrameTarget {
@@ -243,6 +251,8 @@ pub struct PreparedFrame<'a> {
     mask_distance: Vec<f32>,
     /// `[x0, y0, x1, y1]` of the mask, or `None` when it is empty (the body is out of view or hidden).
     mask_box: Option<[u32; 4]>,
+    /// The fitted body's velocity at the frame's instant, for the frame's shutter time ([`Self::set_motion`]).
+    motion: Option<Motion>,
 }
 
 impl<'a> PreparedFrame<'a> {
@@ -274,7 +284,14 @@ impl<'a> PreparedFrame<'a> {
             occluded: Mutex::default(),
             mask_distance: distance_to_mask(&frame.mask, w, h),
             mask_box: bounding_box(&frame.mask, w),
+            motion: None,
         })
+    }
+
+    /// The fitted body's velocity at the frame's instant (`None`: unknown, drawn at its instant). With the
+    /// frame's shutter time the body is drawn over it; the velocity is held while the pose moves.
+    pub fn set_motion(&mut self, motion: Option<Motion>) {
+        self.motion = motion;
     }
 
     /// The other bodies of the frame, drawn where they stand.
@@ -345,13 +362,17 @@ impl<'a> PreparedFrame<'a> {
     }
 
     /// The pixels worth rendering, `[x0, y0, x1, y1]` (inclusive): the mask's box and the body's projected
-    /// box at `pose`, grown by `margin` pixels; `None` when neither is in the image.
+    /// box at `pose` (over the shutter time where it moves), grown by `margin` pixels; `None` when neither is
+    /// in the image.
     pub fn window(&self, object: &ObjectModel, pose: &Pose<f64>, margin: u32) -> Option<[u32; 4]> {
         let cam = &self.frame.camera;
         let (w, h) = (cam.width as f64, cam.height as f64);
         let mut b: Option<[f64; 4]> = self.mask_box.map(|b| b.map(|v| v as f64));
         let (lo, hi) = object.mesh.bounds();
-        for k in 0..8 {
+        for (pose, k) in shutter_ends(pose, self.motion.as_ref(), self.frame.shutter)
+            .iter()
+            .flat_map(|p| (0..8).map(move |k| (p, k)))
+        {
             let c = Vec3::new(
                 if k & 1 == 0 { lo[0] } else { hi[0] },
                 if k & 2 == 0 { lo[1] } else { hi[1] },
@@ -393,7 +414,9 @@ impl<'a> PreparedFrame<'a> {
     }
 
     /// The image terms on `pixels` with the body at `pose`, and with `grad` their pose gradient
-    /// `[dL/dδt, dL/dδω]` (of the per-pixel mean). `scene`: the scene pre-rendered through the camera.
+    /// `[dL/dδt, dL/dδω]` (of the per-pixel mean). `scene`: the scene pre-rendered through the camera. A
+    /// moving body in a frame with a shutter time is drawn at its sub-poses, each through its own composer
+    /// (`composer` and others from the pool), and their colours and opacities averaged.
     #[allow(clippy::too_many_arguments)]
     pub fn loss(
         &self,
@@ -408,7 +431,17 @@ impl<'a> PreparedFrame<'a> {
         let cam = &self.frame.camera;
         let w = cam.width as usize;
         // The fitted body is object 0; the others follow it, drawn from the cache.
-        let layers = [body_layer(object, pose, 0, cam, weights)];
+        let subs = shutter_poses(
+            pose,
+            self.motion.as_ref(),
+            self.frame.shutter,
+            cam,
+            object.mesh.bounds(),
+        );
+        let layers: Vec<[Layer; 1]> = subs
+            .iter()
+            .map(|s| [body_layer(object, &s.pose, 0, cam, weights)])
+            .collect();
         let objects = 1 + self.occluders.len();
         let (mut o, mut d, mut under) = (Vec::new(), Vec::new(), Vec::new());
         for &p in pixels {
@@ -419,8 +452,27 @@ impl<'a> PreparedFrame<'a> {
         }
         let others = (!self.occluders.is_empty()).then(|| self.occluder_samples(composer, pixels, &o, &d, weights));
         let fixed = others.as_ref().map(|cache| &cache.gathered);
-        composer.forward_over(&layers, objects, Behind::Scene(&under), &o, &d, fixed);
+        let mut pooled: Vec<PooledComposer> = (1..subs.len()).map(|_| PooledComposer::take()).collect();
+        let mut composers: Vec<&mut Composer> = std::iter::once(composer)
+            .chain(pooled.iter_mut().map(|c| &mut **c))
+            .collect();
+        for (c, layers) in composers.iter_mut().zip(&layers) {
+            c.forward_over(layers, objects, Behind::Scene(&under), &o, &d, fixed);
+        }
         drop(others);
+        // The frame's colours and the body's opacity: the mean over the shutter's sub-poses.
+        let share = 1.0 / subs.len() as f32;
+        let (rendered_rgb, opacity): (Vec<[f32; 3]>, Vec<f32>) = (0..pixels.len())
+            .map(|j| {
+                composers.iter().fold(([0.0f32; 3], 0.0f32), |(rgb, op), c| {
+                    let r = c.out[j].rgb;
+                    (
+                        [0, 1, 2].map(|k| rgb[k] + share * r[k]),
+                        op + share * c.object_opacity[j * objects],
+                    )
+                })
+            })
+            .unzip();
         let n = pixels.len().max(1) as f64;
         let mut out = ImageLoss {
             pixels: pixels.len(),
@@ -428,7 +480,7 @@ impl<'a> PreparedFrame<'a> {
         };
         // The colour L1 over the pixels inside the mask, after the brightness gain (fitted, or the frame's).
         let in_mask: Vec<usize> = (0..pixels.len()).filter(|&j| self.frame.mask[pixels[j]]).collect();
-        let rendered_in: Vec<[f64; 3]> = in_mask.iter().map(|&j| composer.out[j].rgb.map(f64::from)).collect();
+        let rendered_in: Vec<[f64; 3]> = in_mask.iter().map(|&j| rendered_rgb[j].map(f64::from)).collect();
         let target_in: Vec<[f64; 3]> = in_mask
             .iter()
             .map(|&j| self.frame.rgb[pixels[j]].map(f64::from))
@@ -447,21 +499,21 @@ impl<'a> PreparedFrame<'a> {
         }
         let mut grads = Vec::with_capacity(if grad { pixels.len() } else { 0 });
         for (j, &p) in pixels.iter().enumerate() {
-            let rendered = &composer.out[j];
-            let op = composer.object_opacity[j * objects] as f64;
+            let rendered_rgb = rendered_rgb[j];
+            let op = opacity[j] as f64;
             let inside = self.frame.mask[p];
             let m = if inside { 1.0 } else { 0.0 };
             let dist = self.mask_distance[p] as f64 / weights.pull_scale_px;
             let mut g_rgb = [0.0f32; 3];
             for k in 0..3 {
-                let e = (rendered.rgb[k] - self.frame.rgb[p][k]) as f64;
+                let e = (rendered_rgb[k] - self.frame.rgb[p][k]) as f64;
                 out.mse += e * e / 3.0;
             }
             if inside {
                 for k in 0..3 {
                     g_rgb[k] = (weights.colour * colour_grad_of[j][k] / n) as f32;
                 }
-                let (c, dc) = chromaticity_l1(rendered.rgb.map(f64::from), self.frame.rgb[p].map(f64::from));
+                let (c, dc) = chromaticity_l1(rendered_rgb.map(f64::from), self.frame.rgb[p].map(f64::from));
                 out.chromaticity_l1 += c;
                 for (g, d) in g_rgb.iter_mut().zip(dc) {
                     *g += (weights.chromaticity * d / n) as f32;
@@ -472,11 +524,12 @@ impl<'a> PreparedFrame<'a> {
             out.intersection += (op > 0.5 && inside) as usize;
             out.union += (op > 0.5 || inside) as usize;
             if grad {
+                // Each sub-pose's render enters the mean with its share.
                 let g_op = (weights.silhouette * 2.0 * (op - m) + weights.pull * dist) / n;
                 grads.push(RayGradient {
-                    rgb: g_rgb,
+                    rgb: g_rgb.map(|g| g * share),
                     depth: 0.0,
-                    object_opacity: vec![g_op as f32],
+                    object_opacity: vec![g_op as f32 * share],
                 });
             }
         }
@@ -489,12 +542,17 @@ impl<'a> PreparedFrame<'a> {
             + weights.chromaticity * out.chromaticity_l1
             + weights.silhouette * out.silhouette
             + weights.pull * out.pull;
-        let g = if grad {
-            // The fitted body's gradient alone: the others stand still here.
-            composer.backward_of(&layers, &grads, |object| object == 0)[0]
-        } else {
-            [0.0; 6]
-        };
+        let mut g = [0.0; 6];
+        if grad {
+            // The fitted body's gradient alone: the others stand still here. Each sub-pose's pulled back to
+            // the frame's pose.
+            for ((c, layers), sub) in composers.iter_mut().zip(&layers).zip(&subs) {
+                let gs = sub.to_frame_gradient(c.backward_of(layers, &grads, |object| object == 0)[0]);
+                for (a, b) in g.iter_mut().zip(gs) {
+                    *a += b;
+                }
+            }
+        }
         (out, g)
     }
 
@@ -713,6 +771,7 @@ mod tests {
             rgb: vec![[0.0; 3]; (w * h) as usize],
             mask,
             exposure: 1.0,
+            shutter: 0.0,
         };
         let ([mu, mv], area) = frame.mask_centroid().unwrap();
         assert!(
@@ -759,6 +818,7 @@ mod tests {
             rgb: vec![[0.0; 3]; (w * h) as usize],
             mask: silhouette(&camera, &mesh, &truth),
             exposure: 1.0,
+            shutter: 0.0,
         };
         // 12 % farther along the line of sight: 20 % less area.
         let eye = camera.center();

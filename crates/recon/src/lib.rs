@@ -19,6 +19,7 @@ pub mod poses_from_video;
 pub mod reported_poses;
 pub mod rest;
 pub mod seen_space;
+pub mod shutter;
 pub mod target;
 mod unknowns;
 pub mod value_ranges;
@@ -48,6 +49,7 @@ pub use poses_from_video::{
 };
 pub use reported_poses::{reported_poses, simulation_misses, ReportedPose};
 pub use seen_space::scene_less_seen;
+pub use shutter::Motion;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;

@@ -23,6 +23,7 @@
 use crate::fit_physics::{probe_scale, StartContact};
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 use crate::least_squares::{lm_step, Linearization};
+use crate::shutter::Motion;
 use crate::unknowns::Unknowns;
 use geom::{Quat, SplitMix64};
 use neus::compose::{ComposedRay, Composer};
@@ -266,8 +267,11 @@ impl<'a> PhysicsFromVideo<'a> {
         let mut rows: Vec<([f64; 6], Vec<[f64; 6]>)> = Vec::new();
         let mut total = 0.0;
         for k in 1..self.window {
-            let pose = g.frames[k][self.body].pose;
-            let frame = &self.frames[k];
+            let state = &g.frames[k][self.body];
+            let pose = state.pose;
+            let frame = &mut self.frames[k];
+            // Drawn over the shutter at the simulated velocity (held for the step).
+            frame.set_motion(Some(Motion::from(state)));
             // A frame whose mask is empty (out of view, hidden) has no image terms.
             if !frame.has_mask() {
                 continue;
@@ -403,9 +407,10 @@ impl<'a> PhysicsFromVideo<'a> {
     fn evaluate_world(&mut self, w: &World) -> Vec<ImageLoss> {
         let traj = w.simulate(&w.params());
         self.frames
-            .iter()
+            .iter_mut()
             .zip(&traj.frames)
             .map(|(f, s)| {
+                f.set_motion(Some(Motion::from(&s[self.body])));
                 f.evaluate(
                     &mut self.composer,
                     self.object,

@@ -7,6 +7,7 @@
 
 use crate::contact_penalty::ContactTerm;
 use crate::image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, Occluder, PreparedFrame};
+use crate::shutter::Motion;
 use geom::{Pose, Quat, SplitMix64, Vec3};
 use neus::compose::{ComposedRay, PooledComposer};
 use neus::ObjectModel;
@@ -129,6 +130,13 @@ impl<'a> PoseFromImage<'a> {
     /// The other bodies of the frame, drawn where they stand (several bodies in the video).
     pub fn with_occluders(mut self, occluders: Vec<Occluder<'a>>) -> Self {
         self.frame.set_occluders(occluders);
+        self
+    }
+
+    /// The body's velocity at the frame's instant (`None`: drawn at its instant), for a frame with a shutter
+    /// time ([`PreparedFrame::set_motion`]).
+    pub fn with_motion(mut self, motion: Option<Motion>) -> Self {
+        self.frame.set_motion(motion);
         self
     }
 

@@ -27,6 +27,7 @@ use crate::first_pose_search::{search_first_pose, FirstPoseSearchConfig};
 use crate::image_loss::{window_union, FrameTarget, ImageLoss, ImageLossWeights, Occluder};
 use crate::image_precision::ImagePrecision;
 use crate::pose_from_image::{PoseFitConfig, PoseFitError, PoseFromImage};
+use crate::shutter::Motion;
 use geom::{Pose, Vec3};
 use neus::compose::ComposedRay;
 use neus::ObjectModel;
@@ -279,6 +280,8 @@ pub struct PosesFromVideo<'a> {
     world: &'a World,
     body: usize,
     starts: Vec<Pose<f64>>,
+    /// PA's velocity in each frame: a frame with a shutter time draws the body over it (none when tracking).
+    pa_motion: Vec<Option<Motion>>,
     /// PA's touching points in each frame, and the sides of the scene they touch (empty where PA's body is
     /// off the scene).
     contacts: Vec<Vec<usize>>,
@@ -367,6 +370,7 @@ impl<'a> PosesFromVideo<'a> {
             });
         }
         let starts: Vec<Pose<f64>> = pa.frames.iter().map(|f| f[body].pose).collect();
+        let pa_motion = pa.frames.iter().map(|f| Some(Motion::from(&f[body]))).collect();
         // PA's contact holds a frame where PA's body is on the scene at the frame's own time. Not every frame
         // PA flags: a frame is flagged for any contact since the one before, and after a bounce, which lasts a
         // substep, the body is off the scene again when the frame is taken.
@@ -395,6 +399,7 @@ impl<'a> PosesFromVideo<'a> {
             world,
             body,
             starts,
+            pa_motion,
             contacts,
             pa_sides,
             tracking: false,
@@ -434,6 +439,7 @@ impl<'a> PosesFromVideo<'a> {
             world,
             body,
             starts: vec![first; frames.len()],
+            pa_motion: vec![None; frames.len()],
             contacts: vec![Vec::new(); frames.len()],
             pa_sides: vec![Vec::new(); frames.len()],
             tracking: true,
@@ -465,6 +471,16 @@ impl<'a> PosesFromVideo<'a> {
         if let Some(o) = self.occluders.get_mut(k) {
             *o = occluders;
         }
+    }
+
+    /// The body's velocity at frame `k` for a frame with a shutter time: PA's (the simulation's at that instant);
+    /// when tracking, the pace of the two fitted frames before it (none before two).
+    fn motion_at(&self, k: usize) -> Option<Motion> {
+        if !self.tracking {
+            return self.pa_motion.get(k).copied().flatten();
+        }
+        let (a, b) = (self.results.get(k.checked_sub(2)?)?, self.results.get(k - 1)?);
+        (a.fitted && b.fitted).then(|| Motion::between(&a.pose, &b.pose, 1.0 / self.world.config.fps))
     }
 
     /// The pose frame `k` starts from before it is fitted (the physics start); its fitted pose once it is.
@@ -653,7 +669,8 @@ impl<'a> PosesFromVideo<'a> {
         let holds = !held.is_empty();
         let new = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, start)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
-            .with_occluders(self.occluders[k].clone());
+            .with_occluders(self.occluders[k].clone())
+            .with_motion(self.motion_at(k));
         let mut new = if contacts.is_empty() {
             new
         } else {
@@ -662,7 +679,8 @@ impl<'a> PosesFromVideo<'a> {
         new.run();
         let mut old = PoseFromImage::new(cfg.clone(), self.object, self.scene, frame, self.results[k].pose)
             .map_err(|error| PosesFromVideoError::Frame { frame: k, error })?
-            .with_occluders(self.occluders[k].clone());
+            .with_occluders(self.occluders[k].clone())
+            .with_motion(self.motion_at(k));
         let window = match (new.window(), old.window()) {
             (Some(a), Some(b)) => window_union(a, b),
             (Some(a), None) | (None, Some(a)) => a,
@@ -704,7 +722,8 @@ impl<'a> PosesFromVideo<'a> {
                 anchor.pose,
             )
             .map_err(|error| PosesFromVideoError::Frame { frame: j, error })?
-            .with_occluders(self.occluders[j].clone());
+            .with_occluders(self.occluders[j].clone())
+            .with_motion(self.motion_at(j));
             let image = at.evaluate();
             if image.loss <= self.results[j].image.loss {
                 self.results[j] = FramePose {
@@ -1074,7 +1093,9 @@ impl<'a> PosesFromVideo<'a> {
                     return Ok(self.results.last());
                 }
                 Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
-                Ok(fit) => fit.with_occluders(self.occluders[k].clone()),
+                Ok(fit) => fit
+                    .with_occluders(self.occluders[k].clone())
+                    .with_motion(self.motion_at(k)),
             };
             fits.push(if s.contacts.is_empty() {
                 fit
@@ -1164,7 +1185,9 @@ impl<'a> PosesFromVideo<'a> {
         ) {
             Err(PoseFitError::EmptyMask) => return Ok(None),
             Err(error) => return Err(PosesFromVideoError::Frame { frame: k, error }),
-            Ok(fit) => fit.with_occluders(self.occluders[k].clone()),
+            Ok(fit) => fit
+                .with_occluders(self.occluders[k].clone())
+                .with_motion(self.motion_at(k)),
         };
         let image = at_anchor.evaluate();
         if !(image.loss <= anchor.image.loss * (1.0 + STILL_LOSS_SLACK)) {

@@ -16,13 +16,14 @@ use crate::image_precision::ImagePrecision;
 use crate::physics_from_video::VideoPhysicsConfig;
 use crate::pose_from_image::PoseFitConfig;
 use crate::poses_from_video::PosesFromVideoConfig;
+use crate::shutter::Motion;
 use crate::value_ranges::RangeScan;
 use geom::{Pose, Quat, Vec3};
 use neus::compose::{ComposedRay, Composer};
 use neus::ObjectModel;
 use serde::{Deserialize, Serialize};
 use sim::sdf::{Sdf, Shape};
-use sim::{ContactParams, RigidBody, SimConfig, World};
+use sim::{ContactParams, RigidBody, SimConfig, Trajectory, World};
 
 /// Settings of every stage of `fit`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -320,14 +321,22 @@ pub fn launch_guess(poses: &[Pose<f64>], fps: f64, gravity: [f64; 3], touching: 
     (v.to_array(), omega.to_array())
 }
 
+/// Body `body`'s velocity in every frame of `traj` (for frames with a shutter time).
+pub fn simulated_motions(traj: &Trajectory<f64>, body: usize) -> Vec<Option<Motion>> {
+    traj.frames.iter().map(|f| f.get(body).map(Motion::from)).collect()
+}
+
 /// The image terms of every frame with the body at `poses[k]` (every pixel of each frame's window; frames
-/// whose mask is empty give the default, zero pixels). `others`: the video's other bodies and their poses,
-/// drawn where they stand.
+/// whose mask is empty give the default, zero pixels), moving at `motions[k]` where a frame has a shutter
+/// time (none, or beyond the slice: drawn at its instant). `others`: the video's other bodies and their
+/// poses, drawn where they stand.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_poses(
     object: &ObjectModel,
     scene: &[ComposedRay],
     frames: &[FrameTarget],
     poses: &[Pose<f64>],
+    motions: &[Option<Motion>],
     others: &[(&ObjectModel, &[Pose<f64>])],
     weights: &ImageLossWeights,
 ) -> Result<Vec<ImageLoss>, FrameError> {
@@ -338,6 +347,7 @@ pub fn evaluate_poses(
         .enumerate()
         .map(|(k, (f, pose))| {
             let mut prepared = PreparedFrame::new(f, scene)?;
+            prepared.set_motion(motions.get(k).copied().flatten());
             prepared.set_occluders(
                 others
                     .iter()

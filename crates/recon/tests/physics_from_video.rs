@@ -78,6 +78,7 @@ fn frames_of_the_wrong_size_are_refused_by_index() {
         rgb: vec![[0.0; 3]; pixels],
         mask: vec![false; n],
         exposure: 1.0,
+        shutter: 0.0,
     };
     let frames = vec![frame(n), frame(n), frame(n - 1)];
     let c = ContactParams::default();

@@ -75,6 +75,7 @@ fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
         rgb: img.rgb.clone(),
         mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
         exposure: 1.0,
+        shutter: 0.0,
     };
     assert!(
         frame.mask.iter().filter(|&&m| m).count() > 300,
@@ -132,6 +133,7 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
         rgb: vec![[0.0; 3]; 48],
         mask: vec![false; 48],
         exposure: 1.0,
+        shutter: 0.0,
     };
     let cfg = PoseFitConfig::default;
     assert_eq!(
@@ -191,6 +193,7 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         rgb: img.rgb.clone(),
         mask: (0..(w * h) as usize).map(|p| img.object_opacity[p * 2] > 0.5).collect(),
         exposure: 1.0,
+        shutter: 0.0,
     };
     let shown = frame.mask.iter().filter(|&&m| m).count();
     let ball_shown = (0..(w * h) as usize)

@@ -620,6 +620,7 @@ fn with_noise(frames: &[recon::FrameTarget], amplitude: f64) -> Vec<recon::Frame
                 .collect(),
             mask: f.mask.clone(),
             exposure: f.exposure,
+            shutter: f.shutter,
         })
         .collect()
 }

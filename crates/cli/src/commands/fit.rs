@@ -52,6 +52,10 @@ pub struct FitArgs {
     /// Frames per second (default: the video's `capture.json`).
     #[arg(long)]
     pub fps: Option<f64>,
+    /// Seconds the shutter was open in each frame (default: the video's `capture.json`, else an instant): a
+    /// body moving more than a pixel in that time is drawn over it. 0: every frame an instant.
+    #[arg(long)]
+    pub shutter: Option<f64>,
     /// Density of the body, kg/m³ (the motion against a static scene does not depend on it).
     #[arg(long, default_value_t = 1000.0)]
     pub density: f64,
@@ -95,6 +99,7 @@ impl FitArgs {
             init: self.init.clone(),
             frames: self.frames,
             fps: self.fps,
+            shutter: self.shutter,
             density: self.density,
             no_pa: self.no_pa,
             no_ga: self.no_ga,

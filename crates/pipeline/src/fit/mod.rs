@@ -61,6 +61,9 @@ pub struct FitInputs {
     pub frames: Option<usize>,
     /// Frames per second (none: the video's `capture.json`).
     pub fps: Option<f64>,
+    /// Seconds the shutter was open in each frame (none: the video's `capture.json`, an instant without one):
+    /// a moving body is drawn over it. 0: every frame an instant.
+    pub shutter: Option<f64>,
     /// Density of the bodies, kg/m³ (the motion against a static scene does not depend on it). Default 1000.
     pub density: f64,
     /// Ablation: no PA; GA tracks frame by frame from the previous frame, then PGA.
@@ -85,6 +88,7 @@ impl FitInputs {
             init: PathBuf::from("auto"),
             frames: None,
             fps: None,
+            shutter: None,
             density: 1000.0,
             no_pa: false,
             no_ga: false,
@@ -326,7 +330,7 @@ fn capture_name(video: &Path) -> String {
 }
 
 /// The record of an input set and settings (`config.toml`) for `frames` frames at `fps`.
-fn record_of(inputs: &FitInputs, config: &VideoFitConfig, frames: usize, fps: f64) -> FitRecord {
+fn record_of(inputs: &FitInputs, config: &VideoFitConfig, frames: usize, fps: f64, shutter: f64) -> FitRecord {
     FitRecord {
         inputs: RecordInputs {
             video: inputs.video.clone(),
@@ -340,6 +344,7 @@ fn record_of(inputs: &FitInputs, config: &VideoFitConfig, frames: usize, fps: f6
             init: inputs.init.clone(),
             frames,
             fps,
+            shutter,
             no_pa: inputs.no_pa,
             no_ga: inputs.no_ga,
         },
@@ -380,6 +385,9 @@ pub(crate) struct RecordInputs {
     pub(crate) init: PathBuf,
     pub(crate) frames: usize,
     pub(crate) fps: f64,
+    /// Seconds; 0 for an instant (and in fit folders written before the shutter was read).
+    #[serde(default)]
+    pub(crate) shutter: f64,
     pub(crate) no_pa: bool,
     pub(crate) no_ga: bool,
 }
@@ -431,6 +439,7 @@ pub(crate) fn read_video(
             dir.display()
         );
     }
+    let shutter = c.info.as_ref().and_then(|i| i.shutter).unwrap_or(0.0);
     let mut frames = Vec::with_capacity(n);
     let mut empty = Vec::new();
     for k in 0..n {
@@ -443,6 +452,7 @@ pub(crate) fn read_video(
             rgb: reference_frame(&c.images[k])?,
             mask,
             exposure: 1.0,
+            shutter,
         });
     }
     let mask_dir = masks[0].parent().unwrap_or(dir).display().to_string();
@@ -539,6 +549,31 @@ fn video_fps(inputs: &FitInputs, from_capture: Option<f64>) -> Result<f64> {
             inputs.video.display()
         ),
     }
+}
+
+/// The shutter time every frame is drawn with: `--shutter` over the video's `capture.json` (already in
+/// `frames`); checked to fit in a frame's time. Logged where a frame is drawn over it.
+fn set_shutter(inputs: &FitInputs, frames: &mut [FrameTarget], fps: f64) -> Result<f64> {
+    if let Some(s) = inputs.shutter {
+        if !(s.is_finite() && s >= 0.0) {
+            fail!(Settings, "--shutter must be 0 or more seconds, got {s}");
+        }
+        for f in frames.iter_mut() {
+            f.shutter = s;
+        }
+    }
+    let shutter = frames.first().map_or(0.0, |f| f.shutter);
+    if shutter > 1.0 / fps + 1e-9 {
+        fail!(
+            Input,
+            "{}: a shutter of {shutter} s is longer than a frame at {fps} fps: give --shutter (seconds, at most 1/fps)",
+            inputs.video.display()
+        );
+    }
+    if shutter > 0.0 {
+        tracing::info!("shutter {shutter:.5} s: a body moving over a pixel in that time is drawn over it");
+    }
+    Ok(shutter)
 }
 
 /// `--scene`'s field (a warning when it was trained as an object) and `--scene-grid` when given.

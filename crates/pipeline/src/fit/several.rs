@@ -29,7 +29,7 @@ use crate::images::{beside, strip, to8};
 use crate::objects::load_objects;
 use neus::compose::{render_composed, Behind, Layer};
 use recon::image_loss::Occluder;
-use recon::video_fit::{evaluate_poses, ga_weights_of, lift_out};
+use recon::video_fit::{evaluate_poses, ga_weights_of, lift_out, simulated_motions};
 use recon::{
     better_per_frame, colliding_value_ranges, fit_colliding_bodies, reported_poses, PhysicsFitConfig, PosesFromVideo,
     CONTACT_STARTS,
@@ -107,7 +107,11 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
         .map(|(b, (_, dir))| rigid_body(&b.name, &b.object, dir, a.density))
         .collect::<Result<Vec<_>>>()?;
     check_sim_settings(fps, n, cfg)?;
-    let record = record_of(a, cfg, n, fps);
+    let mut shutter = 0.0;
+    for b in &mut bodies {
+        shutter = set_shutter(a, &mut b.frames, fps)?;
+    }
+    let record = record_of(a, cfg, n, fps, shutter);
     let prepared = Prepared {
         bodies,
         fps,
@@ -262,7 +266,8 @@ fn body_poses(traj: &sim::Trajectory<f64>, nb: usize) -> Vec<Vec<Pose<f64>>> {
 /// The image terms of every body's frames under `world`'s simulation, the others drawn where it puts them.
 fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
     let nb = m.bodies.len();
-    let poses = body_poses(&world.simulate(&world.params()), nb);
+    let traj = world.simulate(&world.params());
+    let poses = body_poses(&traj, nb);
     let mut all = Vec::with_capacity(nb);
     for (b, body) in m.bodies.iter().enumerate() {
         let others = others_along(m, b, &poses);
@@ -271,6 +276,7 @@ fn simulated_losses(m: &Multi, world: &World) -> Result<Vec<Vec<ImageLoss>>> {
             &m.scene_pre,
             &body.frames,
             &poses[b],
+            &simulated_motions(&traj, b),
             &others,
             // GA's terms: `simulation_misses` compares these with GA's own losses (and the choice between
             // the two rounds above is made on them too).
@@ -817,12 +823,14 @@ fn finish(
     for (b, body) in m.bodies.iter().enumerate() {
         // Scored as `sim_losses` were: the other bodies where the simulation puts them.
         let others = others_along(m, b, &sim_poses);
+        let motions = simulated_motions(&traj, b);
         let score = |poses: &[Pose<f64>]| {
             evaluate_poses(
                 &body.object,
                 &m.scene_pre,
                 &body.frames,
                 poses,
+                &motions,
                 &others,
                 &m.cfg.ga.pose.weights,
             )

@@ -7,7 +7,9 @@ use super::*;
 use crate::images::{beside, strip, to8};
 use neus::compose::{render_composed, Behind, Layer};
 use recon::poses_from_video::carried_on;
-use recon::video_fit::{evaluate_poses, fit_to_poses, ga_weights_of, launch_guess, lift_out, total_loss, TOUCHING};
+use recon::video_fit::{
+    evaluate_poses, fit_to_poses, ga_weights_of, launch_guess, lift_out, simulated_motions, total_loss, TOUCHING,
+};
 use recon::{
     among_ties, reported_poses, MultiStart, PhysicsFitConfig, PhysicsFromVideo, PosesFromVideo, StartContact,
     StartResult, PGA_TIE,
@@ -81,8 +83,9 @@ pub(super) struct Prepared {
 /// Every input read and checked, and the record of the fit.
 pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, FitRecord)> {
     let (name, object_dir) = a.objects[0].clone();
-    let (frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames)?;
+    let (mut frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames)?;
     let fps = video_fps(a, fps_of_capture)?;
+    let shutter = set_shutter(a, &mut frames, fps)?;
     let object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;
     let guess = if is_auto(&a.init) {
         None
@@ -96,7 +99,7 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let (scene_field, grid) = load_scene(a)?;
     let body = rigid_body(&name, &object, &object_dir, a.density)?;
     check_sim_settings(fps, frames.len(), cfg)?;
-    let record = record_of(a, cfg, frames.len(), fps);
+    let record = record_of(a, cfg, frames.len(), fps, shutter);
     let prepared = Prepared {
         name,
         object,
@@ -274,8 +277,10 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
             ..cfg.clone()
         };
         let steps = cfg_k.iterations;
+        // Over the shutter at the pace of the two frames before (unknown before them).
+        let motion = (k >= 2).then(|| recon::Motion::between(&poses[k - 2], &poses[k - 1], 1.0 / job.fps));
         let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &job.frames[k], start_k) {
-            Ok(f) => f,
+            Ok(f) => f.with_motion(motion),
             Err(recon::PoseFitError::EmptyMask) if k == 0 => {
                 fail!(
                     Input,
@@ -821,6 +826,7 @@ fn simulation_losses(job: &Job, world: &World, weights: &recon::ImageLossWeights
         &job.scene_pre,
         &job.frames,
         &poses,
+        &simulated_motions(&traj, 0),
         &[],
         weights,
     )?)
@@ -980,7 +986,17 @@ fn finish(
     let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
     // Scored with GA's terms: `simulation_misses` compares these with GA's own losses.
     let weights = job.cfg.ga.pose.weights.clone();
-    let sim_losses = evaluate_poses(&job.object, &job.scene_pre, &job.frames, &sim_poses, &[], &weights)?;
+    // At the simulated velocities: GA's poses (slid in depth) are scored moving as the simulation moves.
+    let motions = simulated_motions(&traj, 0);
+    let sim_losses = evaluate_poses(
+        &job.object,
+        &job.scene_pre,
+        &job.frames,
+        &sim_poses,
+        &motions,
+        &[],
+        &weights,
+    )?;
     // The reported pose is the simulated one (Eq. 11) wherever it explains the frame: GA's poses follow
     // each image alone and, where the image cannot tell depth (a small object far off), wander by
     // centimetres that the physics does not. Where the simulation clearly misses the body's silhouette
@@ -988,8 +1004,9 @@ fn finish(
     // (and ga_pga.json: GA's after the frames refitted from the simulation).
     let (reported, source) = match ga {
         Some(ga) => {
-            let at_depth =
-                |poses: &[Pose<f64>]| evaluate_poses(&job.object, &job.scene_pre, &job.frames, poses, &[], &weights);
+            let at_depth = |poses: &[Pose<f64>]| {
+                evaluate_poses(&job.object, &job.scene_pre, &job.frames, poses, &motions, &[], &weights)
+            };
             reported_poses(
                 &sim_poses,
                 &sim_losses,
