@@ -114,7 +114,7 @@ fn rig() -> Rig {
 }
 
 #[test]
-#[ignore = "slow: 37 evaluations of some 3,000 pixels at four sub-poses, ~2 min"]
+#[ignore = "slow: 25 evaluations of some 3,000 pixels at four sub-poses, ~1 min"]
 fn the_blurred_loss_gradient_matches_central_differences() {
     let r = rig();
     let frame = blurred_frame(&r.toy, &r.behind, &r.cam, &r.truth);
@@ -151,8 +151,8 @@ fn the_blurred_loss_gradient_matches_central_differences() {
     };
     let mut composer = Composer::default();
     let (_, analytic) = loss(&mut composer, &pose, true);
-    // Least-squares slopes over six offsets (the f32 renderer's noise averages out).
-    let offsets = [-3.0, -2.0, -1.0, 1.0, 2.0, 3.0];
+    // Least-squares slopes over four offsets (the f32 renderer's noise averages out).
+    let offsets = [-2.0, -1.0, 1.0, 2.0];
     for k in 0..6 {
         let base = if k < 3 { 2e-5 } else { 4e-4 };
         let mut slope = 0.0;
