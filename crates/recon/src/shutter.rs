@@ -61,7 +61,7 @@ impl SubPose {
 /// Below this many pixels of motion over the shutter a frame is drawn at its instant.
 pub const MIN_BLUR_PX: f64 = 1.0;
 /// Sub-poses at most this many pixels apart.
-const SUB_POSE_SPACING_PX: f64 = 2.0;
+pub const SUB_POSE_SPACING_PX: f64 = 2.0;
 /// At most this many sub-poses (each one a render of the body).
 pub const MAX_SUB_POSES: usize = 6;
 
