@@ -114,7 +114,7 @@ fn rig() -> Rig {
 }
 
 #[test]
-#[ignore = "slow: 25 evaluations of some 3,000 pixels at four sub-poses, ~1 min"]
+#[ignore = "slow: 13 evaluations of some 3,000 pixels at four sub-poses, ~30 s"]
 fn the_blurred_loss_gradient_matches_central_differences() {
     let r = rig();
     let frame = blurred_frame(&r.toy, &r.behind, &r.cam, &r.truth);
@@ -151,10 +151,10 @@ fn the_blurred_loss_gradient_matches_central_differences() {
     };
     let mut composer = Composer::default();
     let (_, analytic) = loss(&mut composer, &pose, true);
-    // Least-squares slopes over four offsets (the f32 renderer's noise averages out).
-    let offsets = [-2.0, -1.0, 1.0, 2.0];
+    // Central differences over steps large enough that the f32 renderer's noise stays small.
+    let offsets = [-1.0, 1.0];
     for k in 0..6 {
-        let base = if k < 3 { 2e-5 } else { 4e-4 };
+        let base = if k < 3 { 4e-5 } else { 8e-4 };
         let mut slope = 0.0;
         for s in offsets {
             let mut e = [0.0; 6];
