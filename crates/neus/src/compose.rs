@@ -246,8 +246,10 @@ struct Merged {
 
 /// Composers given back by [`PooledComposer`]s, their buffers kept.
 static COMPOSER_POOL: std::sync::Mutex<Vec<Composer>> = std::sync::Mutex::new(Vec::new());
-/// At most this many composers wait in the pool (as many as fits alive at once: a frame's starts side by side).
-const COMPOSER_POOL_SIZE: usize = 4;
+/// At most this many composers wait in the pool: as many as are alive at once — a frame's starts side by side
+/// (4), and a blurred frame's extra sub-poses (up to 5, `recon::shutter`). A smaller pool drops a composer and
+/// allocates it afresh at every step of a blurred frame.
+const COMPOSER_POOL_SIZE: usize = 10;
 
 /// A [`Composer`] lent from a process-wide pool and given back when dropped. For short-lived users such as one
 /// frame's pose fit: GA fits every frame from several starts for a few dozen steps each, and a new composer

@@ -33,7 +33,7 @@
 //! the body origin (the composed renderer's convention).
 
 use crate::exposure_gain::ExposureGain;
-use crate::shutter::{shutter_ends, shutter_poses, Motion};
+use crate::shutter::{box_corners, shutter_ends, shutter_poses, Motion};
 use geom::{silhouette, Camera, Pose, SplitMix64, TriMesh, Vec3};
 use neus::compose::{Behind, ComposedRay, Composer, FixedSamples, Layer, PooledComposer, RayGradient};
 use neus::ObjectModel;
@@ -368,16 +368,11 @@ impl<'a> PreparedFrame<'a> {
         let cam = &self.frame.camera;
         let (w, h) = (cam.width as f64, cam.height as f64);
         let mut b: Option<[f64; 4]> = self.mask_box.map(|b| b.map(|v| v as f64));
-        let (lo, hi) = object.mesh.bounds();
-        for (pose, k) in shutter_ends(pose, self.motion.as_ref(), self.frame.shutter)
+        let corners = box_corners(object.mesh.bounds());
+        for (pose, c) in shutter_ends(pose, self.motion.as_ref(), self.frame.shutter)
             .iter()
-            .flat_map(|p| (0..8).map(move |k| (p, k)))
+            .flat_map(|p| corners.iter().map(move |&c| (p, c)))
         {
-            let c = Vec3::new(
-                if k & 1 == 0 { lo[0] } else { hi[0] },
-                if k & 2 == 0 { lo[1] } else { hi[1] },
-                if k & 4 == 0 { lo[2] } else { hi[2] },
-            );
             let (u, v, z) = cam.project(pose.transform_point(c));
             if z > 0.0 {
                 b = Some(match b {

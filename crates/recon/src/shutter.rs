@@ -78,19 +78,22 @@ pub fn blur_px(
         motion.after(pose, -0.5 * shutter).pose,
         motion.after(pose, 0.5 * shutter).pose,
     );
-    let (lo, hi) = bounds;
-    (0..8)
-        .filter_map(|k| {
-            let c = Vec3::new(
-                if k & 1 == 0 { lo[0] } else { hi[0] },
-                if k & 2 == 0 { lo[1] } else { hi[1] },
-                if k & 4 == 0 { lo[2] } else { hi[2] },
-            );
+    box_corners(bounds)
+        .into_iter()
+        .filter_map(|c| {
             let (ua, va, za) = camera.project(a.transform_point(c));
             let (ub, vb, zb) = camera.project(b.transform_point(c));
             (za > 0.0 && zb > 0.0).then(|| (ua - ub).hypot(va - vb))
         })
         .fold(0.0, f64::max)
+}
+
+/// The eight corners of the box `(lo, hi)`.
+pub(crate) fn box_corners((lo, hi): ([f64; 3], [f64; 3])) -> [Vec3<f64>; 8] {
+    std::array::from_fn(|k| {
+        let [x, y, z] = [0, 1, 2].map(|a| if k & (1 << a) == 0 { lo[a] } else { hi[a] });
+        Vec3::new(x, y, z)
+    })
 }
 
 /// The poses a frame is drawn at: `pose` alone without a shutter time or a motion, or where the body moves

@@ -2,7 +2,7 @@
 //! found again from a guess 2 cm off (a third of its size) and turned, by the
 //! composed renderer's pose gradients of colour and silhouette.
 
-use geom::{Camera, Intrinsics, Pose, Quat, TriMesh, Vec3};
+use geom::{Pose, Quat, Vec3};
 use neus::compose::{prerender_scene, render_composed, Behind, Composer, Layer};
 use neus::object_model::ObjectField;
 use neus::untrained_field::untrained_field;
@@ -10,54 +10,8 @@ use neus::{FieldInit, ObjectModel};
 use recon::{FrameError, FrameTarget, PoseFitConfig, PoseFitError, PoseFromImage};
 use std::path::PathBuf;
 
-fn camera(w: u32, h: u32) -> Camera<f64> {
-    let k = Intrinsics::centred(1.2 * w as f64, w, h);
-    Camera::look_at(
-        Vec3::new(0.13, -0.16, 0.14),
-        Vec3::new(0.0, 0.0, 0.03),
-        Vec3::new(0.0, 0.0, 1.0),
-        k,
-        w,
-        h,
-    )
-}
-
-/// A box mesh (body frame) around the object's sphere: the stage only uses its bounds.
-fn bounds_mesh(h: f64) -> TriMesh {
-    let v: Vec<[f64; 3]> = (0..8)
-        .map(|k| {
-            [
-                if k & 1 == 0 { -h } else { h },
-                if k & 2 == 0 { -h } else { h },
-                if k & 4 == 0 { -h } else { h },
-            ]
-        })
-        .collect();
-    TriMesh::new(v, vec![[0, 1, 2], [1, 3, 2]])
-}
-
-/// A 6 cm toy (a sphere field) whose body origin sits off the sphere's centre, so turning it also moves
-/// its surface.
-fn toy() -> ObjectModel {
-    ObjectModel {
-        source: PathBuf::from("untrained"),
-        primary: ObjectField {
-            field: untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3),
-            capture_from_body: Pose::new(Quat::exp(Vec3::new(0.1, -0.2, 0.3)), Vec3::new(0.008, -0.005, 0.03)),
-        },
-        other: None,
-        mesh: bounds_mesh(0.04),
-        volume: 1e-4,
-        reference_capture: "toy_b".into(),
-        reference_pose: Pose::identity(),
-    }
-}
-
-/// Where the sphere's centre is in the world with the body at `pose`.
-fn sphere_centre(toy: &ObjectModel, pose: &Pose<f64>) -> Vec3<f64> {
-    let of = &toy.primary;
-    pose.transform_point(of.capture_from_body.inverse().transform_point(of.field.centre))
-}
+mod sphere_toy;
+use sphere_toy::{bounds_mesh, camera, sphere_centre, toy};
 
 #[test]
 fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {

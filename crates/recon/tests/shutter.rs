@@ -2,49 +2,17 @@
 //! the shutter's sub-poses. Their pose gradient (each sub-pose's pulled back to the frame's pose) against
 //! central differences, and a blurred frame's pose found again with the motion known and without it.
 
-use geom::{Camera, Intrinsics, Pose, Quat, SplitMix64, TriMesh, Vec3};
+use geom::{Camera, Pose, Quat, SplitMix64, Vec3};
 use neus::compose::{prerender_scene, render_composed, Behind, ComposedRay, Composer, Layer};
-use neus::object_model::ObjectField;
 use neus::untrained_field::untrained_field;
 use neus::{FieldInit, ObjectModel};
 use recon::shutter::{shutter_poses, Motion};
 use recon::{FrameTarget, ImageLossWeights, PoseFitConfig, PoseFromImage, PreparedFrame};
-use std::path::PathBuf;
+
+mod sphere_toy;
+use sphere_toy::{camera, sphere_centre, toy};
 
 const SHUTTER: f64 = 1.0 / 60.0;
-
-fn camera(w: u32, h: u32) -> Camera<f64> {
-    let k = Intrinsics::centred(1.2 * w as f64, w, h);
-    Camera::look_at(
-        Vec3::new(0.13, -0.16, 0.14),
-        Vec3::new(0.0, 0.0, 0.03),
-        Vec3::new(0.0, 0.0, 1.0),
-        k,
-        w,
-        h,
-    )
-}
-
-/// A 6 cm toy (a sphere field) whose body origin sits off the sphere's centre, so that turning it also
-/// moves its surface; its mesh is a box around the sphere (the loss uses only its bounds).
-fn toy() -> ObjectModel {
-    let s = 0.04;
-    let v: Vec<[f64; 3]> = (0..8)
-        .map(|k| [0, 1, 2].map(|a| if k & (1 << a) == 0 { -s } else { s }))
-        .collect();
-    ObjectModel {
-        source: PathBuf::from("untrained"),
-        primary: ObjectField {
-            field: untrained_field(FieldInit::Sphere, Vec3::new(0.0, 0.0, 0.03), 0.06, 3),
-            capture_from_body: Pose::new(Quat::exp(Vec3::new(0.1, -0.2, 0.3)), Vec3::new(0.008, -0.005, 0.03)),
-        },
-        other: None,
-        mesh: TriMesh::new(v, vec![[0, 1, 2], [1, 3, 2]]),
-        volume: 1e-4,
-        reference_capture: "toy_b".into(),
-        reference_pose: Pose::identity(),
-    }
-}
 
 /// The toy moving across the view at 0.9 m/s and turning: about 6 px of smear at 96 × 72 over 1/60 s.
 fn motion() -> Motion {
@@ -199,9 +167,8 @@ fn a_blurred_frame_is_fitted_with_its_motion() {
             .unwrap()
             .with_motion(motion);
         fit.run();
-        let (c, t) = (r.toy.primary.capture_from_body.inverse(), r.toy.primary.field.centre);
-        let centre = |p: &Pose<f64>| p.transform_point(c.transform_point(t));
-        ((centre(&fit.pose) - centre(&r.truth)).norm(), fit.evaluate().iou())
+        let off = sphere_centre(&r.toy, &fit.pose) - sphere_centre(&r.toy, &r.truth);
+        (off.norm(), fit.evaluate().iou())
     };
     let (with, iou_with) = off(Some(motion()));
     let (without, iou_without) = off(None);
