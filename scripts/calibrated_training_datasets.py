@@ -35,13 +35,14 @@ def intrinsics(world_mat):
     return k / k[2, 2]
 
 
-def carried_mask(mask, truth_k, report):
-    """The truth's mask (drawn with the pinhole truth_k) resampled onto calibrate's capture pixels."""
+def carried_mask(mask, truth_k, report, truth_lens):
+    """The truth's mask (drawn with the pinhole truth_k) resampled onto calibrate's capture pixels; truth_lens:
+    camera_truth.json's `lens`."""
     cap_k = np.array(report["capture_K"])
     w, h = report["capture_size"]
     lens_k = np.array(report["lens"]["K"])
     lens_d = np.array(report["lens"]["distortion"])
-    truth = json.load(open(report["_truth"]))["lens"]
+    truth = truth_lens
     u, v = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
     rays = np.stack([(u - cap_k[0, 2]) / cap_k[0, 0], (v - cap_k[1, 2]) / cap_k[1, 1], np.ones_like(u)], -1)
     raw, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), lens_k, lens_d)
@@ -58,7 +59,6 @@ def main() -> None:
     session, calibrated, out = sys.argv[1], sys.argv[2], sys.argv[3]
     truth = json.load(open(f"{session}/camera_truth.json"))
     report = json.load(open(f"{calibrated}/calibration.json"))
-    report["_truth"] = f"{session}/camera_truth.json"
     raw_width = truth["image_size"][0]
     lens_k = np.array(truth["lens"]["K"])
     lens_d = np.array(truth["lens"]["distortion"])
@@ -80,6 +80,9 @@ def main() -> None:
             if masks:
                 os.makedirs(f"{cd}/mask")
             mats = {}
+            renders = sorted(os.listdir(f"{session}/{name}/image"))
+            # The raw photos over the truth's capture: the factor between their pinholes.
+            f = raw_width / cv2.imread(f"{session}/{name}/image/{renders[0]}").shape[1]
             for k, image in enumerate(kept):
                 i = files.index(image)
                 kc = intrinsics(truth_mats[f"world_mat_{i}"])
@@ -87,15 +90,12 @@ def main() -> None:
                     # The truth capture's pinhole at the raw size (OpenCV's pixel centres), then shrunk to it.
                     raw = cv2.imread(f"{session}/raw/{name}/{image}")
                     h, w = raw.shape[:2]
-                    small_w = cv2.imread(f"{session}/{name}/image/{sorted(os.listdir(f'{session}/{name}/image'))[0]}").shape[1]
-                    f = raw_width / small_w
                     target = np.array([[f * kc[0, 0], 0, f * kc[0, 2] - 0.5], [0, f * kc[1, 1], f * kc[1, 2] - 0.5], [0, 0, 1]])
                     m1, m2 = cv2.initUndistortRectifyMap(lens_k, lens_d, None, target, (w, h), cv2.CV_32FC1)
                     small = cv2.resize(cv2.remap(raw, m1, m2, cv2.INTER_LINEAR), (round(w / f), round(h / f)), interpolation=cv2.INTER_AREA)
                     cv2.imwrite(f"{cd}/image/{k:03d}.png", small)
                     mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
                 elif kind == "truth_renders":
-                    renders = sorted(os.listdir(f"{session}/{name}/image"))
                     shutil.copy(f"{session}/{name}/image/{renders[i]}", f"{cd}/image/{k:03d}.png")
                     mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
                 else:
@@ -105,7 +105,7 @@ def main() -> None:
                 mats[f"scale_mat_{k}"] = region
                 if masks and kind.startswith("calibrated"):
                     mask = cv2.imread(f"{session}/{name}/mask/{masks[i]}", cv2.IMREAD_GRAYSCALE)
-                    cv2.imwrite(f"{cd}/mask/{k:03d}.png", carried_mask(mask, kc, report))
+                    cv2.imwrite(f"{cd}/mask/{k:03d}.png", carried_mask(mask, kc, report, truth["lens"]))
                 elif masks:
                     shutil.copy(f"{session}/{name}/mask/{masks[i]}", f"{cd}/mask/{k:03d}.png")
             np.savez(f"{cd}/cameras_sphere.npz", **mats)
