@@ -3,8 +3,8 @@
 //! Two rules. An object's ([`looked_at_region`]): the centre is the point nearest every camera's optical
 //! axis (least squares), not below the board; the radius is what the cameras frame there, the median over
 //! cameras of their distance to the centre times the tangent of half their narrower field of view. A
-//! scene's ([`seen_table_region`]): the part of the board's plane that at least half of the cameras see,
-//! where the bodies will move, not only the spot the cameras aim at.
+//! scene's ([`seen_table_region`]): the part of the board's plane that at least three quarters of the
+//! cameras see, where the bodies will move, not only the spot the cameras aim at.
 
 use geom::Vec3;
 
@@ -88,9 +88,18 @@ pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
     Some((centre, radii[radii.len() / 2]))
 }
 
-/// A scene's ball: around the part of the plane z = 0 that at least half of `cameras` see (inside the
-/// image, in front), its centre on the plane, its radius reaching that part's farthest point; `None` when
-/// the cameras do not look at the plane or no part of it is seen by half of them.
+/// The share of a scene's photos that must see a point of the table for it to be in the region.
+///
+/// A point few photos see is reconstructed from thin evidence and only widens the ball (fewer samples
+/// per millimetre everywhere). Half let in the table's far edges, seen from across the table only: on
+/// synth's handheld layouts (two presets, four camera seeds) a ball a quarter wider than the table's
+/// (0.53–0.59 m against 0.45 m), which cost the scene's Chamfer 13 %; three quarters gives
+/// 0.43–0.46 m.
+pub const SCENE_QUORUM: f64 = 0.75;
+
+/// A scene's ball: around the part of the plane z = 0 that at least [`SCENE_QUORUM`] of `cameras` see
+/// (inside the image, in front), its centre on the plane, its radius reaching that part's farthest
+/// point; `None` when the cameras do not look at the plane or no part of it is seen by that many.
 pub fn seen_table_region(cameras: &[geom::Camera<f64>]) -> Option<(Vec3<f64>, f64)> {
     let looking: Vec<Looking> = cameras.iter().map(Looking::from_camera).collect();
     let (aim, framed) = looked_at_region(&looking)?;
@@ -98,7 +107,7 @@ pub fn seen_table_region(cameras: &[geom::Camera<f64>]) -> Option<(Vec3<f64>, f6
     const CELLS: usize = 160;
     let half = 6.0 * framed;
     let cell = 2.0 * half / CELLS as f64;
-    let needed = cameras.len().div_ceil(2);
+    let needed = ((SCENE_QUORUM * cameras.len() as f64).ceil() as usize).max(1);
     let mut seen = Vec::new();
     for j in 0..=CELLS {
         for i in 0..=CELLS {
@@ -170,10 +179,10 @@ mod tests {
     }
 
     /// Cameras all round a table, each aimed at a point of a 0.3 × 0.2 m rectangle near its own side: they
-    /// aim near the middle, but what half of them see is the rectangle and a margin, which the scene's rule
+    /// aim near the middle, but what three quarters of them see is the rectangle and a margin, which the scene's rule
     /// holds and the object's rule (what they frame at the aim point) does not.
     #[test]
-    fn a_scene_region_holds_the_table_half_of_the_cameras_see() {
+    fn a_scene_region_holds_the_table_most_cameras_see() {
         let k = geom::Intrinsics::centred(400.0, 320, 240);
         let cams: Vec<geom::Camera<f64>> = (0..12)
             .map(|n| {
@@ -192,10 +201,26 @@ mod tests {
             radius > 1.2 * framed,
             "the scene's region is wider than what the cameras frame: {radius} {framed}"
         );
-        // Every point of the rectangle is seen by half of the cameras and lies in the ball.
+        // Every point of the rectangle lies in the ball.
         for (x, y) in [(0.15, 0.1), (-0.15, 0.1), (0.15, -0.1), (-0.15, -0.1)] {
             assert!((Vec3::new(x, y, 0.0) - centre).norm() < radius);
         }
+        // The table's far edge that only half of them see (from across the table) is left out.
+        let views = |p: Vec3<f64>| {
+            cams.iter()
+                .filter(|c| {
+                    let (u, v, depth) = c.project(p);
+                    depth > 0.0 && (0.0..=320.0).contains(&u) && (0.0..=240.0).contains(&v)
+                })
+                .count()
+        };
+        let edge = (0..2000)
+            .map(|i| Vec3::new(i as f64 * 1e-3, 0.0, 0.0))
+            .take_while(|p| views(*p) >= cams.len() / 2)
+            .last()
+            .unwrap();
+        assert!(views(edge) < 9, "seen by half, not by three quarters: {}", views(edge));
+        assert!((edge - centre).norm() > radius, "{edge:?} outside {radius}");
         let away: Vec<geom::Camera<f64>> = cams
             .iter()
             .map(|c| geom::Camera::look_at(c.center(), c.center() * 2.0, Vec3::new(0.0, 0.0, 1.0), k, 320, 240))

@@ -39,7 +39,7 @@ pub struct CalibrateArgs {
     #[cfg_attr(feature = "clap", arg(long))]
     pub out: PathBuf,
     /// A folder of photos of the scene (the table where the bodies will move), a capture like the others
-    /// whose region is the part of the table half of its photos see, marked a scene in its capture.json
+    /// whose region is the part of the table three quarters of its photos see, marked a scene in its capture.json
     /// (repeatable).
     #[cfg_attr(feature = "clap", arg(long = "scene"))]
     pub scenes: Vec<PathBuf>,

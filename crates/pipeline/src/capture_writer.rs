@@ -53,7 +53,7 @@ pub fn capture_intrinsics(pinhole: &Lens) -> geom::Intrinsics {
 pub enum Subject {
     /// An object the cameras look at: the region is what they frame there.
     Object,
-    /// A scene: the region is the part of the table half of the cameras see.
+    /// A scene: the region is the part of the table three quarters of the cameras see.
     Scene,
 }
 
@@ -100,7 +100,7 @@ pub fn capture_region(
         Subject::Scene => seen_table_region(&cameras).map(|r| {
             (
                 r,
-                "a scene: the part of the board's plane at least half of the cameras see, on the plane",
+                "a scene: the part of the board's plane at least three quarters of the cameras see, on the plane",
             )
         }),
     };

@@ -52,7 +52,7 @@ pub struct ImportArgs {
     )]
     pub region: Option<Vec<f64>>,
     /// The images show the scene (the table where the bodies will move): the region is the part of the
-    /// table half of them see, and capture.json says `scene`.
+    /// table three quarters of them see, and capture.json says `scene`.
     #[cfg_attr(feature = "clap", arg(long))]
     pub scene: bool,
     /// The fewest board markers an image must show for its board points to be used.
