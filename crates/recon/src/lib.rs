@@ -49,7 +49,7 @@ pub use poses_from_video::{
 };
 pub use reported_poses::{reported_poses, simulation_misses, ReportedPose};
 pub use seen_space::scene_less_seen;
-pub use shutter::{Motion, Velocity};
+pub use shutter::Motion;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;

@@ -473,23 +473,14 @@ impl<'a> PosesFromVideo<'a> {
         }
     }
 
-    /// The body's motion over frame `k`'s shutter time. Where the frames on both sides are fitted (the passes
-    /// after the first), the fitted trajectory's: the pace from the frame before on the shutter's first half,
-    /// to the frame after on its second, which follows a contact between them and does not hang on PA (whose
-    /// launch may have missed). Else PA's velocity at that instant; when tracking, the pace of the two fitted
-    /// frames before it (none before two).
+    /// The body's velocity at frame `k` for a frame with a shutter time: PA's (the simulation's at that instant);
+    /// when tracking, the pace of the two fitted frames before it (none before two).
     fn motion_at(&self, k: usize) -> Option<Motion> {
-        let fitted = |j: usize| self.results.get(j).filter(|r| r.fitted).map(|r| r.pose);
-        let dt = 1.0 / self.world.config.fps;
-        if let (Some(before), Some(pose), Some(after)) = (k.checked_sub(1).and_then(fitted), fitted(k), fitted(k + 1))
-        {
-            return Some(Motion::around(&before, &pose, &after, dt));
-        }
         if !self.tracking {
             return self.pa_motion.get(k).copied().flatten();
         }
-        let (a, b) = (fitted(k.checked_sub(2)?)?, fitted(k - 1)?);
-        Some(Motion::between(&a, &b, dt))
+        let (a, b) = (self.results.get(k.checked_sub(2)?)?, self.results.get(k - 1)?);
+        (a.fitted && b.fitted).then(|| Motion::between(&a.pose, &b.pose, 1.0 / self.world.config.fps))
     }
 
     /// The pose frame `k` starts from before it is fitted (the physics start); its fitted pose once it is.

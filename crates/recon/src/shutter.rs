@@ -7,67 +7,28 @@
 use geom::{Camera, Pose, Quat, Vec3};
 use sim::BodyState;
 
-/// A body's velocity: `v` of its origin (the centre of mass), `omega` its turn about that origin, both on
-/// world axes (the simulator's [`sim::BodyState`] convention).
+/// A body's velocity at a frame's instant: `v` of its origin (the centre of mass), `omega` its turn about
+/// that origin, both on world axes (the simulator's [`sim::BodyState`] convention).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Velocity {
+pub struct Motion {
     pub v: Vec3<f64>,
     pub omega: Vec3<f64>,
 }
 
-impl Velocity {
-    /// The velocity that carries `a` to `b` in `dt` seconds (a body's pace between two frames).
+impl Motion {
+    /// The motion that carries `a` to `b` in `dt` seconds (a body's pace between two frames).
     pub fn between(a: &Pose<f64>, b: &Pose<f64>, dt: f64) -> Self {
         Self {
             v: (b.t - a.t) * (1.0 / dt),
             omega: (b.q * a.q.conj()).log() * (1.0 / dt),
         }
     }
-}
 
-/// How a body moves while a frame's shutter is open: its velocity before the frame's instant and after it.
-/// The two are one velocity unless a contact between the frames around it changes it: a bounce inside the
-/// shutter time draws the body going down and coming up, which no one velocity does.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Motion {
-    pub before: Velocity,
-    pub after: Velocity,
-}
-
-impl Motion {
-    /// One velocity over the whole shutter time.
-    pub fn steady(v: Vec3<f64>, omega: Vec3<f64>) -> Self {
-        let velocity = Velocity { v, omega };
-        Self {
-            before: velocity,
-            after: velocity,
-        }
-    }
-
-    /// The motion that carries `a` to `b` in `dt` seconds, held (a body's pace between two frames).
-    pub fn between(a: &Pose<f64>, b: &Pose<f64>, dt: f64) -> Self {
-        let velocity = Velocity::between(a, b, dt);
-        Self {
-            before: velocity,
-            after: velocity,
-        }
-    }
-
-    /// The motion through `pose` from `previous` and on to `next`, frames `dt` apart: the shutter's first
-    /// half at the pace from `previous` to `pose`, its second at the pace from `pose` to `next`.
-    pub fn around(previous: &Pose<f64>, pose: &Pose<f64>, next: &Pose<f64>, dt: f64) -> Self {
-        Self {
-            before: Velocity::between(previous, pose, dt),
-            after: Velocity::between(pose, next, dt),
-        }
-    }
-
-    /// The pose `dt` seconds after `pose` (before it when `dt < 0`) at this motion, and the turn it adds.
-    fn at(&self, pose: &Pose<f64>, dt: f64) -> SubPose {
-        let velocity = if dt < 0.0 { &self.before } else { &self.after };
-        let turn = Quat::exp(velocity.omega * dt);
+    /// The pose `dt` seconds after `pose` at this velocity (held), and the turn it adds.
+    fn after(&self, pose: &Pose<f64>, dt: f64) -> SubPose {
+        let turn = Quat::exp(self.omega * dt);
         SubPose {
-            pose: Pose::new((turn * pose.q).normalize_or_identity(), pose.t + velocity.v * dt),
+            pose: Pose::new((turn * pose.q).normalize_or_identity(), pose.t + self.v * dt),
             turn,
         }
     }
@@ -75,7 +36,7 @@ impl Motion {
 
 impl From<&BodyState<f64>> for Motion {
     fn from(s: &BodyState<f64>) -> Self {
-        Self::steady(s.v, s.omega)
+        Self { v: s.v, omega: s.omega }
     }
 }
 
@@ -114,8 +75,8 @@ pub fn blur_px(
     bounds: ([f64; 3], [f64; 3]),
 ) -> f64 {
     let (a, b) = (
-        motion.at(pose, -0.5 * shutter).pose,
-        motion.at(pose, 0.5 * shutter).pose,
+        motion.after(pose, -0.5 * shutter).pose,
+        motion.after(pose, 0.5 * shutter).pose,
     );
     box_corners(bounds)
         .into_iter()
@@ -158,7 +119,7 @@ pub fn shutter_poses(
     }
     let count = ((blur / SUB_POSE_SPACING_PX).ceil() as usize + 1).clamp(2, MAX_SUB_POSES);
     (0..count)
-        .map(|i| motion.at(pose, ((i as f64 + 0.5) / count as f64 - 0.5) * shutter))
+        .map(|i| motion.after(pose, ((i as f64 + 0.5) / count as f64 - 0.5) * shutter))
         .collect()
 }
 
@@ -167,7 +128,7 @@ pub fn shutter_poses(
 pub fn shutter_ends(pose: &Pose<f64>, motion: Option<&Motion>, shutter: f64) -> Vec<Pose<f64>> {
     let mut poses = vec![*pose];
     if let Some(m) = motion.filter(|_| shutter > 0.0) {
-        poses.extend([-0.5, 0.5].map(|s| m.at(pose, s * shutter).pose));
+        poses.extend([-0.5, 0.5].map(|s| m.after(pose, s * shutter).pose));
     }
     poses
 }
@@ -193,10 +154,16 @@ mod tests {
     fn still_or_instant_frames_are_one_pose() {
         let pose = Pose::new(Quat::identity(), Vec3::new(0.0, 0.0, 0.02));
         let bounds = ([-0.02; 3], [0.02; 3]);
-        let moving = Motion::steady(Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 3.0));
+        let moving = Motion {
+            v: Vec3::new(1.0, 0.0, 0.0),
+            omega: Vec3::new(0.0, 0.0, 3.0),
+        };
         assert_eq!(shutter_poses(&pose, None, 1.0 / 60.0, &camera(), bounds).len(), 1);
         assert_eq!(shutter_poses(&pose, Some(&moving), 0.0, &camera(), bounds).len(), 1);
-        let crawling = Motion::steady(Vec3::new(0.001, 0.0, 0.0), Vec3::default());
+        let crawling = Motion {
+            v: Vec3::new(0.001, 0.0, 0.0),
+            omega: Vec3::default(),
+        };
         assert_eq!(
             shutter_poses(&pose, Some(&crawling), 1.0 / 60.0, &camera(), bounds).len(),
             1
@@ -211,44 +178,23 @@ mod tests {
         assert!((span - want).abs() < 1e-12, "{span} {want}");
     }
 
-    /// A bounce between the frames around: the shutter's first half goes down at the pace from the frame
-    /// before, its second up at the pace to the frame after; poses on a line give the one velocity.
-    #[test]
-    fn a_motion_around_a_frame_takes_each_side_of_the_shutter_from_its_neighbour() {
-        let dt = 1.0 / 30.0;
-        let pose = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.0, 0.0, 0.02));
-        let before = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.1)), Vec3::new(-0.01, 0.0, 0.05));
-        let after = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.7)), Vec3::new(0.01, 0.0, 0.04));
-        let m = Motion::around(&before, &pose, &after, dt);
-        let opening = m.at(&pose, -dt).pose;
-        let closing = m.at(&pose, dt).pose;
-        assert!((opening.t - before.t).norm() < 1e-12 && (closing.t - after.t).norm() < 1e-12);
-        assert!((opening.q * before.q.conj()).log().norm() < 1e-12);
-        assert!((closing.q * after.q.conj()).log().norm() < 1e-12);
-        let line = Pose::new(pose.q, pose.t + (pose.t - before.t));
-        let straight = Motion::around(&before, &pose, &line, dt);
-        assert!((straight.before.v - straight.after.v).norm() < 1e-12);
-        assert!((straight.before.v - Motion::between(&before, &line, 2.0 * dt).after.v).norm() < 1e-12);
-        // The shutter's sub-poses below the instant come down, those above go up.
-        let subs = shutter_poses(&pose, Some(&m), dt, &camera(), ([-0.02; 3], [0.02; 3]));
-        let (first, last) = (subs[0].pose.t.z, subs[subs.len() - 1].pose.t.z);
-        assert!(first > pose.t.z && last > pose.t.z, "{first} {last}");
-    }
-
     #[test]
     fn frame_gradient_is_the_sub_poses_pulled_back() {
         // L(sub-pose) = a·t + b·(rotation vector of q_s q_ref⁻¹) near a reference: differentiate through the
         // frame's pose by finite differences and compare with the mapped tangent gradient.
         let pose = Pose::new(Quat::exp(Vec3::new(0.3, -0.2, 0.5)), Vec3::new(0.01, 0.02, 0.03));
-        let motion = Motion::steady(Vec3::new(0.5, -0.2, 1.0), Vec3::new(4.0, 2.0, -3.0));
+        let motion = Motion {
+            v: Vec3::new(0.5, -0.2, 1.0),
+            omega: Vec3::new(4.0, 2.0, -3.0),
+        };
         let dt = 0.012;
         let (a, b) = (Vec3::new(0.3, -1.0, 0.7), Vec3::new(-0.4, 0.9, 0.2));
-        let reference = motion.at(&pose, dt).pose.q;
+        let reference = motion.after(&pose, dt).pose.q;
         let loss = |p: &Pose<f64>| {
-            let s = motion.at(p, dt).pose;
+            let s = motion.after(p, dt).pose;
             a.dot(s.t) + b.dot((s.q * reference.conj()).log())
         };
-        let sub = motion.at(&pose, dt);
+        let sub = motion.after(&pose, dt);
         // At the sub-pose itself the rotation term's tangent gradient is b (log's derivative at identity).
         let g = sub.to_frame_gradient([a.x, a.y, a.z, b.x, b.y, b.z]);
         let h = 1e-6;

@@ -16,14 +16,17 @@ const SHUTTER: f64 = 1.0 / 60.0;
 
 /// The toy moving across the view at 0.9 m/s and turning: about 6 px of smear at 96 × 72 over 1/60 s.
 fn motion() -> Motion {
-    Motion::steady(Vec3::new(0.6, 0.5, 0.4), Vec3::new(3.0, -2.0, 5.0))
+    Motion {
+        v: Vec3::new(0.6, 0.5, 0.4),
+        omega: Vec3::new(3.0, -2.0, 5.0),
+    }
 }
 
 /// The pose `dt` seconds after `pose` at `m` (held).
 fn after(pose: &Pose<f64>, m: &Motion, dt: f64) -> Pose<f64> {
     Pose::new(
-        (Quat::exp(m.after.omega * dt) * pose.q).normalize_or_identity(),
-        pose.t + m.after.v * dt,
+        (Quat::exp(m.omega * dt) * pose.q).normalize_or_identity(),
+        pose.t + m.v * dt,
     )
 }
 
