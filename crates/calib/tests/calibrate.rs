@@ -1,7 +1,7 @@
 //! Calibration from rendered views of a printed board through a lens with distortion: detection, then the
 //! lens and the poses against the truth.
 
-mod common;
+use crate::common;
 
 use calib::board_views::{render, View};
 use calib::calibrate::{calibrate, CalibrationSettings, ViewPoints};

@@ -1,7 +1,7 @@
 //! Markers found in rendered views of a board: every fully visible marker, no other id, corners near the
 //! truth.
 
-mod common;
+use crate::common;
 
 use calib::board_views::{render, View};
 use calib::detect::{detect_markers, DetectorSettings};

@@ -4,7 +4,7 @@
 //! `tests/opencv/reference.py boards`); the slow one asks OpenCV itself for many more boards (the Python of
 //! `PGANEUS_OPENCV_PYTHON`, else `python3`, with opencv-contrib-python-headless, as `.ci/run` installs it).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,7 @@
 //! nothing is written. Meshes with a coordinate that is not a number are refused by every command that
 //! reads meshes (`compare-mesh` used to panic on one).
 
-mod common;
+use crate::common;
 use common::{bin, copy_dir, not_refused, tabletop};
 use pganeus_io::{write_npz, write_png, Image, NpyArray};
 use std::path::{Path, PathBuf};

@@ -8,7 +8,7 @@
 use pganeus_io::{read_image, read_npz, Image};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{bin, copy_dir, tabletop, text};
 
 /// The tabletop preset's toy_a capture at 64×48 with four views.

@@ -3,7 +3,7 @@
 //! no output written and earlier outputs intact).
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{bin, repo, tabletop, text};
 
 fn scratch(name: &str) -> PathBuf {

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{bin, repo, tabletop_toml, text};
 
 /// `pganeus ARGS(t)` on one thread and on two at the same time (a one-thread run leaves a core idle); both

@@ -6,7 +6,7 @@ use geom::{Pose, Quat, Vec3};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{bin, flight_3_cm_s_fast, tabletop, text};
 
 /// The tabletop preset at 64×48 with four frames per video.

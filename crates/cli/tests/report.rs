@@ -8,7 +8,7 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-mod common;
+use crate::common;
 use common::{bin, flight_3_cm_s_fast, tabletop, text};
 
 /// The tabletop preset at 64×48 with six frames per video, and its contact sheet.

@@ -1,7 +1,7 @@
 //! Adam: convergence on a quadratic, the fast path against the scalar reference, and sparse (lazy) steps
 //! against dense ones on the touched hash-table entries.
 
-mod common;
+use crate::common;
 
 use common::*;
 use field::kernels::reference;

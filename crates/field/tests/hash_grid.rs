@@ -1,7 +1,7 @@
 //! Hash-grid encoding: level table, fast kernels against the naive reference, finite differences, thread-count
 //! determinism, progressive activation, grad modes and the touched-entry record.
 
-mod common;
+use crate::common;
 
 use common::*;
 use field::kernels::{reference, HASH_P1, HASH_P2};

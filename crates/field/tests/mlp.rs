@@ -1,7 +1,7 @@
 //! MLP: sgemm path against the naive reference, finite differences for every activation, thread-count
 //! determinism, grad modes, scratch reuse and the geometric initialisation.
 
-mod common;
+use crate::common;
 
 use common::*;
 use field::kernels::reference;

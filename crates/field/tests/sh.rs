@@ -1,6 +1,6 @@
 //! Spherical harmonics: closed forms, the associated-Legendre reference, and orthonormality on the sphere.
 
-mod common;
+use crate::common;
 
 use common::*;
 use field::kernels::reference;

@@ -1,7 +1,7 @@
 //! Every parser of user files, fed mutants of valid files (testkit's mutation fuzzer): none may panic, and
 //! no case may allocate more than 256 MiB (a header claiming 10⁹ vertices must not reserve them before they
 //! are read) or take more than a second. `PGANEUS_FUZZ_CASES=N` sets the cases per parser (default 20,000);
-//! the long run: `PGANEUS_FUZZ_CASES=200000 cargo test --release -p pganeus-io --test fuzz -- --nocapture`.
+//! the long run: `PGANEUS_FUZZ_CASES=200000 cargo test --release -p pganeus-io --test suite fuzz:: -- --nocapture`.
 
 use pganeus_io::*;
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -2,7 +2,7 @@
 //! a sphere to a tenth of its faces stays within a small fraction of its
 //! radius, and a finely tessellated box loses its flat-face triangles
 //! while its corners stay exact.
-mod common;
+use crate::common;
 
 use geom::TriMesh;
 use mesh::{chamfer, decimate, extract_zero_level, normal_consistency};

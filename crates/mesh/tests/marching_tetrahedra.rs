@@ -5,7 +5,7 @@
 //! faces where they can be removed; open surfaces that leave the grid; empty
 //! cases; the same mesh for 1 and 2 threads.
 
-mod common;
+use crate::common;
 
 use common::{assert_no_unused_vertices, check_open_mesh, face_normal, grid_from, grid_of, zero_area_faces};
 use geom::{SplitMix64, TriMesh, Vec3};

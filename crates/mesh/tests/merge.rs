@@ -2,7 +2,7 @@
 //! in two poses, each with a wrong guess underneath) gives a closed mesh
 //! within 1 % of the object's diameter of the whole object, and recovers the
 //! transform between the poses.
-mod common;
+use crate::common;
 
 use geom::{rotation_distance, Pose, Quat, TriMesh, Vec3};
 use mesh::{

@@ -1,8 +1,6 @@
 //! Grid sampling: the grid's geometry (spacing from the longest side, centred
 //! on the box, covering it), the x-fastest layout, batches of whole z-layers.
 
-mod common;
-
 use std::sync::Mutex;
 
 use mesh::sample_sdf_grid;

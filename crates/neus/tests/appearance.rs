@@ -9,7 +9,7 @@ use neus::appearance::ViewAppearance;
 use neus::{Dataset, NeusTrainer, TrainConfig};
 use std::path::Path;
 
-mod common;
+use crate::common;
 
 /// A textured ball alone on the board: 12 views of 64×48 with masks, clean or with exposure and white
 /// balance jittered per photo.

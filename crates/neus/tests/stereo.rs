@@ -1,9 +1,9 @@
 //! Multi-view stereo points of a scene capture lie on the true surface: the
 //! board and the tabletop's wall (whose faces a flat start cannot grow).
+use crate::common;
 use geom::Vec3;
 use neus::stereo::{stereo_points, StereoConfig};
 use neus::{CaptureSubject, Dataset};
-mod common;
 
 /// Distance from a world point to the tabletop's true surface: the board's top (z = 0 over ±0.3 m), the table
 /// 1 cm below it, and the wall (a box of half-extents 0.02 × 0.12 × 0.035 m at (0.22, 0, 0.035)).

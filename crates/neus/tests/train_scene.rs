@@ -7,7 +7,7 @@
 use neus::{CaptureSubject, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 
 /// The background capture of a preset at 96×72, 16 views.
 fn scene_capture(preset: &str, dir: &Path) -> PathBuf {

@@ -5,7 +5,7 @@ use geom::Vec3;
 use neus::{checkpoint, Dataset, NeusTrainer, TrainConfig};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::tiny_config;
 
 fn scratch(name: &str) -> PathBuf {

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-mod common;
+use crate::common;
 
 use calib::board_views::View;
 use common::{around, board, lens, shoot, BOARD, SIZE};

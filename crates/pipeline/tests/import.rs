@@ -3,7 +3,7 @@
 //! cameras back; the table's plane and a scale bar give their heights and spacing; bad inputs are refused
 //! with nothing written.
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

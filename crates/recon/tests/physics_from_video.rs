@@ -7,7 +7,7 @@
 //! friction shows in every frame after the landing (a ball would roll after
 //! two frames whatever its friction).
 
-mod common;
+use crate::common;
 use common::*;
 use geom::Vec3;
 use recon::{FrameTarget, PhysicsFromVideo, VideoPhysicsConfig, VideoPhysicsError};

@@ -10,7 +10,7 @@ use neus::{FieldInit, ObjectModel};
 use recon::{FrameError, FrameTarget, PoseFitConfig, PoseFitError, PoseFromImage};
 use std::path::PathBuf;
 
-mod sphere_toy;
+use crate::sphere_toy;
 use sphere_toy::{bounds_mesh, camera, sphere_centre, toy};
 
 #[test]

@@ -10,7 +10,7 @@
 //! the reconstructed scene has and the images do not, fitted by the images alone; and the penalty's
 //! gradient against finite differences.
 
-mod common;
+use crate::common;
 use common::*;
 use geom::{Pose, Quat, Vec3};
 use recon::{ContactPenaltyConfig, ContactTerm, PosesFromVideo, PosesFromVideoConfig};

@@ -9,7 +9,7 @@ use neus::{FieldInit, ObjectModel};
 use recon::shutter::{shutter_poses, Motion};
 use recon::{FrameTarget, ImageLossWeights, PoseFitConfig, PoseFromImage, PreparedFrame};
 
-mod sphere_toy;
+use crate::sphere_toy;
 use sphere_toy::{camera, sphere_centre, toy};
 
 const SHUTTER: f64 = 1.0 / 60.0;

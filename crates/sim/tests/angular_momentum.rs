@@ -1,6 +1,6 @@
 //! A torque-free asymmetric body keeps its world angular momentum, and its
 //! kinetic energy to within the integrator's first-order error.
-mod common;
+use crate::common;
 use common::*;
 use geom::Mat3;
 use sim::BodyState;

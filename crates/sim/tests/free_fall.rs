@@ -2,7 +2,7 @@
 //! velocity held between substeps is the one at their middle (leapfrog), so
 //! semi-implicit Euler's ½ g t dt (a few millimetres after a second, which a
 //! video of a real throw does not have) is gone.
-mod common;
+use crate::common;
 use common::*;
 use sim::BodyState;
 

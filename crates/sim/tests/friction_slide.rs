@@ -1,5 +1,5 @@
 //! A box sliding with v0 on a plane stops after v0² / (2 mu g), within 3 %.
-mod common;
+use crate::common;
 use common::*;
 use sim::BodyState;
 

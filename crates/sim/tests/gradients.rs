@@ -5,7 +5,7 @@
 //! few contact points (box corners) or meet once, so no point sits on the Δ
 //! switch or the friction-cone switch. Resting and sliding contact, where the
 //! active set flickers every substep, are not smooth paths and are left out.
-mod common;
+use crate::common;
 use common::*;
 use sim::sdf::{Cuboid, Shape};
 use sim::tessellate::cuboid_mesh;

@@ -1,6 +1,6 @@
 //! Two bodies with no gravity conserve total linear momentum (and angular
 //! momentum about the origin) through their collision.
-mod common;
+use crate::common;
 use common::*;
 use sim::{BodyState, SimConfig, World};
 

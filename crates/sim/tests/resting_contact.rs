@@ -1,5 +1,5 @@
 //! A box placed on the ground stays put: drift < 1 mm, rotation < 0.5° over 2 s.
-mod common;
+use crate::common;
 use common::*;
 use geom::rotation_distance;
 use sim::BodyState;

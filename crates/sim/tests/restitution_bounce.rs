@@ -1,5 +1,5 @@
 //! A ball dropped from h (no damping) rebounds to about k_n² h, within 10 %.
-mod common;
+use crate::common;
 use common::*;
 use sim::BodyState;
 

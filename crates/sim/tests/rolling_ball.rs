@@ -3,7 +3,7 @@
 //! samples of its surface; rolled over as they are, they make a polyhedron
 //! that knocks at every sample, slows the ball and bounces it off the board
 //! (`support_points = false`, the default: 0.9 → 0.5 m/s in a second, hops of millimetres).
-mod common;
+use crate::common;
 use common::*;
 use sim::{BodyState, ContactSampling, MassSpec, RigidBody, SimConfig};
 

@@ -1,7 +1,7 @@
 //! A scene grid's planes made exact (`SdfGrid::with_planes`): on a reconstruction-like grid of the
 //! tabletop's wall on the board (the foot rounded into a fillet, the faces rough by 0.3 mm), the planes are
 //! found, the roughness and the fillet go, and what is not a plane or a fillet stays.
-mod common;
+use crate::common;
 use common::*;
 use geom::Vec3;
 use sim::sdf::{PlaneSettings, RoundedBox, SdfGrid, Shape};

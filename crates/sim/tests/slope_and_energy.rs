@@ -1,7 +1,7 @@
 //! A block on a slope below its friction angle stays put; above it, it slides
 //! down with acceleration g (sin θ − μ cos θ). A spinning box dropped on the
 //! ground never gains energy. Both contact models.
-mod common;
+use crate::common;
 use common::*;
 use geom::{Quat, Vec3};
 use sim::sdf::{Plane, Shape};

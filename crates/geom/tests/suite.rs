@@ -1,0 +1,6 @@
+//! Every integration test of the crate in one binary: one link instead of one per file, and the tests of
+//! all the files share the cores (a file's last long test no longer leaves one idle).
+
+mod camera;
+mod dual;
+mod quat_pose;

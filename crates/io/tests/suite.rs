@@ -1,0 +1,13 @@
+//! Every integration test of the crate in one binary: one link instead of one per file, and the tests of
+//! all the files share the cores (a file's last long test no longer leaves one idle).
+
+mod atomic;
+mod differential;
+mod fuzz;
+mod neus;
+mod npz;
+mod obj;
+mod ply;
+mod png;
+mod safetensors;
+mod trajectory;

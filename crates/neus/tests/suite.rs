@@ -1,0 +1,11 @@
+//! Every integration test of the crate in one binary: one link instead of one per file, and the tests of
+//! all the files share the cores (a file's last long test no longer leaves one idle).
+
+mod appearance;
+mod common;
+mod compose;
+mod object_cache;
+mod stereo;
+mod train_scene;
+mod train_tiny;
+mod volume;
