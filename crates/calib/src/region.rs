@@ -92,7 +92,7 @@ pub fn looked_at_region(cameras: &[Looking]) -> Option<(Vec3<f64>, f64)> {
 ///
 /// A point few photos see is reconstructed from thin evidence and only widens the ball (fewer samples
 /// per millimetre everywhere). Half let in the table's far edges, seen from across the table only: on
-/// synth's handheld layouts (two presets, four camera seeds) a ball a quarter wider than the table's
+/// synth's four handheld layouts (tabletop seeds 1–3, backdrop seed 1) a ball a quarter wider than the table's
 /// (0.53–0.59 m against 0.45 m), which cost the scene's Chamfer 13 %; three quarters gives
 /// 0.43–0.46 m.
 pub const SCENE_QUORUM: f64 = 0.75;
