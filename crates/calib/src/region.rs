@@ -112,14 +112,7 @@ pub fn seen_table_region(cameras: &[geom::Camera<f64>]) -> Option<(Vec3<f64>, f6
     for j in 0..=CELLS {
         for i in 0..=CELLS {
             let p = Vec3::new(aim.x - half + i as f64 * cell, aim.y - half + j as f64 * cell, 0.0);
-            let views = cameras
-                .iter()
-                .filter(|c| {
-                    let (u, v, depth) = c.project(p);
-                    depth > 0.0 && (0.0..=c.width as f64).contains(&u) && (0.0..=c.height as f64).contains(&v)
-                })
-                .count();
-            if views >= needed {
+            if views_seeing(cameras, p) >= needed {
                 seen.push(p);
             }
         }
@@ -142,6 +135,17 @@ pub fn seen_table_region(cameras: &[geom::Camera<f64>]) -> Option<(Vec3<f64>, f6
     let centre = (lo + hi) * 0.5;
     let radius = seen.iter().map(|p| (*p - centre).norm()).fold(0.0, f64::max) + cell;
     Some((centre, radius))
+}
+
+/// How many of `cameras` see the point `p`: in front of them and inside their image.
+fn views_seeing(cameras: &[geom::Camera<f64>], p: Vec3<f64>) -> usize {
+    cameras
+        .iter()
+        .filter(|c| {
+            let (u, v, depth) = c.project(p);
+            depth > 0.0 && (0.0..=c.width as f64).contains(&u) && (0.0..=c.height as f64).contains(&v)
+        })
+        .count()
 }
 
 /// Whether the axes constrain the point in every direction (not all parallel).
@@ -179,8 +183,8 @@ mod tests {
     }
 
     /// Cameras all round a table, each aimed at a point of a 0.3 × 0.2 m rectangle near its own side: they
-    /// aim near the middle, but what three quarters of them see is the rectangle and a margin, which the scene's rule
-    /// holds and the object's rule (what they frame at the aim point) does not.
+    /// aim near the middle, but what three quarters of them see is the rectangle and a margin, which the scene's
+    /// rule holds and the object's rule (what they frame at the aim point) does not.
     #[test]
     fn a_scene_region_holds_the_table_most_cameras_see() {
         let k = geom::Intrinsics::centred(400.0, 320, 240);
@@ -206,20 +210,18 @@ mod tests {
             assert!((Vec3::new(x, y, 0.0) - centre).norm() < radius);
         }
         // The table's far edge that only half of them see (from across the table) is left out.
-        let views = |p: Vec3<f64>| {
-            cams.iter()
-                .filter(|c| {
-                    let (u, v, depth) = c.project(p);
-                    depth > 0.0 && (0.0..=320.0).contains(&u) && (0.0..=240.0).contains(&v)
-                })
-                .count()
-        };
         let edge = (0..2000)
             .map(|i| Vec3::new(i as f64 * 1e-3, 0.0, 0.0))
-            .take_while(|p| views(*p) >= cams.len() / 2)
+            .take_while(|p| views_seeing(&cams, *p) >= cams.len() / 2)
             .last()
             .unwrap();
-        assert!(views(edge) < 9, "seen by half, not by three quarters: {}", views(edge));
+        let quorum = (SCENE_QUORUM * cams.len() as f64).ceil() as usize;
+        let seen = views_seeing(&cams, edge);
+        assert!(
+            seen < quorum,
+            "seen by half, not by the quorum: {seen} of {}",
+            cams.len()
+        );
         assert!((edge - centre).norm() > radius, "{edge:?} outside {radius}");
         let away: Vec<geom::Camera<f64>> = cams
             .iter()
