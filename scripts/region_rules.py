@@ -5,6 +5,8 @@ For each `calibrate` output folder given (its `background/` capture), the radius
 by a share (the quorum) of the background's photos, counting a photo only where the point falls inside a
 border of its frame: half, two thirds and three quarters of the photos over the whole frame, half and two
 thirds within a border. `calibrate --scene` uses three quarters (`calib::region::SCENE_QUORUM`).
+The radii are on a 1 cm grid without the one-cell margin `calibrate` adds, so they run up to ~2 cm under
+the radius `calibrate` writes for the same rule (ChArUco seed 3, three quarters: 0.433 m here, 0.450 m there).
 
     python scripts/region_rules.py captures/raw960 ...      # needs numpy
 """
