@@ -2,7 +2,10 @@
 """A first-pose guess (`init.json` for `pganeus fit --init`) made from a synth truth, a set distance and angle
 off: the benchmark's "guess" start (issue 68's table: 2 cm and 15° off), as two marker detections would give.
 
-    python scripts/guess_from_truth.py TRUTH.json VIDEO --offset-mm 20 --offset-deg 15 [--seed 1] > init.json
+    python scripts/guess_from_truth.py TRUTH.json VIDEO --offset-mm 20 --offset-deg 15 [--seed 1] [--frame K] > init.json
+
+`--frame K` offsets frame K's true pose instead (a start for a video cut to begin at frame K; with zero
+offsets, the truth itself: a diagnostic of the fit's loss at the true pose).
 
 For every body of the video: its true pose in frame 0, turned by `--offset-deg` about an axis and moved by
 `--offset-mm` along a direction (both drawn from `--seed`; the turn about the body's centre), then written as
@@ -51,6 +54,7 @@ def main():
     ap.add_argument("--offset-mm", type=float, default=20.0)
     ap.add_argument("--offset-deg", type=float, default=15.0)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--frame", type=int, default=0, help="the frame whose true pose is offset (default 0)")
     a = ap.parse_args()
     with open(a.truth) as f:
         truth = json.load(f)
@@ -66,7 +70,9 @@ def main():
             sys.exit(f"{a.truth}: body {body['name']!r} has no static capture to refer the guess to")
         reference = captures[-1]
         pb_t, pb_q = reference["pose"]["t"], reference["pose"]["q"]
-        p0_t, p0_q = body["poses"][0]["t"], body["poses"][0]["q"]
+        if not 0 <= a.frame < len(body["poses"]):
+            sys.exit(f"{a.truth}: video {a.video!r} has {len(body['poses'])} frames, not frame {a.frame}")
+        p0_t, p0_q = body["poses"][a.frame]["t"], body["poses"][a.frame]["q"]
         axis, direction = unit(rng), unit(rng)
         half = math.radians(a.offset_deg) / 2
         turn = [math.cos(half)] + [math.sin(half) * c for c in axis]
