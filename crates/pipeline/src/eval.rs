@@ -469,6 +469,9 @@ pub fn score(
     if let Some(p) = pair_errors(&fit, video) {
         report["pairs"] = p;
     }
+    if let Some(b) = brightness_errors(&fit, &truth, &name) {
+        report["brightness"] = b;
+    }
     // The stages' own poses, where the fit folder has them.
     let mut stages = serde_json::Map::new();
     for stage in STAGE_FILES {
@@ -521,6 +524,41 @@ pub fn score(
         report["frame_assumed_identical"] = json!(unrelated);
     }
     Ok(EvalReport { scores: report })
+}
+
+/// The fit's brightness of every frame relative to the first (trajectory rows' `brightness`, measured on
+/// the scene) against the truth's, where camera-like footage recorded the gain each frame was developed
+/// with (`truth.json`'s `image_gains`): the mean of its channels, relative to the first frame's. Those gains
+/// are on the light; the fit compares the stored (sRGB-encoded) values, on which a gain `g` on the light
+/// is about `g^(1/2.2)` (the curve's slope through the mid-tones), so the truth is carried there.
+fn brightness_errors(fit: &Trajectory, truth: &Truth, video: &str) -> Option<Value> {
+    let gains: Vec<[f64; 3]> = serde_json::from_value(truth.extra.get(synth::IMAGE_GAINS)?.get(video)?.clone()).ok()?;
+    let rows = fit
+        .extra
+        .get("frames")
+        .or_else(|| fit.bodies.first()?.extra.get("frames"))?
+        .as_array()?;
+    let fitted: Vec<f64> = rows.iter().map_while(|r| r["brightness"].as_f64()).collect();
+    let level = |g: &[f64; 3]| g.iter().sum::<f64>() / 3.0;
+    let first = level(gains.first()?);
+    let (mut worst, mut worst_frame, mut sum) = (0.0f64, 0usize, 0.0);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let n = fitted.len().min(gains.len());
+    if n == 0 || first <= 0.0 {
+        return None;
+    }
+    for k in 0..n {
+        let true_drift = (level(&gains[k]) / first).powf(1.0 / 2.2);
+        (lo, hi) = (lo.min(true_drift), hi.max(true_drift));
+        let e = (fitted[k] / true_drift - 1.0).abs();
+        sum += e;
+        if e > worst {
+            (worst, worst_frame) = (e, k);
+        }
+    }
+    Some(json!({"frames": n, "error_percent": {"mean": num(sum / n as f64, 100.0, 2),
+        "worst": num(worst, 100.0, 2), "worst_frame": worst_frame},
+        "true_percent": {"low": num(lo - 1.0, 100.0, 2), "high": num(hi - 1.0, 100.0, 2)}}))
 }
 
 /// What [`score`] reads.
@@ -641,6 +679,16 @@ fn summary_lines(report: &Value) -> Vec<String> {
     for p in report["pairs"].as_array().into_iter().flatten() {
         lines.push(format!("{} and {}: {}", p["bodies"][0], p["bodies"][1], values_text(p)));
     }
+    if let Some(b) = report.get("brightness") {
+        lines.push(format!(
+            "the video's brightness, frame to frame: the fit's within {} % of the truth's on average, {} % at worst (frame {}); the truth drifts {} % to {} %",
+            b["error_percent"]["mean"],
+            b["error_percent"]["worst"],
+            b["error_percent"]["worst_frame"],
+            b["true_percent"]["low"],
+            b["true_percent"]["high"]
+        ));
+    }
     lines
 }
 
@@ -676,5 +724,29 @@ mod tests {
         add_ranges(&mut row, &fit.contact.extra);
         assert!(row.get("restitution_range").is_none() && range_text(&row, "restitution").is_empty());
         assert!(pair_entry(&fit, &["ball".to_string(), "toy".to_string()]).is_none());
+    }
+
+    #[test]
+    fn the_fitted_brightness_is_held_to_the_truths_gains_carried_into_the_stored_values() {
+        // The truth's light doubles by frame 2 (white balance off per channel, its mean 2); the stored values
+        // then grow by 2^(1/2.2) = 1.37. The fit reads 1.37 there, 1.02 where the truth is steady.
+        let truth: Truth = serde_json::from_value(json!({
+            "image_gains": {"drop": [[1.0, 0.9, 1.1], [1.0, 1.0, 1.0], [2.0, 1.8, 2.2]]}
+        }))
+        .unwrap();
+        let fit: Trajectory = serde_json::from_value(json!({
+            "capture": "drop", "fps": 30.0, "bodies": [], "contact": {"restitution": 0.5, "friction": 0.25, "model": "pganeus"},
+            "frames": [{"frame": 0, "brightness": 1.0}, {"frame": 1, "brightness": 1.02},
+                       {"frame": 2, "brightness": 2f64.powf(1.0 / 2.2)}]
+        }))
+        .unwrap();
+        let b = brightness_errors(&fit, &truth, "drop").expect("gains and brightness");
+        assert_eq!(b["frames"], json!(3));
+        assert_eq!(b["error_percent"]["worst"], json!(2.0));
+        assert_eq!(b["error_percent"]["worst_frame"], json!(1));
+        assert_eq!(b["true_percent"]["high"].as_f64().map(|h| h.round()), Some(37.0));
+        // Another video, or a truth without gains: nothing to score.
+        assert!(brightness_errors(&fit, &truth, "slide").is_none());
+        assert!(brightness_errors(&fit, &Truth::default(), "drop").is_none());
     }
 }

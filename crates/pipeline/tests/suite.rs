@@ -1,6 +1,7 @@
 //! Every integration test of the crate in one binary: one link instead of one per file, and the tests of
 //! all the files share the cores (a file's last long test no longer leaves one idle).
 
+mod brightness;
 mod calibrate;
 mod common;
 mod fits;

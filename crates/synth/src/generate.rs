@@ -580,7 +580,7 @@ pub fn frame_name(i: usize, n: usize) -> String {
 pub fn generate(scene: &SynthScene, base: &Path, out: &Path, on_image: OnImage) -> Result<Summary, SynthError> {
     let DatasetPlan {
         captures: plans,
-        truth,
+        mut truth,
         meshes,
     } = plan(scene, base)?;
     std::fs::create_dir_all(out).map_err(|e| SynthError::File {
@@ -591,10 +591,18 @@ pub fn generate(scene: &SynthScene, base: &Path, out: &Path, on_image: OnImage) 
         captures: vec![],
         images: 0,
     };
+    let mut gains = serde_json::Map::new();
     for p in &plans {
-        write_capture(p, out, scene, on_image)?;
+        if let Some(g) = write_capture(p, out, scene, on_image)? {
+            gains.insert(p.name.clone(), serde_json::json!(g));
+        }
         summary.captures.push((p.name.clone(), p.cameras.len()));
         summary.images += p.cameras.len();
+    }
+    if !gains.is_empty() {
+        // The truth of a camera's exposure and white balance: what per-view appearance and a fit's
+        // brightness drift should find (docs/formats.md).
+        truth.extra.insert(IMAGE_GAINS.into(), serde_json::Value::Object(gains));
     }
     for (name, m) in &meshes {
         pganeus_io::write_ply(
@@ -678,7 +686,17 @@ fn write_raw(
     Ok(())
 }
 
-fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnImage) -> Result<(), SynthError> {
+/// The key of `truth.json` under which camera-like footage keeps, for every capture, the gain on each
+/// channel each image was developed with (exposure × white balance; a video's drifting).
+pub const IMAGE_GAINS: &str = "image_gains";
+
+/// Render and write one capture; camera-like footage returns the gain each image was developed with.
+fn write_capture(
+    p: &CapturePlan,
+    out: &Path,
+    scene: &SynthScene,
+    on_image: OnImage,
+) -> Result<Option<Vec<[f64; 3]>>, SynthError> {
     let dir = out.join(&p.name);
     let n = p.cameras.len();
     let mut mats = Vec::with_capacity(n);
@@ -772,7 +790,7 @@ fn write_capture(p: &CapturePlan, out: &Path, scene: &SynthScene, on_image: OnIm
         extra: Default::default(),
     };
     pganeus_io::write_capture_info(&dir.join("capture.json"), &info)?;
-    Ok(())
+    Ok(camera.map(|c| c.gains))
 }
 
 /// What a camera does to one capture's images (`[camera_like]`): a gain per photo, or a video's gain
@@ -785,6 +803,8 @@ struct CameraEffects<'a> {
     /// A video's gain before its drift, and the drift's phase.
     base_gain: [f64; 3],
     phase: f64,
+    /// The gain each image so far was developed with.
+    gains: Vec<[f64; 3]>,
 }
 
 impl<'a> CameraEffects<'a> {
@@ -803,6 +823,7 @@ impl<'a> CameraEffects<'a> {
             frames: p.cameras.len(),
             base_gain,
             phase,
+            gains: Vec::new(),
         }
     }
 
@@ -818,6 +839,7 @@ impl<'a> CameraEffects<'a> {
             crate::raw::photo_gain(d.exposure_jitter, d.white_balance_jitter, &mut self.rng)
         };
         let image = crate::raw::develop(r, gain, d.noise, &mut self.rng);
+        self.gains.push(gain);
         let bytes =
             pganeus_io::encode_jpeg(&image, d.jpeg_quality).map_err(|e| field("camera_like.jpeg_quality", e))?;
         Ok(pganeus_io::read_jpeg_bytes(&bytes, path)?)

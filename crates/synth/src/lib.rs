@@ -17,5 +17,5 @@ pub mod texture;
 
 pub use build::SynthError;
 pub use desc::{CameraLike, Physics, RawDesc, SynthScene};
-pub use generate::{frame_name, generate, simulate_videos, Summary};
+pub use generate::{frame_name, generate, simulate_videos, Summary, IMAGE_GAINS};
 pub use presets::{contact_scenes, preset, with_raw, Scale, CONTACT_SCENES, PRESETS};

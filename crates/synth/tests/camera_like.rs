@@ -119,6 +119,26 @@ fn each_effect_is_what_its_setting_says_and_the_truth_is_kept() {
     for w in frames.windows(2) {
         assert!((w[1] - w[0]).abs() < 0.05, "a slow drift, not a flicker: {frames:?}");
     }
+    // The truth keeps the gain each image was developed with (`image_gains`), which is the one measured.
+    let read_truth = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
+    };
+    assert!(read_truth(&clean).get(synth::IMAGE_GAINS).is_none(), "clean footage has no gains");
+    let truth = read_truth(&gains);
+    let kept = |capture: &str| -> Vec<f64> {
+        let per_image = truth[synth::IMAGE_GAINS][capture].as_array().expect("gains of every capture");
+        per_image
+            .iter()
+            .map(|g| g.as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).sum::<f64>() / 3.0)
+            .collect()
+    };
+    for (measured, capture) in [(&photo, "background"), (&frames, video.as_str())] {
+        let kept = kept(capture);
+        assert_eq!(measured.len(), kept.len(), "{capture}: one gain per image");
+        for (m, k) in measured.iter().zip(&kept) {
+            assert!((m / k - 1.0).abs() < 0.01, "{capture}: measured {measured:?}, kept {kept:?}");
+        }
+    }
 
     // Noise only: the difference has about the size asked for (0.01 linear at mid grey).
     let noisy = generate(&scene(Some(only(|c| c.noise = 0.01))), "camera-like-noise");

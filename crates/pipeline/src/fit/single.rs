@@ -1048,7 +1048,7 @@ fn finish(
         let iou = if union == 0 { 1.0 } else { inter as f64 / union as f64 };
         rows.push(
             json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0, "iou": (iou * 1e4).round() / 1e4,
-            "pose": source[k]}),
+            "pose": source[k], "brightness": (job.drift[k] * 1e4).round() / 1e4}),
         );
         let mut input = Image::new(w, h, 3);
         for (p, c) in f.rgb.iter().enumerate() {
