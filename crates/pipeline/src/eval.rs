@@ -556,9 +556,11 @@ fn brightness_errors(fit: &Trajectory, truth: &Truth, video: &str) -> Option<Val
             (worst, worst_frame) = (e, k);
         }
     }
-    Some(json!({"frames": n, "error_percent": {"mean": num(sum / n as f64, 100.0, 2),
+    Some(
+        json!({"frames": n, "error_percent": {"mean": num(sum / n as f64, 100.0, 2),
         "worst": num(worst, 100.0, 2), "worst_frame": worst_frame},
-        "true_percent": {"low": num(lo - 1.0, 100.0, 2), "high": num(hi - 1.0, 100.0, 2)}}))
+        "true_percent": {"low": num(lo - 1.0, 100.0, 2), "high": num(hi - 1.0, 100.0, 2)}}),
+    )
 }
 
 /// What [`score`] reads.

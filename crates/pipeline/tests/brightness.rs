@@ -39,11 +39,18 @@ fn a_drifting_auto_exposure_is_read_off_the_scene_within_half_a_percent() {
     let video = scene(None).videos[0].name.clone();
     let file = |dir: &Path, sub: &str, k: usize| dir.join(&video).join(sub).join(synth::frame_name(k, FRAMES));
 
-    let frames: Vec<Vec<[f32; 3]>> = (0..FRAMES).map(|k| reference_frame(&file(&raw, "image", k)).unwrap()).collect();
-    let masks: Vec<Vec<bool>> = (0..FRAMES).map(|k| read_mask(&file(&raw, "mask", k)).unwrap()).collect();
+    let frames: Vec<Vec<[f32; 3]>> = (0..FRAMES)
+        .map(|k| reference_frame(&file(&raw, "image", k)).unwrap())
+        .collect();
+    let masks: Vec<Vec<bool>> = (0..FRAMES)
+        .map(|k| read_mask(&file(&raw, "mask", k)).unwrap())
+        .collect();
     // The clean first frame stands for the empty scene: its body's pixels are left out of every frame.
     let backdrop = reference_frame(&file(&clean, "image", 0)).unwrap();
-    let bodies: Vec<Vec<bool>> = masks.iter().map(|m| m.iter().zip(&masks[0]).map(|(a, b)| *a || *b).collect()).collect();
+    let bodies: Vec<Vec<bool>> = masks
+        .iter()
+        .map(|m| m.iter().zip(&masks[0]).map(|(a, b)| *a || *b).collect())
+        .collect();
     let rgb: Vec<&[[f32; 3]]> = frames.iter().map(|f| f.as_slice()).collect();
     let measured = recon::brightness_drift(&rgb, &bodies, &backdrop, 96);
 
@@ -52,11 +59,17 @@ fn a_drifting_auto_exposure_is_read_off_the_scene_within_half_a_percent() {
     let gains: Vec<[f64; 3]> = serde_json::from_value(truth[synth::IMAGE_GAINS][&video].clone()).unwrap();
     let level = |g: &[f64; 3]| g.iter().sum::<f64>() / 3.0;
     // On the stored (sRGB) values a gain g on the light is about g^(1/2.2), as eval carries it.
-    let expected: Vec<f64> = gains.iter().map(|g| (level(g) / level(&gains[0])).powf(1.0 / 2.2)).collect();
+    let expected: Vec<f64> = gains
+        .iter()
+        .map(|g| (level(g) / level(&gains[0])).powf(1.0 / 2.2))
+        .collect();
     eprintln!("measured {measured:.4?}\nexpected {expected:.4?}");
     let swing = expected.iter().cloned().fold(0.0f64, |m, e| m.max((e - 1.0).abs()));
     assert!(swing > 0.02, "the video drifts enough to measure: {expected:?}");
     for (k, (m, e)) in measured.iter().zip(&expected).enumerate() {
-        assert!((m / e - 1.0).abs() < 0.005, "frame {k}: measured {m:.4}, the truth's {e:.4}");
+        assert!(
+            (m / e - 1.0).abs() < 0.005,
+            "frame {k}: measured {m:.4}, the truth's {e:.4}"
+        );
     }
 }

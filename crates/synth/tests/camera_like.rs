@@ -123,10 +123,15 @@ fn each_effect_is_what_its_setting_says_and_the_truth_is_kept() {
     let read_truth = |dir: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
     };
-    assert!(read_truth(&clean).get(synth::IMAGE_GAINS).is_none(), "clean footage has no gains");
+    assert!(
+        read_truth(&clean).get(synth::IMAGE_GAINS).is_none(),
+        "clean footage has no gains"
+    );
     let truth = read_truth(&gains);
     let kept = |capture: &str| -> Vec<f64> {
-        let per_image = truth[synth::IMAGE_GAINS][capture].as_array().expect("gains of every capture");
+        let per_image = truth[synth::IMAGE_GAINS][capture]
+            .as_array()
+            .expect("gains of every capture");
         per_image
             .iter()
             .map(|g| g.as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).sum::<f64>() / 3.0)
@@ -136,7 +141,10 @@ fn each_effect_is_what_its_setting_says_and_the_truth_is_kept() {
         let kept = kept(capture);
         assert_eq!(measured.len(), kept.len(), "{capture}: one gain per image");
         for (m, k) in measured.iter().zip(&kept) {
-            assert!((m / k - 1.0).abs() < 0.01, "{capture}: measured {measured:?}, kept {kept:?}");
+            assert!(
+                (m / k - 1.0).abs() < 0.01,
+                "{capture}: measured {measured:?}, kept {kept:?}"
+            );
         }
     }
 
