@@ -159,6 +159,15 @@ pub fn median_fitted_loss(frames: impl Iterator<Item = (f64, bool)>) -> Option<f
     losses.get(losses.len() / 2).copied()
 }
 
+/// The lowest tenth of the image losses of the `(loss, fitted)` frames that were fitted: how well the
+/// video's best frames are explained (what noise, JPEG, blur and the reconstruction's own errors leave where
+/// the pose is right); `None` without any.
+pub fn lowest_tenth_fitted_loss(frames: impl Iterator<Item = (f64, bool)>) -> Option<f64> {
+    let mut losses: Vec<f64> = frames.filter(|&(_, fitted)| fitted).map(|(l, _)| l).collect();
+    losses.sort_by(f64::total_cmp);
+    losses.get(losses.len().saturating_sub(1) / 10).copied()
+}
+
 /// Where a frame's pose fit started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -742,11 +751,10 @@ impl<'a> PosesFromVideo<'a> {
         let Some(last) = self.results.last().filter(|r| r.fitted) else {
             return false;
         };
-        let mut losses: Vec<f64> = self.results.iter().filter(|r| r.fitted).map(|r| r.image.loss).collect();
-        losses.sort_by(f64::total_cmp);
         // The lowest tenth: where a tumble was lost early, most frames after it are as poorly explained as
         // the last (the drop Rapier made: 40 of 48).
-        let reference = losses[(losses.len() - 1) / 10];
+        let reference = lowest_tenth_fitted_loss(self.results.iter().map(|r| (r.image.loss, r.fitted)))
+            .expect("the last frame is fitted");
         self.cfg.end_search_ratio > 0.0 && last.image.loss > self.cfg.end_search_ratio * reference
     }
 

@@ -20,12 +20,9 @@ pub const SIMULATION_MISSES_BY: f64 = 0.1;
 pub const SIMULATION_LOSS_RATIO: f64 = 1.5;
 
 /// The loss of the frames a video's poses explain best: the lowest tenth of GA's fitted frames' image losses
-/// (what noise, JPEG, blur and the reconstruction's own errors leave where the pose is right); `None`
-/// without fitted frames.
+/// ([`crate::poses_from_video::lowest_tenth_fitted_loss`]); `None` without fitted frames.
 pub fn loss_floor(ga: &[FramePose]) -> Option<f64> {
-    let mut losses: Vec<f64> = ga.iter().filter(|g| g.fitted).map(|g| g.image.loss).collect();
-    losses.sort_by(f64::total_cmp);
-    losses.get(losses.len().saturating_sub(1) / 10).copied()
+    crate::poses_from_video::lowest_tenth_fitted_loss(ga.iter().map(|g| (g.image.loss, g.fitted)))
 }
 
 /// A simulated pose that draws its body this many pixels from GA's on average (its depth set to GA's) draws
