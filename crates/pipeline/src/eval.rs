@@ -526,11 +526,22 @@ pub fn score(
     Ok(EvalReport { scores: report })
 }
 
+/// A video's true brightness of every frame relative to the first, as the fit measures it: `gains` the
+/// gain each frame was developed with (`truth.json`'s `image_gains`), on the light; the fit compares the
+/// stored (sRGB-encoded) values, on which a gain `g` on the light is about `g^(1/2.2)` (the curve's slope
+/// through the mid-tones), so the mean of the channels' gains relative to the first frame's is carried
+/// there. Empty without frames or with a black first frame.
+pub fn true_brightness_drift(gains: &[[f64; 3]]) -> Vec<f64> {
+    let level = |g: &[f64; 3]| g.iter().sum::<f64>() / 3.0;
+    match gains.first().map(level) {
+        Some(first) if first > 0.0 => gains.iter().map(|g| (level(g) / first).powf(1.0 / 2.2)).collect(),
+        _ => Vec::new(),
+    }
+}
+
 /// The fit's brightness of every frame relative to the first (trajectory rows' `brightness`, measured on
-/// the scene) against the truth's, where camera-like footage recorded the gain each frame was developed
-/// with (`truth.json`'s `image_gains`): the mean of its channels, relative to the first frame's. Those gains
-/// are on the light; the fit compares the stored (sRGB-encoded) values, on which a gain `g` on the light
-/// is about `g^(1/2.2)` (the curve's slope through the mid-tones), so the truth is carried there.
+/// the scene) against the truth's ([`true_brightness_drift`]), where camera-like footage recorded the gain
+/// each frame was developed with.
 fn brightness_errors(fit: &Trajectory, truth: &Truth, video: &str) -> Option<Value> {
     let gains: Vec<[f64; 3]> = serde_json::from_value(truth.extra.get(synth::IMAGE_GAINS)?.get(video)?.clone()).ok()?;
     let rows = fit
@@ -539,23 +550,22 @@ fn brightness_errors(fit: &Trajectory, truth: &Truth, video: &str) -> Option<Val
         .or_else(|| fit.bodies.first()?.extra.get("frames"))?
         .as_array()?;
     let fitted: Vec<f64> = rows.iter().map_while(|r| r["brightness"].as_f64()).collect();
-    let level = |g: &[f64; 3]| g.iter().sum::<f64>() / 3.0;
-    let first = level(gains.first()?);
-    let (mut worst, mut worst_frame, mut sum) = (0.0f64, 0usize, 0.0);
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    let n = fitted.len().min(gains.len());
-    if n == 0 || first <= 0.0 {
+    let truth = true_brightness_drift(&gains);
+    let n = fitted.len().min(truth.len());
+    if n == 0 {
         return None;
     }
-    for k in 0..n {
-        let true_drift = (level(&gains[k]) / first).powf(1.0 / 2.2);
-        (lo, hi) = (lo.min(true_drift), hi.max(true_drift));
-        let e = (fitted[k] / true_drift - 1.0).abs();
+    let (mut worst, mut worst_frame, mut sum) = (0.0f64, 0usize, 0.0);
+    for (k, (f, t)) in fitted.iter().zip(&truth).enumerate() {
+        let e = (f / t - 1.0).abs();
         sum += e;
         if e > worst {
             (worst, worst_frame) = (e, k);
         }
     }
+    let (lo, hi) = truth[..n]
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
     Some(
         json!({"frames": n, "error_percent": {"mean": num(sum / n as f64, 100.0, 2),
         "worst": num(worst, 100.0, 2), "worst_frame": worst_frame},
