@@ -7,7 +7,7 @@ mod docs_check;
 
 use clap::{Parser, Subcommand};
 use commands::Bars;
-use pipeline::{board, calibrate, demo, eval, import, render, report_page, surfaces, synth, train};
+use pipeline::{board, calibrate, demo, eval, import, render, report_page, surfaces, synth, train, video_masks};
 
 #[derive(Parser)]
 #[command(
@@ -50,6 +50,8 @@ enum Command {
     Simulate(commands::simulate::SimulateArgs),
     /// Find the launch velocity that brings a body to a point at a frame (Sec. 4.1).
     Target(commands::target::TargetArgs),
+    /// Masks of the moving bodies in every frame of a fixed-camera video, computed against the trained scene.
+    Masks(video_masks::MasksArgs),
     /// A body's pose in every frame of a fixed-camera video and the physics that explains it (first pose, PA, GA, PGA).
     Fit(commands::fit::FitArgs),
     /// Score a fit against a scene's truth.json: per-frame position, rotation, ADD(-S), silhouette IoU; launch and contact errors; the object's mesh.
@@ -103,6 +105,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Target(a) => commands::target::run(a)?,
         Command::Fit(a) => commands::fit::run(a, &bars)?,
         Command::Eval(a) => eval::run(&a, &bars).map(|_| ())?,
+        Command::Masks(a) => video_masks::run(&a, &bars).map(|_| ())?,
         Command::Report(a) => report_page::run(&a, &bars)?,
         Command::FitPhysics(a) => commands::fit_physics::run(a)?,
         Command::BenchSim(a) => commands::bench_sim::run(a)?,

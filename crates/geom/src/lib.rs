@@ -7,6 +7,7 @@
 pub mod camera;
 pub mod dual;
 pub mod eigen;
+pub mod mask;
 pub mod pose;
 pub mod quat;
 pub mod real;

@@ -39,6 +39,7 @@ pub mod run_folder;
 pub mod surfaces;
 pub mod synth;
 pub mod train;
+pub mod video_masks;
 
 pub use error::{Context, Error, Result};
 pub use objects::{load_objects, parse_objects};

@@ -7,3 +7,4 @@ mod common;
 mod fits;
 mod import;
 mod raw_session;
+mod video_masks;

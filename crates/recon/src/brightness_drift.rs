@@ -25,7 +25,7 @@ pub fn brightness_drift(frames: &[&[[f32; 3]]], bodies: &[Vec<bool>], scene: &[[
     let mut out: Vec<f64> = Vec::with_capacity(frames.len());
     let mut first = None;
     for (k, (frame, body)) in frames.iter().zip(bodies).enumerate() {
-        let near = grown(body, width, MARGIN_PX);
+        let near = geom::mask::dilate(body, width, MARGIN_PX);
         let mut ratios: Vec<f32> = frame
             .iter()
             .zip(scene)
@@ -55,34 +55,6 @@ pub fn brightness_drift(frames: &[&[[f32; 3]]], bodies: &[Vec<bool>], scene: &[[
         out.push(relative);
     }
     out
-}
-
-/// `mask` grown by `r` pixels (a square), `width` pixels a row: rows, then columns, each a running count.
-fn grown(mask: &[bool], width: usize, r: usize) -> Vec<bool> {
-    let height = mask.len() / width.max(1);
-    let pass = |src: &[bool], along_rows: bool| -> Vec<bool> {
-        let (lines, len) = if along_rows { (height, width) } else { (width, height) };
-        let at = |line: usize, i: usize| if along_rows { line * width + i } else { i * width + line };
-        let mut out = vec![false; src.len()];
-        for line in 0..lines {
-            let mut count = 0usize;
-            // The window [i − r, i + r]: count what enters at i + r and leaves at i − r − 1.
-            for i in 0..len.min(r) {
-                count += src[at(line, i)] as usize;
-            }
-            for i in 0..len {
-                if i + r < len {
-                    count += src[at(line, i + r)] as usize;
-                }
-                if i > r {
-                    count -= src[at(line, i - r - 1)] as usize;
-                }
-                out[at(line, i)] = count > 0;
-            }
-        }
-        out
-    };
-    pass(&pass(mask, true), false)
 }
 
 #[cfg(test)]
@@ -133,19 +105,5 @@ mod tests {
         let all = vec![true; w * h];
         let drift = brightness_drift(&[refs[0], refs[1]], &[bodies[0].clone(), all], &rendered, w);
         assert_eq!(drift, vec![1.0, 1.0]);
-    }
-
-    #[test]
-    fn a_grown_mask_reaches_r_pixels_every_way() {
-        let (w, h) = (9, 7);
-        let mut mask = vec![false; w * h];
-        mask[3 * w + 4] = true;
-        let g = grown(&mask, w, 2);
-        for y in 0..h {
-            for x in 0..w {
-                let inside = x.abs_diff(4) <= 2 && y.abs_diff(3) <= 2;
-                assert_eq!(g[y * w + x], inside, "({x}, {y})");
-            }
-        }
     }
 }

@@ -24,6 +24,7 @@ pub mod target;
 mod unknowns;
 pub mod value_ranges;
 pub mod video_fit;
+pub mod video_masks;
 
 pub use brightness_drift::brightness_drift;
 pub use colliding_bodies::{
@@ -53,3 +54,4 @@ pub use shutter::Motion;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
 pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
 pub use video_fit::VideoFitConfig;
+pub use video_masks::{video_masks, VideoMaskConfig, VideoMaskStats};

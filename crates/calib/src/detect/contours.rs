@@ -1,6 +1,7 @@
 //! Dark blobs of an adaptive threshold and their outer boundaries: where marker candidates come from.
 
 use crate::gray::{Gray, Integral};
+pub use geom::mask::components;
 
 /// Pixels darker than the mean of the `2 * radius + 1` square around them by more than `offset` (0–255): a
 /// marker's black border stays dark under any light that changes slowly across the image.
@@ -12,79 +13,6 @@ pub fn adaptive_threshold(gray: &Gray, integral: &Integral, radius: usize, offse
         }
     }
     dark
-}
-
-/// The 8-connected components of `mask`: a label per pixel (0 for pixels off the mask, components from 1)
-/// and each component's pixel count.
-pub fn components(mask: &[bool], width: usize, height: usize) -> (Vec<u32>, Vec<usize>) {
-    let mut parent: Vec<u32> = vec![0];
-    fn find(parent: &mut [u32], mut a: u32) -> u32 {
-        while parent[a as usize] != a {
-            parent[a as usize] = parent[parent[a as usize] as usize];
-            a = parent[a as usize];
-        }
-        a
-    }
-    let mut labels = vec![0u32; width * height];
-    for y in 0..height {
-        for x in 0..width {
-            if !mask[y * width + x] {
-                continue;
-            }
-            let mut neighbours = [0u32; 4];
-            let mut n = 0;
-            let mut look = |xx: i64, yy: i64| {
-                if xx >= 0 && yy >= 0 && (xx as usize) < width {
-                    let l = labels[yy as usize * width + xx as usize];
-                    if l != 0 {
-                        neighbours[n] = l;
-                        n += 1;
-                    }
-                }
-            };
-            let (xi, yi) = (x as i64, y as i64);
-            look(xi - 1, yi);
-            if y > 0 {
-                look(xi - 1, yi - 1);
-                look(xi, yi - 1);
-                look(xi + 1, yi - 1);
-            }
-            let label = if n == 0 {
-                parent.push(parent.len() as u32);
-                (parent.len() - 1) as u32
-            } else {
-                let mut root = find(&mut parent, neighbours[0]);
-                for &other in &neighbours[1..n] {
-                    let r = find(&mut parent, other);
-                    if r != root {
-                        let (lo, hi) = (root.min(r), root.max(r));
-                        parent[hi as usize] = lo;
-                        root = lo;
-                    }
-                }
-                root
-            };
-            labels[y * width + x] = label;
-        }
-    }
-    // Flatten to consecutive labels.
-    let mut remap = vec![0u32; parent.len()];
-    let mut next = 0u32;
-    for l in 1..parent.len() as u32 {
-        let r = find(&mut parent, l);
-        if r == l {
-            next += 1;
-            remap[l as usize] = next;
-        }
-    }
-    let mut sizes = vec![0usize; next as usize + 1];
-    for l in labels.iter_mut() {
-        if *l != 0 {
-            *l = remap[find(&mut parent, *l) as usize];
-            sizes[*l as usize] += 1;
-        }
-    }
-    (labels, sizes)
 }
 
 /// The clockwise ring of neighbour offsets, starting east (image y down, so "clockwise" as seen).

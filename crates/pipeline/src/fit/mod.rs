@@ -392,12 +392,20 @@ pub(crate) struct RecordInputs {
     pub(crate) no_ga: bool,
 }
 
-/// The video's frames for body `name`: images, the body's masks and the one fixed camera.
+/// Whether the video has masks for body `name` (its `mask_<NAME>/`, or with one body `mask/`).
+pub(crate) fn has_masks(dir: &Path, name: &str, single: bool) -> Result<bool> {
+    let c = pganeus_io::open_capture(dir)?;
+    Ok(c.extra_masks.iter().any(|(n, _)| n == name) || (single && c.masks.is_some()))
+}
+
+/// The video's frames for body `name`: images, the body's masks (`computed` where the video has none) and
+/// the one fixed camera.
 pub(crate) fn read_video(
     dir: &Path,
     name: &str,
     single: bool,
     limit: Option<usize>,
+    computed: Option<&[Vec<bool>]>,
 ) -> Result<(Vec<FrameTarget>, Option<f64>)> {
     let c = pganeus_io::open_capture(dir)?;
     let cameras = world_cameras(&c)?;
@@ -420,9 +428,10 @@ pub(crate) fn read_video(
         }
     }
     let masks = match c.extra_masks.iter().find(|(n, _)| n == name) {
-        Some((_, m)) => m.clone(),
-        None => match (&c.masks, single) {
-            (Some(m), true) => m.clone(),
+        Some((_, m)) => Some(m.clone()),
+        None => match (&c.masks, single, computed) {
+            (Some(m), true, _) => Some(m.clone()),
+            (_, _, Some(_)) => None,
             _ => fail!(
                 Input,
                 "{}: no mask_{name}/ folder for body {name:?}{}",
@@ -443,7 +452,11 @@ pub(crate) fn read_video(
     let mut frames = Vec::with_capacity(n);
     let mut empty = Vec::new();
     for k in 0..n {
-        let mask = read_mask(&masks[k])?;
+        let mask = match (&masks, computed) {
+            (Some(m), _) => read_mask(&m[k])?,
+            (None, Some(c)) => c[k].clone(),
+            (None, None) => unreachable!("no masks is refused above"),
+        };
         if !mask.iter().any(|&m| m) {
             empty.push(k);
         }
@@ -455,7 +468,10 @@ pub(crate) fn read_video(
             shutter,
         });
     }
-    let mask_dir = masks[0].parent().unwrap_or(dir).display().to_string();
+    let mask_dir = match &masks {
+        Some(m) => m[0].parent().unwrap_or(dir).display().to_string(),
+        None => format!("{} (masks computed from the scene)", dir.display()),
+    };
     if empty.len() == n {
         fail!(Input, "{mask_dir}: the masks of body {name:?} are empty in every frame");
     }

@@ -79,7 +79,7 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let mut fps_of_capture = None;
     let mut videos = Vec::new();
     for (name, _) in objects {
-        let (frames, fps) = read_video(&a.video, name, false, a.frames)?;
+        let (frames, fps) = read_video(&a.video, name, false, a.frames, None)?;
         fps_of_capture = fps_of_capture.or(fps);
         videos.push(frames);
     }

@@ -78,12 +78,25 @@ pub(super) struct Prepared {
     scene_field: neus::checkpoint::LoadedField,
     grid: Option<SdfGrid>,
     body: RigidBody,
+    /// The masks were computed (the video had none): written into the run folder for inspection.
+    computed_masks: bool,
 }
 
 /// Every input read and checked, and the record of the fit.
 pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, FitRecord)> {
     let (name, object_dir) = a.objects[0].clone();
-    let (mut frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames)?;
+    let (scene_field, grid) = load_scene(a)?;
+    // A video without masks: the moving body found against the scene rendered through its camera.
+    let computed = if has_masks(&a.video, &name, true)? {
+        None
+    } else {
+        tracing::info!(
+            "{}: no mask_{name}/ nor mask/: computing the masks from the frames and the scene",
+            a.video.display()
+        );
+        Some(crate::video_masks::compute(&a.video, &scene_field, &crate::Quiet)?.masks)
+    };
+    let (mut frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames, computed.as_deref())?;
     let fps = video_fps(a, fps_of_capture)?;
     let shutter = set_shutter(a, &mut frames, fps)?;
     let object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;
@@ -96,7 +109,6 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     if let Some(guess) = &guess {
         check_guess_in_view(&cam, guess, &name, &a.init)?;
     }
-    let (scene_field, grid) = load_scene(a)?;
     let body = rigid_body(&name, &object, &object_dir, a.density)?;
     check_sim_settings(fps, frames.len(), cfg)?;
     let record = record_of(a, cfg, frames.len(), fps, shutter);
@@ -109,6 +121,7 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
         scene_field,
         grid,
         body,
+        computed_masks: computed.is_some(),
     };
     Ok((prepared, record))
 }
@@ -117,6 +130,12 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
 pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let (a, t_start) = (ctx.inputs, ctx.t_start);
     let cam = p.frames[0].camera;
+    if p.computed_masks {
+        let masks: Vec<Vec<bool>> = p.frames.iter().map(|f| f.mask.clone()).collect();
+        let dir = ctx.out.join(format!("mask_{}", p.name));
+        crate::video_masks::write_masks(&dir, &masks, cam.width as usize)?;
+        tracing::info!("the computed masks: {}", dir.display());
+    }
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, p.frames.len(), ctx.config, vec![p.body])?;
     let scene_pre = scene_through(&p.scene_field, &cam);

@@ -1,0 +1,244 @@
+//! `pganeus masks`: a mask of the moving bodies in every frame of a fixed-camera video, computed from the
+//! frames and the trained scene ([`recon::video_masks`]): the scene rendered through the video's camera is
+//! the background. Written as a body's `mask_<NAME>/` folder (the layout `fit` reads) with `masks.json`
+//! beside it (each frame's area, gain and bar; IoU against masks already in the video, where there are).
+
+use crate::error::fail;
+use crate::run_folder::checkpoint_of;
+use crate::{Context, Observer, Result, Task};
+use neus::checkpoint::load_field;
+use pganeus_io::Image;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// `pganeus masks` arguments.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[cfg_attr(
+    feature = "clap",
+    command(after_help = "Examples:
+  pganeus masks data/slide --scene runs/scene --body toy
+  pganeus masks data/slide --scene runs/scene --body toy --out inspect/slide_masks")
+)]
+pub struct MasksArgs {
+    /// A fixed-camera video capture (`image/`, `cameras_sphere.npz`).
+    pub video: PathBuf,
+    /// The scene's training run (the board and obstacles without the bodies).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub scene: PathBuf,
+    /// The body's name: the masks are its `mask_<NAME>/`. One body: the masks hold whatever moves.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "body"))]
+    pub body: String,
+    /// Where to write the masks (default: `VIDEO/mask_<NAME>`, refused where that folder exists).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub out: Option<PathBuf>,
+}
+
+/// What `masks` measured, per frame (written as `masks.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct MasksReport {
+    pub video: PathBuf,
+    pub out: PathBuf,
+    /// Pixels in each frame's mask.
+    pub areas: Vec<usize>,
+    /// Each frame's exposure against the scene's rendering.
+    pub gains: Vec<f64>,
+    /// Each frame's seed bar (summed colour distance).
+    pub bars: Vec<f64>,
+    /// Pixels whose background stayed the rendering (no frame showed the scene there).
+    pub rendered_background: usize,
+    /// Against the video's own `mask_<NAME>/` (or `mask/`), where it has one: each frame's IoU, and the
+    /// true mask's area.
+    pub against: Option<Against>,
+}
+
+/// The computed masks against masks the video already had.
+#[derive(Clone, Debug, Serialize)]
+pub struct Against {
+    pub folder: PathBuf,
+    pub iou: Vec<f64>,
+    pub areas: Vec<usize>,
+}
+
+/// A video's computed masks and what they were computed with.
+pub struct ComputedMasks {
+    /// One per frame, `width` pixels a row.
+    pub masks: Vec<Vec<bool>>,
+    pub stats: recon::VideoMaskStats,
+    /// The scene rendered through the video's camera.
+    pub rendered: Vec<[f32; 3]>,
+    pub width: usize,
+}
+
+/// The masks of a video's moving bodies, computed against the scene's field rendered through its camera.
+pub fn compute(video: &Path, scene: &neus::checkpoint::LoadedField, observer: &dyn Observer) -> Result<ComputedMasks> {
+    let c = pganeus_io::open_capture(video)?;
+    let cameras = crate::cameras::world_cameras(&c)?;
+    let camera = cameras[0];
+    let width = camera.width as usize;
+    let pb = Task::start(observer, "reading frames", c.images.len() as u64);
+    let frames = c
+        .images
+        .iter()
+        .map(|p| {
+            let f = crate::images::reference_frame(p)?;
+            if f.len() != width * camera.height as usize {
+                fail!(
+                    Input,
+                    "{}: {} pixels where the camera has {} × {}",
+                    p.display(),
+                    f.len(),
+                    camera.width,
+                    camera.height
+                );
+            }
+            pb.inc(1);
+            Ok(f)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    pb.finish();
+    if frames.len() < 2 {
+        fail!(
+            Input,
+            "{}: masks need at least 2 frames, the video has {}",
+            video.display(),
+            frames.len()
+        );
+    }
+    let rendered: Vec<[f32; 3]> = crate::fit::scene_through(scene, &camera)
+        .into_iter()
+        .map(|r| r.rgb)
+        .collect();
+    let refs: Vec<&[[f32; 3]]> = frames.iter().map(|f| f.as_slice()).collect();
+    let (masks, stats) = recon::video_masks(&refs, &rendered, width, &recon::VideoMaskConfig::default());
+    Ok(ComputedMasks {
+        masks,
+        stats,
+        rendered,
+        width,
+    })
+}
+
+/// Writes `masks` (each `width` pixels a row) into `dir` as `000.png`, `001.png`, … (white inside).
+pub fn write_masks(dir: &Path, masks: &[Vec<bool>], width: usize) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let digits = masks.len().saturating_sub(1).to_string().len().max(3);
+    for (k, m) in masks.iter().enumerate() {
+        let png = Image {
+            width: width as u32,
+            height: (m.len() / width.max(1)) as u32,
+            channels: 1,
+            data: m.iter().map(|&v| if v { 255 } else { 0 }).collect(),
+        };
+        pganeus_io::write_png(&dir.join(format!("{k:0digits$}.png")), &png)?;
+    }
+    Ok(())
+}
+
+/// `pganeus masks`.
+pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| a.video.join(format!("mask_{}", a.body)));
+    if a.out.is_none() && out.exists() {
+        fail!(
+            OutputTaken,
+            "{} exists: give --out to write the computed masks elsewhere (the video's own are compared with them)",
+            out.display()
+        );
+    }
+    let scene = load_field(&checkpoint_of(&a.scene)).with_context(|| format!("--scene {}", a.scene.display()))?;
+    let ComputedMasks {
+        masks,
+        stats,
+        rendered,
+        width,
+    } = compute(&a.video, &scene, observer)?;
+    write_masks(&out, &masks, width)?;
+    let c = pganeus_io::open_capture(&a.video)?;
+    let own = c
+        .extra_masks
+        .iter()
+        .find(|(n, _)| *n == a.body)
+        .map(|(_, m)| m.clone())
+        .or(c.masks.clone())
+        .filter(|m| m.first().and_then(|p| p.parent()) != Some(out.as_path()));
+    let against = match own {
+        Some(paths) => {
+            let folder = paths[0].parent().map(Path::to_path_buf).unwrap_or_default();
+            let mut iou = Vec::new();
+            let mut areas = Vec::new();
+            for (m, p) in masks.iter().zip(&paths) {
+                let t = crate::images::read_mask(p)?;
+                let both = m.iter().zip(&t).filter(|(a, b)| **a && **b).count();
+                let either = m.iter().zip(&t).filter(|(a, b)| **a || **b).count();
+                iou.push(if either == 0 { 1.0 } else { both as f64 / either as f64 });
+                areas.push(t.iter().filter(|&&v| v).count());
+            }
+            Some(Against { folder, iou, areas })
+        }
+        None => None,
+    };
+    let report = MasksReport {
+        video: a.video.clone(),
+        out: out.clone(),
+        areas: masks.iter().map(|m| m.iter().filter(|&&v| v).count()).collect(),
+        gains: stats.gains.clone(),
+        bars: stats.bars.clone(),
+        rendered_background: stats.rendered_background,
+        against,
+    };
+    // The rendering and the background it became, for inspection.
+    let rgb = |img: &[[f32; 3]]| Image {
+        width: width as u32,
+        height: (img.len() / width) as u32,
+        channels: 3,
+        data: img
+            .iter()
+            .flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
+            .collect(),
+    };
+    let beside_out = |suffix: &str| {
+        out.with_file_name(format!(
+            "{}_{suffix}.png",
+            out.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ))
+    };
+    pganeus_io::write_png(&beside_out("scene"), &rgb(&rendered))?;
+    pganeus_io::write_png(&beside_out("background"), &rgb(&stats.background))?;
+    let json = serde_json::to_vec_pretty(&report)?;
+    let report_path = out.parent().unwrap_or(&out).join(format!(
+        "{}.json",
+        out.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "masks".into())
+    ));
+    pganeus_io::write_atomic(&report_path, &json)?;
+    if let Some(ag) = &report.against {
+        let seen: Vec<f64> = ag
+            .iou
+            .iter()
+            .zip(&ag.areas)
+            .filter(|(_, &area)| area > 200)
+            .map(|(&v, _)| v)
+            .collect();
+        let worst = seen.iter().copied().fold(f64::INFINITY, f64::min);
+        tracing::info!(
+            "against {}: IoU mean {:.3}, worst {:.3} over the {} frames where the body covers more than 200 pixels",
+            ag.folder.display(),
+            seen.iter().sum::<f64>() / seen.len().max(1) as f64,
+            worst,
+            seen.len()
+        );
+    }
+    tracing::info!(
+        "wrote {} masks into {} and {}",
+        masks.len(),
+        out.display(),
+        report_path.display()
+    );
+    Ok(report)
+}
