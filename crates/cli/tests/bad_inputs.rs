@@ -294,3 +294,34 @@ fn a_corpus_of_damaged_captures_and_meshes_is_refused_by_name() {
     assert!(!d.join("x.sdf").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn masks_refuse_a_mask_folder_in_place_and_a_missing_scene_run_by_name() {
+    let d = testkit::scratch_dir("cli", "bad_masks");
+    let data = tabletop(&d, (48, 36), 2, 3, &[]);
+    let slide = data.join("slide");
+    // The video's own masks are not overwritten: without --out the default folder exists.
+    let o = bin()
+        .args(["masks"])
+        .arg(&slide)
+        .args(["--scene", "no-such-run", "--body", "toy"])
+        .output()
+        .unwrap();
+    if let Some(why) = not_refused(&o, &["mask_toy", "exists", "--out"]) {
+        panic!("{why}");
+    }
+    // A scene run that is not there is named; nothing is written.
+    let out = d.join("computed").join("mask_toy");
+    let o = bin()
+        .args(["masks"])
+        .arg(&slide)
+        .args(["--scene", "no-such-run", "--body", "toy", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    if let Some(why) = not_refused(&o, &["--scene no-such-run"]) {
+        panic!("{why}");
+    }
+    assert!(!out.exists() && !d.join("computed").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
