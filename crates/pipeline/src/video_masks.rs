@@ -1,5 +1,5 @@
 //! `pganeus masks`: a mask of the moving bodies in every frame of a fixed-camera video, computed from the
-//! frames and the trained scene ([`recon::video_masks`]): the scene rendered through the video's camera is
+//! frames and the trained scene ([`mod@recon::video_masks`]): the scene rendered through the video's camera is
 //! the background. Written as a body's `mask_<NAME>/` folder (the layout `fit` reads) with `masks.json`
 //! beside it (each frame's area, gain and bar; IoU against masks already in the video, where there are).
 
