@@ -1,17 +1,19 @@
 //! Where the bodies are in each frame of a fixed-camera video, from the frames and the reconstructed scene
-//! alone: no mask drawn, no network. The scene's field rendered through the video's camera is the
-//! background a body stands out from; each pixel's own frames refine it where they agree with that
-//! rendering (a field renders the board a little blurred, the frames show it sharp wherever the body has
-//! moved away), and where no frame agrees (a body resting in place through the whole video) the rendering
-//! stays the background, so a body at rest is still found.
+//! alone: no mask drawn, no network. The background a body stands out from is taken from the frames
+//! themselves, sharp where a field renders the board a little blurred: per pixel, the frames are grouped
+//! by the mean colour around it, and the group that shows the scene is the larger one unless the scene's
+//! field, rendered through the video's camera, says the other (a body resting there for most of the
+//! video). Where no frame shows the scene (a body resting in place through the whole video) the rendering
+//! is the background, so a body at rest is still found.
 //!
 //! A pixel belongs to a body where its colour, after the frame's exposure gain, differs from the
-//! background by more than the frame's noise allows, in a measure that forgives a shadow: the background
-//! may darken (down to [`VideoMaskConfig::shadow`] of its brightness, its colour kept) without a
-//! difference. Exposure, white balance and a power-law gamma all scale a colour, so the gain, the shadow and
-//! the measure hold on encoded (sRGB) values as on linear ones. The pixels far above the noise seed the mask;
-//! those joined to them and above half that bar complete it (hysteresis: a body's soft edge, motion blur);
-//! then specks go, one-pixel gaps close, holes fill, and components much smaller than the largest (one body)
+//! background by more than the frame's noise allows, in a measure that forgives a shadow and bounced
+//! light: the background may darken (down to [`VideoMaskConfig::shadow`] of its brightness) or brighten
+//! (up to [`VideoMaskConfig::bounce`]), its colour kept, without a difference. Exposure, white balance and
+//! a power-law gamma all scale a colour, so the gain, the shadow and the measure hold on encoded (sRGB)
+//! values as on linear ones. The pixels far above the noise seed the mask; those joined to them and above
+//! [`VideoMaskConfig::grow`] of that bar complete it (hysteresis: a body's soft edge, motion blur); then
+//! specks go, one-pixel gaps close, holes fill, and components much smaller than the largest (one body)
 //! are dropped.
 
 use geom::mask::{components, dilate, erode, fill_holes};
@@ -22,6 +24,8 @@ pub struct VideoMaskConfig {
     /// A pixel seeds the mask where its difference exceeds this many times the frame's typical background
     /// difference (the median over the frame: most pixels show the scene).
     pub seed_sigmas: f32,
+    /// Pixels joined to a seed join the mask above this fraction of the seed bar.
+    pub grow: f32,
     /// Seeds also need a difference above this (summed colour distance, 0–1 values): a frame the
     /// background matches almost exactly has a tiny median, and its noise is not a body.
     pub floor: f32,
@@ -41,6 +45,7 @@ impl Default for VideoMaskConfig {
     fn default() -> Self {
         Self {
             seed_sigmas: 8.0,
+            grow: 0.75,
             floor: 0.08,
             shadow: 0.4,
             bounce: 1.3,
@@ -57,7 +62,7 @@ pub struct VideoMaskStats {
     pub gains: Vec<f64>,
     /// Each frame's seed bar (the summed colour distance a seed exceeds).
     pub bars: Vec<f64>,
-    /// Pixels whose background stayed the rendering (no frame agreed with it).
+    /// Pixels whose background stayed the rendering (no frame showed the scene there).
     pub rendered_background: usize,
     /// The background the frames were compared with (at the rendering's exposure).
     pub background: Vec<[f32; 3]>,
@@ -109,7 +114,7 @@ pub fn video_masks(
             let bar = (cfg.seed_sigmas * median(&d)).max(cfg.floor);
             stats.bars.push(bar as f64);
             let seeds: Vec<bool> = d.iter().map(|&v| v > bar).collect();
-            let weak: Vec<bool> = d.iter().map(|&v| v > 0.75 * bar).collect();
+            let weak: Vec<bool> = d.iter().map(|&v| v > cfg.grow * bar).collect();
             clean(&grown_from(&weak, &seeds, width), width, n, cfg)
         })
         .collect();
