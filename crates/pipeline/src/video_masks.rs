@@ -70,11 +70,15 @@ pub struct ComputedMasks {
     pub width: usize,
 }
 
-/// The masks of a video's moving bodies, computed against the scene's field rendered through its camera.
-pub fn compute(video: &Path, scene: &neus::checkpoint::LoadedField, observer: &dyn Observer) -> Result<ComputedMasks> {
-    let c = pganeus_io::open_capture(video)?;
-    let cameras = crate::cameras::world_cameras(&c)?;
-    let camera = cameras[0];
+/// The masks of a video's moving bodies (the capture `c`, opened from `video`), computed against the scene's
+/// field rendered through its one camera.
+pub fn compute(
+    video: &Path,
+    c: &pganeus_io::CaptureIndex,
+    scene: &neus::checkpoint::LoadedField,
+    observer: &dyn Observer,
+) -> Result<ComputedMasks> {
+    let camera = crate::fit::fixed_camera(video, c)?;
     let width = camera.width as usize;
     let pb = Task::start(observer, "reading frames", c.images.len() as u64);
     let frames = c
@@ -148,15 +152,15 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
             out.display()
         );
     }
+    let c = pganeus_io::open_capture(&a.video)?;
     let scene = load_field(&checkpoint_of(&a.scene)).with_context(|| format!("--scene {}", a.scene.display()))?;
     let ComputedMasks {
         masks,
         stats,
         rendered,
         width,
-    } = compute(&a.video, &scene, observer)?;
+    } = compute(&a.video, &c, &scene, observer)?;
     write_masks(&out, &masks, width)?;
-    let c = pganeus_io::open_capture(&a.video)?;
     let own = c
         .extra_masks
         .iter()
@@ -171,9 +175,9 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
             let mut areas = Vec::new();
             for (m, p) in masks.iter().zip(&paths) {
                 let t = crate::images::read_mask(p)?;
-                let both = m.iter().zip(&t).filter(|(a, b)| **a && **b).count();
-                let either = m.iter().zip(&t).filter(|(a, b)| **a || **b).count();
-                iou.push(if either == 0 { 1.0 } else { both as f64 / either as f64 });
+                // Neither shows the body: they agree.
+                let none = !m.iter().chain(&t).any(|&v| v);
+                iou.push(if none { 1.0 } else { geom::coverage_iou(m, &t) });
                 areas.push(t.iter().filter(|&&v| v).count());
             }
             Some(Against { folder, iou, areas })
@@ -194,10 +198,7 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
         width: width as u32,
         height: (img.len() / width) as u32,
         channels: 3,
-        data: img
-            .iter()
-            .flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
-            .collect(),
+        data: img.iter().flat_map(|c| c.map(crate::images::to8)).collect(),
     };
     let beside_out = |suffix: &str| {
         out.with_file_name(format!(

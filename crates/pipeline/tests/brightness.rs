@@ -4,6 +4,7 @@
 //! behind the body is its clean render, as a trained scene field renders it. On the tabletop, and (slow) on
 //! the `backdrop` variant: another light, board and a plain grey world beyond it.
 
+use crate::common;
 use pipeline::images::{read_mask, reference_frame};
 use std::path::{Path, PathBuf};
 use synth::{preset, CameraLike, Scale, SynthScene};
@@ -23,9 +24,7 @@ fn scene(name: &str, camera_like: Option<CameraLike>) -> SynthScene {
 }
 
 fn generate(scene: &SynthScene, name: &str) -> PathBuf {
-    let dir = testkit::scratch_dir("brightness", name);
-    synth::generate(scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
-    dir
+    common::synth_into(scene, "brightness", name)
 }
 
 /// The drift read off the preset's camera-like drop, each frame's error against the truth's.

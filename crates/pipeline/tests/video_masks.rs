@@ -4,8 +4,9 @@
 //! field rendered through the video's camera: the same video with the body far out of view, rendered clean
 //! and blurred by a 3-pixel box as a field renders it.
 
+use crate::common;
 use pipeline::images::{read_mask, reference_frame};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use synth::{preset, CameraLike, Scale, SynthScene};
 
 const FRAMES: usize = 16;
@@ -27,12 +28,6 @@ fn scene(camera_like: Option<CameraLike>, body_away: bool) -> SynthScene {
     }
     s.camera_like = camera_like;
     s
-}
-
-fn generate(scene: &SynthScene, name: &str) -> PathBuf {
-    let dir = testkit::scratch_dir("video_masks", name);
-    synth::generate(scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
-    dir
 }
 
 fn box_blur(img: &[[f32; 3]]) -> Vec<[f32; 3]> {
@@ -60,8 +55,8 @@ fn masks_from_a_camera_like_video_and_the_empty_scene_match_the_true_ones() {
         ..CameraLike::default()
     };
     assert!(camera.noise > 0.0 && camera.jpeg_quality < 100 && camera.shutter > 0.0);
-    let video = generate(&scene(Some(camera), false), "camera-like");
-    let empty = generate(&scene(None, true), "empty");
+    let video = common::synth_into(&scene(Some(camera), false), "video_masks", "camera-like");
+    let empty = common::synth_into(&scene(None, true), "video_masks", "empty");
     let file = |dir: &Path, sub: &str, k: usize| dir.join("drop").join(sub).join(synth::frame_name(k, FRAMES));
     let frames: Vec<Vec<[f32; 3]>> = (0..FRAMES)
         .map(|k| reference_frame(&file(&video, "image", k)).unwrap())
@@ -75,9 +70,7 @@ fn masks_from_a_camera_like_video_and_the_empty_scene_match_the_true_ones() {
     let mut scores = Vec::new();
     for (k, (m, t)) in masks.iter().zip(&truth).enumerate() {
         let area = t.iter().filter(|&&v| v).count();
-        let both = m.iter().zip(t).filter(|(a, b)| **a && **b).count();
-        let either = m.iter().zip(t).filter(|(a, b)| **a || **b).count();
-        let iou = both as f64 / either.max(1) as f64;
+        let iou = geom::coverage_iou(m, t);
         eprintln!("frame {k}: true area {area} px, IoU {iou:.3}");
         // The 200 pixels at 160 × 120, at this size.
         if area * 160 * 120 > 200 * W * H {

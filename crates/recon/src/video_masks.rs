@@ -239,8 +239,8 @@ fn background(
     (bg, rendered)
 }
 
-/// `img` averaged over the `2r + 1` square around each pixel (at the edges, over the part inside), by
-/// running sums along rows, then columns.
+/// `img` averaged over the `2r + 1` square around each pixel (at the edges, over the part inside): along
+/// rows, then along columns.
 fn box_mean(img: &[[f32; 3]], width: usize, r: usize) -> Vec<[f32; 3]> {
     let height = img.len() / width.max(1);
     let pass = |src: &[[f32; 3]], along_rows: bool| -> Vec<[f32; 3]> {
@@ -404,19 +404,13 @@ mod tests {
         out
     }
 
-    fn iou(a: &[bool], b: &[bool]) -> f64 {
-        let both = a.iter().zip(b).filter(|(x, y)| **x && **y).count();
-        let either = a.iter().zip(b).filter(|(x, y)| **x || **y).count();
-        both as f64 / either.max(1) as f64
-    }
-
     #[test]
     fn a_moving_then_resting_body_is_found_and_its_shadow_is_not() {
         let v = video(14, 9);
         let frames: Vec<&[[f32; 3]]> = v.frames.iter().map(|f| f.as_slice()).collect();
         let (masks, stats) = video_masks(&frames, &v.rendered, v.width, &VideoMaskConfig::default());
         for (k, (m, t)) in masks.iter().zip(&v.truth).enumerate() {
-            let score = iou(m, t);
+            let score = geom::coverage_iou(m, t);
             assert!(score > 0.95, "frame {k}: IoU {score:.3}");
             let shadow_in = m.iter().zip(&v.shadows[k]).filter(|(m, s)| **m && **s).count();
             assert!(shadow_in < 5, "frame {k}: {shadow_in} shadow pixels in the mask");
@@ -435,7 +429,7 @@ mod tests {
         let (masks, stats) = video_masks(&frames, &v.rendered, v.width, &VideoMaskConfig::default());
         assert!(stats.rendered_background > 100, "{}", stats.rendered_background);
         for (k, (m, t)) in masks.iter().zip(&v.truth).enumerate() {
-            let score = iou(m, t);
+            let score = geom::coverage_iou(m, t);
             let (a, b) = (m.iter().filter(|&&x| x).count(), t.iter().filter(|&&x| x).count());
             let both = m.iter().zip(t).filter(|(x, y)| **x && **y).count();
             assert!(

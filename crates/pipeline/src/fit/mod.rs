@@ -392,23 +392,9 @@ pub(crate) struct RecordInputs {
     pub(crate) no_ga: bool,
 }
 
-/// Whether the video has masks for body `name` (its `mask_<NAME>/`, or with one body `mask/`).
-pub(crate) fn has_masks(dir: &Path, name: &str, single: bool) -> Result<bool> {
-    let c = pganeus_io::open_capture(dir)?;
-    Ok(c.extra_masks.iter().any(|(n, _)| n == name) || (single && c.masks.is_some()))
-}
-
-/// The video's frames for body `name`: images, the body's masks (`computed` where the video has none) and
-/// the one fixed camera.
-pub(crate) fn read_video(
-    dir: &Path,
-    name: &str,
-    single: bool,
-    limit: Option<usize>,
-    computed: Option<&[Vec<bool>]>,
-) -> Result<(Vec<FrameTarget>, Option<f64>)> {
-    let c = pganeus_io::open_capture(dir)?;
-    let cameras = world_cameras(&c)?;
+/// The one camera of a video `c` (in `dir`): every `world_mat` must be the first's.
+pub(crate) fn fixed_camera(dir: &Path, c: &pganeus_io::CaptureIndex) -> Result<Camera<f64>> {
+    let cameras = world_cameras(c)?;
     let m0 = cameras[0].world_mat();
     let scale = m0.iter().flatten().map(|v| v.abs()).fold(1e-12, f64::max);
     for (k, cam) in cameras.iter().enumerate().skip(1) {
@@ -422,11 +408,30 @@ pub(crate) fn read_video(
         if diff > 1e-9 * scale {
             fail!(
                 Input,
-                "{}: world_mat_{k} differs from world_mat_0 (by {diff:.3e}): fit needs a video from one fixed camera",
+                "{}: world_mat_{k} differs from world_mat_0 (by {diff:.3e}): a video must come from one fixed camera",
                 dir.join("cameras_sphere.npz").display()
             );
         }
     }
+    Ok(cameras[0])
+}
+
+/// Whether the video `c` has masks for body `name` (its `mask_<NAME>/`, or with one body `mask/`).
+pub(crate) fn has_masks(c: &pganeus_io::CaptureIndex, name: &str, single: bool) -> bool {
+    c.extra_masks.iter().any(|(n, _)| n == name) || (single && c.masks.is_some())
+}
+
+/// The video's frames for body `name` (the capture `c`, opened from `dir`): images, the body's masks
+/// (`computed` where the video has none) and the one fixed camera.
+pub(crate) fn read_video(
+    dir: &Path,
+    c: &pganeus_io::CaptureIndex,
+    name: &str,
+    single: bool,
+    limit: Option<usize>,
+    computed: Option<&[Vec<bool>]>,
+) -> Result<(Vec<FrameTarget>, Option<f64>)> {
+    let camera = fixed_camera(dir, c)?;
     let masks = match c.extra_masks.iter().find(|(n, _)| n == name) {
         Some((_, m)) => Some(m.clone()),
         None => match (&c.masks, single, computed) {
@@ -461,7 +466,7 @@ pub(crate) fn read_video(
             empty.push(k);
         }
         frames.push(FrameTarget {
-            camera: cameras[0],
+            camera,
             rgb: reference_frame(&c.images[k])?,
             mask,
             exposure: 1.0,
@@ -478,7 +483,7 @@ pub(crate) fn read_video(
     if !empty.is_empty() {
         tracing::warn!("{mask_dir}: body {name:?} is not seen in frames {empty:?}: its image terms skip them");
     }
-    Ok((frames, c.info.and_then(|i| i.fps)))
+    Ok((frames, c.info.as_ref().and_then(|i| i.fps)))
 }
 
 /// Where the body frame sat in capture `capture` (the object's reference capture or, for a merge, its other).

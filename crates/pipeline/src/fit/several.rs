@@ -78,8 +78,9 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let mut bodies = Vec::new();
     let mut fps_of_capture = None;
     let mut videos = Vec::new();
+    let capture = pganeus_io::open_capture(&a.video)?;
     for (name, _) in objects {
-        let (frames, fps) = read_video(&a.video, name, false, a.frames, None)?;
+        let (frames, fps) = read_video(&a.video, &capture, name, false, a.frames, None)?;
         fps_of_capture = fps_of_capture.or(fps);
         videos.push(frames);
     }

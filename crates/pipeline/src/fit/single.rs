@@ -87,16 +87,17 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let (name, object_dir) = a.objects[0].clone();
     let (scene_field, grid) = load_scene(a)?;
     // A video without masks: the moving body found against the scene rendered through its camera.
-    let computed = if has_masks(&a.video, &name, true)? {
+    let capture = pganeus_io::open_capture(&a.video)?;
+    let computed = if has_masks(&capture, &name, true) {
         None
     } else {
         tracing::info!(
             "{}: no mask_{name}/ nor mask/: computing the masks from the frames and the scene",
             a.video.display()
         );
-        Some(crate::video_masks::compute(&a.video, &scene_field, &crate::Quiet)?.masks)
+        Some(crate::video_masks::compute(&a.video, &capture, &scene_field, &crate::Quiet)?.masks)
     };
-    let (mut frames, fps_of_capture) = read_video(&a.video, &name, true, a.frames, computed.as_deref())?;
+    let (mut frames, fps_of_capture) = read_video(&a.video, &capture, &name, true, a.frames, computed.as_deref())?;
     let fps = video_fps(a, fps_of_capture)?;
     let shutter = set_shutter(a, &mut frames, fps)?;
     let object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;

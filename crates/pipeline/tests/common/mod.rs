@@ -1,5 +1,5 @@
 //! A printed board photographed through a distorting lens: the rendered sessions the pipeline's camera
-//! tests (calibrate, import) shoot.
+//! tests (calibrate, import) shoot; and `synth` scenes rendered into scratch folders.
 
 #![allow(dead_code)]
 
@@ -57,4 +57,11 @@ pub fn around(n: usize, seed: u64) -> Vec<View> {
             .with_lens(lens())
         })
         .collect()
+}
+
+/// `scene` rendered by `synth` into a fresh scratch folder `group/name`; the folder.
+pub fn synth_into(scene: &synth::SynthScene, group: &str, name: &str) -> std::path::PathBuf {
+    let dir = testkit::scratch_dir(group, name);
+    synth::generate(scene, Path::new("."), &dir, &mut |_, _, _| {}).unwrap();
+    dir
 }
