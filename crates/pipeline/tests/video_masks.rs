@@ -85,7 +85,8 @@ fn masks_from_a_camera_like_video_and_the_empty_scene_match_the_true_ones() {
     let mean = scores.iter().sum::<f64>() / scores.len() as f64;
     let worst = scores.iter().copied().fold(1.0, f64::min);
     eprintln!("IoU mean {mean:.3}, worst {worst:.3}");
-    // Measured 2026-12-06: mean 0.896, worst 0.833 (frame 3, the tumble before the first bounce, blurred);
-    // the bars guard that, short of the 0.9 in every frame.
-    assert!(mean > 0.87 && worst > 0.8, "mean {mean:.3}, worst {worst:.3}");
+    // Measured 2026-12-06: mean 0.918, worst 0.862 (frame 3, the tumble before the first bounce, blurred;
+    // 0.896 and 0.833 before the background's frames were grouped by mode); the bars guard that, short of
+    // the 0.9 in every frame.
+    assert!(mean > 0.9 && worst > 0.84, "mean {mean:.3}, worst {worst:.3}");
 }

@@ -194,25 +194,27 @@ fn background(
     };
     let groups: Vec<(Vec<usize>, f32)> = (0..n)
         .map(|p| {
-            let majority = channel_median(&mut means.iter().map(|m| m[p]));
-            let (near, far): (Vec<usize>, Vec<usize>) =
-                (0..frames.len()).partition(|&k| distance(means[k][p], majority) <= SAME_WINDOW);
+            let at: Vec<[f32; 3]> = means.iter().map(|m| m[p]).collect();
+            let all: Vec<usize> = (0..frames.len()).collect();
+            let (near, majority) = largest_cluster(&at, &all);
+            let far: Vec<usize> = all.into_iter().filter(|k| !near.contains(k)).collect();
             let (window_a, pixel_a) = off(&near, p);
-            let minority = channel_median(&mut far.iter().map(|&k| means[k][p]));
-            let minority_group: Vec<usize> = far
-                .into_iter()
-                .filter(|&k| distance(means[k][p], minority) <= SAME_WINDOW)
-                .collect();
+            let (minority_group, minority) = largest_cluster(&at, &far);
             if minority_group.is_empty() {
                 return (near, window_a);
             }
             let (window_b, pixel_b) = off(&minority_group, p);
-            // The windows decide where they differ; where they tie, the pixels; where both tie, the
-            // larger group.
+            // The windows decide where they differ; where they tie, the pixels; where both tie and one
+            // group is the other in shadow, the lit one (a body resting beside the pixel shades it for
+            // most of the video, and a shadow is forgiven where lit board would not be); else the larger.
             let minority_nearer = if (window_a - window_b).abs() > NEARER {
                 window_b < window_a
+            } else if (pixel_a - pixel_b).abs() > NEARER_PIXEL {
+                pixel_b < pixel_a
+            } else if let Some(minority_lit) = lit_of_shadow_pair(majority, minority, light) {
+                minority_lit
             } else {
-                pixel_b + NEARER_PIXEL < pixel_a
+                false
             };
             if minority_nearer {
                 (minority_group, window_b)
@@ -227,17 +229,72 @@ fn background(
         .iter()
         .map(|(g, off)| g.is_empty() || *off > 6.0 * typical + FAR)
         .collect();
+    // Where the chosen frames show the board in a body's shadow (a body falling onto the pixel shades it
+    // until it lands), the board is lit again to the rendering's brightness: a shadow is forgiven against
+    // the lit board, lit board against a shadow would not be.
+    let shade_tolerance = SHADOW_PAIR.max(2.0 * typical);
     let bg = (0..n)
         .map(|p| {
             if rendered[p] {
-                scene[p]
+                return scene[p];
+            }
+            let colour = channel_median(&mut groups[p].0.iter().map(|&k| frames[k][p]));
+            let mean = channel_median(&mut groups[p].0.iter().map(|&k| means[k][p]));
+            let lit = rendered_mean[p];
+            let (sm, sl) = (mean[0] + mean[1] + mean[2], lit[0] + lit[1] + lit[2]);
+            let shaded = sl > RELIGHT * sm && shadow_distance(mean, lit, (light.0, 1.0)) <= shade_tolerance;
+            if shaded {
+                colour.map(|v| v * sl / sm)
             } else {
-                channel_median(&mut groups[p].0.iter().map(|&k| frames[k][p]))
+                colour
             }
         })
         .collect();
     (bg, rendered)
 }
+
+/// The largest group of the frames `among` whose window means `at` agree (to [`SAME_WINDOW`] of the group's
+/// median), and that median: the frames around the one with the most such neighbours. A median over all
+/// frames would fall between two groups of similar size (a body passing, then resting).
+fn largest_cluster(at: &[[f32; 3]], among: &[usize]) -> (Vec<usize>, [f32; 3]) {
+    let near = |c: [f32; 3]| -> Vec<usize> {
+        among
+            .iter()
+            .copied()
+            .filter(|&k| distance(at[k], c) <= SAME_WINDOW)
+            .collect()
+    };
+    let Some(centre) = among
+        .iter()
+        .copied()
+        .max_by_key(|&k| (near(at[k]).len(), std::cmp::Reverse(k)))
+    else {
+        return (Vec::new(), [0.0; 3]);
+    };
+    let members = near(at[centre]);
+    let mid: [f32; 3] = std::array::from_fn(|i| median(&members.iter().map(|&k| at[k][i]).collect::<Vec<_>>()));
+    let group = near(mid);
+    if group.is_empty() {
+        (members, mid)
+    } else {
+        (group, mid)
+    }
+}
+
+/// Whether `b` is `a` in shadow (darker, its colour kept to within [`SHADOW_PAIR`]) or the other way:
+/// then `Some(true)` when `b` is the lit one.
+fn lit_of_shadow_pair(a: [f32; 3], b: [f32; 3], light: (f32, f32)) -> Option<bool> {
+    let (sa, sb) = (a[0] + a[1] + a[2], b[0] + b[1] + b[2]);
+    let (dark, lit) = if sa < sb { (a, b) } else { (b, a) };
+    (shadow_distance(dark, lit, (light.0, 1.0)) <= SHADOW_PAIR).then_some(sb > sa)
+}
+
+/// The most a shadow's window mean may differ from the lit board's once darkened to its brightness (the
+/// shade's light a little bluer, the noise of two means).
+const SHADOW_PAIR: f32 = 2.0 * SAME_WINDOW;
+
+/// How much brighter than the chosen frames the rendering must be for them to show a shadow there.
+const RELIGHT: f32 = 1.15;
 
 /// `img` averaged over the `2r + 1` square around each pixel (at the edges, over the part inside): along
 /// rows, then along columns.
@@ -420,6 +477,37 @@ mod tests {
             let truth = (1.0 + 0.1 * (k as f64 * 0.9).sin()) / 0.96;
             assert!((g - truth).abs() < 0.01, "frame {k}: gain {g:.4}, truth {truth:.4}");
         }
+    }
+
+    #[test]
+    fn a_body_resting_for_most_of_the_video_leaves_no_ghost_of_its_shadow() {
+        // Resting from frame 4 of 20: its shadow shades the board beside it in 16 frames, the board there
+        // shows lit in 4. The shadowed board must not become the background (then the lit board would be a
+        // body in the first frames), nor the body itself.
+        let v = video(20, 4);
+        let frames: Vec<&[[f32; 3]]> = v.frames.iter().map(|f| f.as_slice()).collect();
+        let (masks, _) = video_masks(&frames, &v.rendered, v.width, &VideoMaskConfig::default());
+        for (k, (m, t)) in masks.iter().zip(&v.truth).enumerate() {
+            let score = geom::coverage_iou(m, t);
+            let (a, b) = (m.iter().filter(|&&x| x).count(), t.iter().filter(|&&x| x).count());
+            assert!(score > 0.95, "frame {k}: IoU {score:.3}: {a} px found, {b} true");
+        }
+    }
+
+    #[test]
+    fn the_largest_cluster_is_a_mode_not_a_median() {
+        // Two tight groups of 5 and 4 frames and three frames scattered between them: a median falls
+        // between the groups; the cluster is the five.
+        let at: Vec<[f32; 3]> = [0.2, 0.201, 0.199, 0.2, 0.202, 0.35, 0.45, 0.55, 0.8, 0.801, 0.799, 0.8]
+            .iter()
+            .map(|&g| [g, g, g])
+            .collect();
+        let all: Vec<usize> = (0..at.len()).collect();
+        let (group, centre) = largest_cluster(&at, &all);
+        assert_eq!(group, vec![0, 1, 2, 3, 4]);
+        assert!((centre[0] - 0.2).abs() < 0.002, "{centre:?}");
+        let rest: Vec<usize> = (5..at.len()).collect();
+        assert_eq!(largest_cluster(&at, &rest).0, vec![8, 9, 10, 11]);
     }
 
     #[test]
