@@ -176,9 +176,18 @@ fn capture_cases() -> Vec<Case> {
             names: "mask",
         },
         Case {
-            name: "the mask folder missing (object capture)",
-            damage: |c| std::fs::remove_dir_all(c.join("mask")).unwrap(),
-            names: "mask",
+            // Without mask/ an object capture's masks are computed from its photos; photos of nothing
+            // (one flat colour) leave no object to find.
+            name: "the mask folder missing and no object in the photos",
+            damage: |c| {
+                std::fs::remove_dir_all(c.join("mask")).unwrap();
+                let mut flat = Image::new(48, 36, 3);
+                flat.data.fill(128);
+                for k in 0..6 {
+                    write_png(&c.join(format!("image/{k:03}.png")), &flat).unwrap();
+                }
+            },
+            names: "no object stands out",
         },
         Case {
             name: "a mask of another size",

@@ -202,8 +202,9 @@ pub enum TrainError {
     )]
     EmptyMasks(std::path::PathBuf),
     #[error(
-        "{}: no masks: an object is trained on what its masks mark; without masks, train the capture as a \
-         scene (--kind scene), which also models what lies beyond the unit sphere",
+        "{}: no masks: an object is trained on what its masks mark (`pganeus train` computes them from \
+         the photos of an object resting on the board); or train the capture as a scene (--kind scene), \
+         which also models what lies beyond the unit sphere",
         .0.display()
     )]
     NoMasks(std::path::PathBuf),

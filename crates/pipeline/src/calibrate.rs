@@ -349,7 +349,13 @@ pub fn run(a: &CalibrateArgs, observer: &dyn Observer) -> Result<CalibrateOutcom
             } else {
                 CaptureKind::Static
             },
-            subject: f.scene.then_some(CaptureSubject::Scene),
+            // A static folder given plainly is an object resting on the board: `train` knows it as one
+            // (and computes its masks).
+            subject: match (f.scene, f.video) {
+                (true, _) => Some(CaptureSubject::Scene),
+                (false, false) => Some(CaptureSubject::Object),
+                (false, true) => None,
+            },
             fps: f.video.then_some(a.fps),
             shutter: None,
             extra: Default::default(),
@@ -709,7 +715,11 @@ fn capture_report(
         "name": f.name,
         "source": f.dir,
         "kind": if f.video { "video" } else { "static" },
-        "subject": if f.scene { Some("scene") } else { None },
+        "subject": match (f.scene, f.video) {
+            (true, _) => Some("scene"),
+            (false, false) => Some("object"),
+            (false, true) => None,
+        },
         "images": written.iter().map(|(ii, _)| file_name(&f.images[*ii])).collect::<Vec<_>>(),
         "views": views,
         "skipped": skipped.iter().map(|(file, reason)| json!({"file": file, "reason": reason})).collect::<Vec<_>>(),

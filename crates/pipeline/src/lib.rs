@@ -30,6 +30,7 @@ pub mod eval;
 pub mod fit;
 pub mod images;
 pub mod import;
+pub mod object_masks;
 mod objects;
 mod observer;
 pub mod render;

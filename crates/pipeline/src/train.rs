@@ -103,7 +103,7 @@ pub fn load_config(preset: &str, kind: CaptureSubject, file: Option<&Path>) -> R
 
 pub fn run(a: &TrainArgs, observer: &dyn Observer) -> Result<()> {
     let ckpt = a.out.join("checkpoint.safetensors");
-    let data = Dataset::load(&a.capture)?;
+    let mut data = Dataset::load(&a.capture)?;
     tracing::info!(
         "{}: {} views of {}×{}{}",
         a.capture.display(),
@@ -112,6 +112,28 @@ pub fn run(a: &TrainArgs, observer: &dyn Observer) -> Result<()> {
         data.height,
         if data.has_masks() { " with masks" } else { "" }
     );
+    // An object capture without masks: computed from its photos (the board they agree on, and the views
+    // agreeing on what stands on it), written into the run for inspection.
+    let kind = capture_kind(a.kind, &data);
+    let computed_masks = if kind == CaptureSubject::Object && !data.has_masks() {
+        let pb = Task::start(observer, "object masks", 1);
+        let (masks, stats) = crate::object_masks::compute(&data)?;
+        pb.finish();
+        note(
+            observer,
+            format!(
+                "{}: no mask/, the object's masks computed from the photos ({:.0} px a view on average)",
+                a.capture.display(),
+                stats.areas.iter().sum::<usize>() as f64 / stats.areas.len().max(1) as f64,
+            ),
+        );
+        for (view, m) in data.views.iter_mut().zip(&masks) {
+            view.mask = Some(m.iter().map(|&x| if x { 1.0 } else { 0.0 }).collect());
+        }
+        Some(masks)
+    } else {
+        None
+    };
     let mut trainer = if a.resume {
         if !ckpt.exists() {
             fail!(Settings, "--resume: {} does not exist", ckpt.display());
@@ -130,7 +152,6 @@ pub fn run(a: &TrainArgs, observer: &dyn Observer) -> Result<()> {
                 ckpt.display()
             );
         }
-        let kind = capture_kind(a.kind, &data);
         let mut cfg = load_config(&a.preset, kind, a.config.as_deref())?;
         if let Some(n) = a.iterations {
             cfg.iterations = n;
@@ -139,6 +160,11 @@ pub fn run(a: &TrainArgs, observer: &dyn Observer) -> Result<()> {
     };
     std::fs::create_dir_all(&a.out)?;
     pganeus_io::write_atomic(&a.out.join("config.toml"), toml::to_string(&trainer.config)?.as_bytes())?;
+    if let Some(masks) = &computed_masks {
+        let dir = a.out.join("mask");
+        crate::video_masks::write_masks(&dir, masks, trainer.data.width as usize)?;
+        tracing::info!("the computed masks are in {}", dir.display());
+    }
     // A run started over (--force) replaces its log; a resumed one adds to it.
     let mut log = std::fs::OpenOptions::new()
         .create(true)

@@ -2,6 +2,7 @@
 //! frames and the trained scene ([`mod@recon::video_masks`]): the scene rendered through the video's camera is
 //! the background. Written as a body's `mask_<NAME>/` folder (the layout `fit` reads) with `masks.json`
 //! beside it (each frame's area, gain and bar; IoU against masks already in the video, where there are).
+//! Given a static object capture instead, its `mask/` from its photos alone ([`crate::object_masks`]).
 
 use crate::error::fail;
 use crate::run_folder::checkpoint_of;
@@ -18,18 +19,21 @@ use std::path::{Path, PathBuf};
     feature = "clap",
     command(after_help = "Examples:
   pganeus masks data/slide --scene runs/scene --body toy
-  pganeus masks data/slide --scene runs/scene --body toy --out inspect/slide_masks")
+  pganeus masks data/slide --scene runs/scene --body toy --out inspect/slide_masks
+  pganeus masks data/toy_a --out inspect/toy_a_mask")
 )]
 pub struct MasksArgs {
-    /// A fixed-camera video capture (`image/`, `cameras_sphere.npz`).
+    /// A fixed-camera video capture (`image/`, `cameras_sphere.npz`), or a static capture of an object
+    /// resting on the board (capture.json `"kind": "static"`).
     pub video: PathBuf,
-    /// The scene's training run (the board and obstacles without the bodies).
+    /// The scene's training run (the board and obstacles without the bodies); a video's masks need it.
     #[cfg_attr(feature = "clap", arg(long))]
-    pub scene: PathBuf,
+    pub scene: Option<PathBuf>,
     /// The body's name: the masks are its `mask_<NAME>/`. One body: the masks hold whatever moves.
     #[cfg_attr(feature = "clap", arg(long, default_value = "body"))]
     pub body: String,
-    /// Where to write the masks (default: `VIDEO/mask_<NAME>`, refused where that folder exists).
+    /// Where to write the masks (default: `VIDEO/mask_<NAME>`, an object capture's `CAPTURE/mask`; refused
+    /// where that folder exists).
     #[cfg_attr(feature = "clap", arg(long))]
     pub out: Option<PathBuf>,
 }
@@ -41,7 +45,8 @@ pub struct MasksReport {
     pub out: PathBuf,
     /// Pixels in each frame's mask.
     pub areas: Vec<usize>,
-    /// Each frame's exposure against the scene's rendering.
+    /// Each frame's exposure against the scene's rendering (an object capture's: against the board the
+    /// photos agree on).
     pub gains: Vec<f64>,
     /// Each frame's seed bar (summed colour distance).
     pub bars: Vec<f64>,
@@ -141,82 +146,96 @@ pub fn write_masks(dir: &Path, masks: &[Vec<bool>], width: usize) -> Result<()> 
 
 /// `pganeus masks`.
 pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| a.video.join(format!("mask_{}", a.body)));
+    let c = pganeus_io::open_capture(&a.video)?;
+    let is_static = c
+        .info
+        .as_ref()
+        .is_some_and(|i| i.kind == pganeus_io::CaptureKind::Static);
+    let default_out = if is_static {
+        a.video.join("mask")
+    } else {
+        a.video.join(format!("mask_{}", a.body))
+    };
+    let out = a.out.clone().unwrap_or(default_out);
     if a.out.is_none() && out.exists() {
         fail!(
             OutputTaken,
-            "{} exists: give --out to write the computed masks elsewhere (the video's own are compared with them)",
+            "{} exists: give --out to write the computed masks elsewhere (the capture's own are compared with them)",
             out.display()
         );
     }
-    let c = pganeus_io::open_capture(&a.video)?;
-    let scene = load_field(&checkpoint_of(&a.scene)).with_context(|| format!("--scene {}", a.scene.display()))?;
-    let ComputedMasks {
-        masks,
-        stats,
-        rendered,
-        width,
-    } = compute(&a.video, &c, &scene, observer)?;
+    let beside_out = |suffix: &str| {
+        out.with_file_name(format!(
+            "{}{suffix}",
+            out.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "masks".into())
+        ))
+    };
+    let (masks, width, gains, bars, rendered_background) = if is_static {
+        let data = neus::Dataset::load(&a.video)?;
+        let pb = Task::start(observer, "object masks", 1);
+        let (masks, stats) = crate::object_masks::compute(&data)?;
+        pb.finish();
+        tracing::info!(
+            "the board as the views agree on it: {} of {} cells",
+            stats.board_cells.0,
+            stats.board_cells.1
+        );
+        (masks, data.width as usize, stats.gains, stats.bars, 0)
+    } else {
+        let Some(scene_run) = &a.scene else {
+            fail!(
+                Settings,
+                "{}: a video's masks need the scene's training run (--scene RUN)",
+                a.video.display()
+            );
+        };
+        let scene =
+            load_field(&checkpoint_of(scene_run)).with_context(|| format!("--scene {}", scene_run.display()))?;
+        let ComputedMasks {
+            masks,
+            stats,
+            rendered,
+            width,
+        } = compute(&a.video, &c, &scene, observer)?;
+        // The rendering and the background it became, for inspection.
+        let rgb = |img: &[[f32; 3]]| Image {
+            width: width as u32,
+            height: (img.len() / width) as u32,
+            channels: 3,
+            data: img.iter().flat_map(|c| c.map(crate::images::to8)).collect(),
+        };
+        pganeus_io::write_png(&beside_out("_scene.png"), &rgb(&rendered))?;
+        pganeus_io::write_png(&beside_out("_background.png"), &rgb(&stats.background))?;
+        (masks, width, stats.gains, stats.bars, stats.rendered_background)
+    };
     write_masks(&out, &masks, width)?;
-    let own = c
-        .extra_masks
-        .iter()
-        .find(|(n, _)| *n == a.body)
-        .map(|(_, m)| m.clone())
-        .or(c.masks.clone())
-        .filter(|m| m.first().and_then(|p| p.parent()) != Some(out.as_path()));
+    let own = if is_static {
+        c.masks.clone()
+    } else {
+        c.extra_masks
+            .iter()
+            .find(|(n, _)| *n == a.body)
+            .map(|(_, m)| m.clone())
+            .or(c.masks.clone())
+    }
+    .filter(|m| m.first().and_then(|p| p.parent()) != Some(out.as_path()));
     let against = match own {
-        Some(paths) => {
-            let folder = paths[0].parent().map(Path::to_path_buf).unwrap_or_default();
-            let mut iou = Vec::new();
-            let mut areas = Vec::new();
-            for (m, p) in masks.iter().zip(&paths) {
-                let t = crate::images::read_mask(p)?;
-                // Neither shows the body: they agree.
-                let none = !m.iter().chain(&t).any(|&v| v);
-                iou.push(if none { 1.0 } else { geom::coverage_iou(m, &t) });
-                areas.push(t.iter().filter(|&&v| v).count());
-            }
-            Some(Against { folder, iou, areas })
-        }
+        Some(paths) => Some(against(&masks, &paths)?),
         None => None,
     };
     let report = MasksReport {
         video: a.video.clone(),
         out: out.clone(),
         areas: masks.iter().map(|m| m.iter().filter(|&&v| v).count()).collect(),
-        gains: stats.gains.clone(),
-        bars: stats.bars.clone(),
-        rendered_background: stats.rendered_background,
+        gains,
+        bars,
+        rendered_background,
         against,
     };
-    // The rendering and the background it became, for inspection.
-    let rgb = |img: &[[f32; 3]]| Image {
-        width: width as u32,
-        height: (img.len() / width) as u32,
-        channels: 3,
-        data: img.iter().flat_map(|c| c.map(crate::images::to8)).collect(),
-    };
-    let beside_out = |suffix: &str| {
-        out.with_file_name(format!(
-            "{}_{suffix}.png",
-            out.file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default()
-        ))
-    };
-    pganeus_io::write_png(&beside_out("scene"), &rgb(&rendered))?;
-    pganeus_io::write_png(&beside_out("background"), &rgb(&stats.background))?;
     let json = serde_json::to_vec_pretty(&report)?;
-    let report_path = out.parent().unwrap_or(&out).join(format!(
-        "{}.json",
-        out.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "masks".into())
-    ));
+    let report_path = beside_out(".json");
     pganeus_io::write_atomic(&report_path, &json)?;
     if let Some(ag) = &report.against {
         let seen: Vec<f64> = ag
@@ -228,11 +247,12 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
             .collect();
         let worst = seen.iter().copied().fold(f64::INFINITY, f64::min);
         tracing::info!(
-            "against {}: IoU mean {:.3}, worst {:.3} over the {} frames where the body covers more than 200 pixels",
+            "against {}: IoU mean {:.3}, worst {:.3} over the {} {} where the body covers more than 200 pixels",
             ag.folder.display(),
             seen.iter().sum::<f64>() / seen.len().max(1) as f64,
             worst,
-            seen.len()
+            seen.len(),
+            if is_static { "views" } else { "frames" }
         );
     }
     tracing::info!(
@@ -242,4 +262,19 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
         report_path.display()
     );
     Ok(report)
+}
+
+/// The computed `masks` against the mask files `paths` (one per image): each image's IoU and true area.
+fn against(masks: &[Vec<bool>], paths: &[PathBuf]) -> Result<Against> {
+    let folder = paths[0].parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut iou = Vec::new();
+    let mut areas = Vec::new();
+    for (m, p) in masks.iter().zip(paths) {
+        let t = crate::images::read_mask(p)?;
+        // Neither shows the body: they agree.
+        let none = !m.iter().chain(&t).any(|&v| v);
+        iou.push(if none { 1.0 } else { geom::coverage_iou(m, &t) });
+        areas.push(t.iter().filter(|&&v| v).count());
+    }
+    Ok(Against { folder, iou, areas })
 }

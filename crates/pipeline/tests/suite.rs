@@ -6,5 +6,6 @@ mod calibrate;
 mod common;
 mod fits;
 mod import;
+mod object_masks;
 mod raw_session;
 mod video_masks;

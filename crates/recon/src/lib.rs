@@ -12,6 +12,8 @@ pub mod flight;
 pub mod image_loss;
 pub mod image_precision;
 pub mod least_squares;
+pub mod mask_edges;
+pub mod object_masks;
 pub mod physics_from_video;
 pub mod pick;
 pub mod pose_from_image;

@@ -115,7 +115,7 @@ pub fn video_masks(
             stats.bars.push(bar as f64);
             let seeds: Vec<bool> = d.iter().map(|&v| v > bar).collect();
             let weak: Vec<bool> = d.iter().map(|&v| v > cfg.grow * bar).collect();
-            clean(&grown_from(&weak, &seeds, width), width, n, cfg)
+            clean(&grown_from(&weak, &seeds, width), width, cfg.speck, cfg.minor)
         })
         .collect();
     (masks, stats)
@@ -211,10 +211,8 @@ fn background(
                 window_b < window_a
             } else if (pixel_a - pixel_b).abs() > NEARER_PIXEL {
                 pixel_b < pixel_a
-            } else if let Some(minority_lit) = lit_of_shadow_pair(majority, minority, light) {
-                minority_lit
             } else {
-                false
+                lit_of_shadow_pair(majority, minority, light).unwrap_or_default()
             };
             if minority_nearer {
                 (minority_group, window_b)
@@ -257,13 +255,12 @@ fn background(
 /// median), and that median: the frames around the one with the most such neighbours. A median over all
 /// frames would fall between two groups of similar size (a body passing, then resting).
 fn largest_cluster(at: &[[f32; 3]], among: &[usize]) -> (Vec<usize>, [f32; 3]) {
-    let near = |c: [f32; 3]| -> Vec<usize> {
-        among
-            .iter()
-            .copied()
-            .filter(|&k| distance(at[k], c) <= SAME_WINDOW)
-            .collect()
-    };
+    largest_cluster_within(at, among, SAME_WINDOW)
+}
+
+/// [`largest_cluster`] with colours alike within `same`.
+pub(crate) fn largest_cluster_within(at: &[[f32; 3]], among: &[usize], same: f32) -> (Vec<usize>, [f32; 3]) {
+    let near = |c: [f32; 3]| -> Vec<usize> { among.iter().copied().filter(|&k| distance(at[k], c) <= same).collect() };
     let Some(centre) = among
         .iter()
         .copied()
@@ -298,7 +295,7 @@ const RELIGHT: f32 = 1.15;
 
 /// `img` averaged over the `2r + 1` square around each pixel (at the edges, over the part inside): along
 /// rows, then along columns.
-fn box_mean(img: &[[f32; 3]], width: usize, r: usize) -> Vec<[f32; 3]> {
+pub(crate) fn box_mean(img: &[[f32; 3]], width: usize, r: usize) -> Vec<[f32; 3]> {
     let height = img.len() / width.max(1);
     let pass = |src: &[[f32; 3]], along_rows: bool| -> Vec<[f32; 3]> {
         let (lines, len) = if along_rows { (height, width) } else { (width, height) };
@@ -321,14 +318,14 @@ fn box_mean(img: &[[f32; 3]], width: usize, r: usize) -> Vec<[f32; 3]> {
 }
 
 /// Euclidean distance of two colours.
-fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(crate) fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// The distance of colour `c` from background `b`, the background first darkened or brightened toward
 /// `c`'s brightness by as much as a shadow or the light a body bounces can (to `shadow` or `bounce` of its
 /// own): a shadow's pixel is near 0, a body's differs in colour or in brightness beyond either.
-fn shadow_distance(c: [f32; 3], b: [f32; 3], (shadow, bounce): (f32, f32)) -> f32 {
+pub(crate) fn shadow_distance(c: [f32; 3], b: [f32; 3], (shadow, bounce): (f32, f32)) -> f32 {
     let (sc, sb) = (c[0] + c[1] + c[2], b[0] + b[1] + b[2]);
     let ratio = if sb > 1e-4 {
         (sc / sb).clamp(shadow, bounce)
@@ -339,7 +336,7 @@ fn shadow_distance(c: [f32; 3], b: [f32; 3], (shadow, bounce): (f32, f32)) -> f3
 }
 
 /// The median of `v` (NaN for none).
-fn median(v: &[f32]) -> f32 {
+pub(crate) fn median(v: &[f32]) -> f32 {
     if v.is_empty() {
         return f32::NAN;
     }
@@ -349,7 +346,7 @@ fn median(v: &[f32]) -> f32 {
 }
 
 /// The components of `weak` that hold a pixel of `seeds`.
-fn grown_from(weak: &[bool], seeds: &[bool], width: usize) -> Vec<bool> {
+pub(crate) fn grown_from(weak: &[bool], seeds: &[bool], width: usize) -> Vec<bool> {
     let height = weak.len() / width.max(1);
     let (labels, sizes) = components(weak, width, height);
     let mut seeded = vec![false; sizes.len()];
@@ -364,9 +361,10 @@ fn grown_from(weak: &[bool], seeds: &[bool], width: usize) -> Vec<bool> {
 
 /// Specks dropped, one-pixel gaps closed, holes filled, and the components much smaller than the largest
 /// dropped.
-fn clean(mask: &[bool], width: usize, n: usize, cfg: &VideoMaskConfig) -> Vec<bool> {
+pub(crate) fn clean(mask: &[bool], width: usize, speck: f64, minor: f64) -> Vec<bool> {
+    let n = mask.len();
     let height = n / width.max(1);
-    let speck = (cfg.speck * n as f64).ceil() as usize;
+    let speck = (speck * n as f64).ceil() as usize;
     let keep_large = |m: &[bool], least: usize| -> Vec<bool> {
         let (labels, sizes) = components(m, width, height);
         labels.iter().map(|&l| l != 0 && sizes[l as usize] >= least).collect()
@@ -375,7 +373,7 @@ fn clean(mask: &[bool], width: usize, n: usize, cfg: &VideoMaskConfig) -> Vec<bo
     let m = fill_holes(&erode(&dilate(&m, width, 1), width, 1), width);
     let (_, sizes) = components(&m, width, height);
     let largest = sizes.iter().skip(1).copied().max().unwrap_or(0);
-    keep_large(&m, ((cfg.minor * largest as f64).ceil() as usize).max(speck))
+    keep_large(&m, ((minor * largest as f64).ceil() as usize).max(speck))
 }
 
 #[cfg(test)]
