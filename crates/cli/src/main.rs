@@ -7,7 +7,9 @@ mod docs_check;
 
 use clap::{Parser, Subcommand};
 use commands::Bars;
-use pipeline::{board, calibrate, demo, eval, import, render, report_page, surfaces, synth, train, video_masks};
+use pipeline::{
+    board, calibrate, demo, eval, import, import_session, render, report_page, surfaces, synth, train, video_masks,
+};
 
 #[derive(Parser)]
 #[command(
@@ -28,6 +30,8 @@ enum Command {
     Board(board::BoardArgs),
     /// The lens and every camera from photos and videos of a printed board; NeuS captures in the board's metric world.
     Calibrate(calibrate::CalibrateArgs),
+    /// A raw session (board.toml, background/, one folder per object pose and per video) → calibrated captures and session.json.
+    Import(import_session::ImportSessionArgs),
     /// A NeuS capture from a COLMAP sparse model, put into the board's metric world (or the table's, with a scale).
     ImportColmap(import::ImportColmapArgs),
     /// A NeuS capture from a nerfstudio / instant-ngp transforms.json, put into the board's metric world.
@@ -92,6 +96,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Demo(a) => demo::run(&a, &demo::Library, &bars).map(|_| ())?,
         Command::Board(a) => board::run(&a, &bars).map(|_| ())?,
         Command::Calibrate(a) => calibrate::run(&a, &bars).map(|_| ())?,
+        Command::Import(a) => import_session::run(&a, &bars).map(|_| ())?,
         Command::ImportColmap(a) => import::import_colmap(&a, &bars).map(|_| ())?,
         Command::ImportTransforms(a) => import::import_transforms(&a, &bars).map(|_| ())?,
         Command::Synth(a) => synth::run(&a, &bars)?,

@@ -30,6 +30,7 @@ pub mod eval;
 pub mod fit;
 pub mod images;
 pub mod import;
+pub mod import_session;
 pub mod object_masks;
 mod objects;
 mod observer;

@@ -264,3 +264,59 @@ fn colmaps_model_of_a_raw_session_imports_to_the_true_cameras() {
         "{worst_centre} m, {worst_angle} deg"
     );
 }
+
+#[test]
+#[ignore = "slow: renders a raw session (shared) and imports it whole, about 60 s"]
+fn a_raw_session_imports_whole_and_its_objects_masks_match_their_silhouettes() {
+    let (root, scene) = aruco_session();
+    let data = root.join("imported");
+    let mut a = pipeline::import_session::ImportSessionArgs::new(root.join("data/raw"), &data);
+    a.width = Some(160);
+    let session = pipeline::import_session::run(&a, &Quiet).unwrap();
+    assert_eq!(session.scene, "background");
+    assert_eq!(session.objects.len(), 1);
+    assert_eq!(session.objects[0].captures, ["toy_a".to_string(), "toy_b".to_string()]);
+    assert_eq!(session.videos, vec![scene.videos[0].name.clone()]);
+    assert_eq!(pipeline::import_session::read_session(&data).unwrap(), session);
+    let subject = |c: &str| {
+        let info: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(data.join(c).join("capture.json")).unwrap()).unwrap();
+        (
+            info["kind"].as_str().map(str::to_string),
+            info["subject"].as_str().map(str::to_string),
+        )
+    };
+    assert_eq!(subject("background"), (Some("static".into()), Some("scene".into())));
+    assert_eq!(subject("toy_a"), (Some("static".into()), Some("object".into())));
+    assert_eq!(subject(&scene.videos[0].name).0, Some("video".into()));
+
+    // The object's masks computed from the imported (undistorted, calibrated) photos, against the true mesh
+    // posed as it rested, drawn through each calibrated camera at pixel centres.
+    for capture in ["toy_a", "toy_b"] {
+        let dir = data.join(capture);
+        let loaded = neus::Dataset::load(&dir).unwrap();
+        let (masks, _) = pipeline::object_masks::compute(&loaded).unwrap();
+        let (mesh, _, _) = pipeline::surfaces::capture_truth(&root.join("data/truth.json"), capture).unwrap();
+        let index = pganeus_io::open_capture(&dir).unwrap();
+        let scores: Vec<f64> = index
+            .cameras
+            .iter()
+            .zip(&masks)
+            .map(|(c, m)| {
+                let cam = geom::Camera::from_world_mat(&c.world_mat, index.width, index.height).unwrap();
+                let truth = geom::silhouette(&cam, &mesh, &geom::Pose::identity());
+                geom::coverage_iou(m, &truth)
+            })
+            .collect();
+        let mean = scores.iter().sum::<f64>() / scores.len() as f64;
+        let worst = scores.iter().copied().fold(1.0, f64::min);
+        eprintln!("{capture}: IoU per view {scores:.3?}");
+        // Measured 2026-12-06 (12 photos a capture at 480 x 360, those calibrate keeps, 160 wide):
+        // toy_a 11 views 0.942-0.980, toy_b 9 views 0.845-0.978 (mean 0.947): fewer views than the 24 of
+        // the measurement in docs/commands/masks.md, so the hull holds less.
+        assert!(
+            mean > 0.93 && worst > 0.8,
+            "{capture}: mean {mean:.3}, worst {worst:.3}"
+        );
+    }
+}

@@ -8,4 +8,5 @@ mod fits;
 mod import;
 mod object_masks;
 mod raw_session;
+mod session;
 mod video_masks;
