@@ -8,7 +8,8 @@ mod docs_check;
 use clap::{Parser, Subcommand};
 use commands::Bars;
 use pipeline::{
-    board, calibrate, demo, eval, import, import_session, render, report_page, surfaces, synth, train, video_masks,
+    board, calibrate, demo, eval, import, import_session, render, report_page, run_session, surfaces, synth, train,
+    video_masks,
 };
 
 #[derive(Parser)]
@@ -36,6 +37,8 @@ enum Command {
     ImportColmap(import::ImportColmapArgs),
     /// A NeuS capture from a nerfstudio / instant-ngp transforms.json, put into the board's metric world.
     ImportTransforms(import::ImportTransformsArgs),
+    /// The whole method on a data folder `import` wrote: scene, objects (masks computed), merge, bake, each video's fit, report.
+    Run(run_session::RunArgs),
     /// Render a synthetic tabletop dataset with exact ground truth (NeuS layout).
     Synth(synth::SynthArgs),
     /// Train a NeuS field (SDF + colour) on a capture.
@@ -99,6 +102,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Import(a) => import_session::run(&a, &bars).map(|_| ())?,
         Command::ImportColmap(a) => import::import_colmap(&a, &bars).map(|_| ())?,
         Command::ImportTransforms(a) => import::import_transforms(&a, &bars).map(|_| ())?,
+        Command::Run(a) => run_session::run(&a, &demo::Library, &bars).map(|_| ())?,
         Command::Synth(a) => synth::run(&a, &bars)?,
         Command::Train(a) => train::run(&a, &bars)?,
         Command::Render(a) => render::run(&a, &bars)?,
@@ -182,7 +186,27 @@ mod tests {
                 scale,
                 camera_like,
             };
-            let (stages, _) = plan(&a).unwrap();
+            let (mut stages, _) = plan(&a).unwrap();
+            if preset == "two-body" {
+                // `run` on an imported session with two objects, scored against a truth.
+                let session = pipeline::import_session::Session {
+                    source: "session".into(),
+                    board: "session/board.toml".into(),
+                    scene: "background".into(),
+                    objects: ["toy", "block"]
+                        .map(|n| pipeline::import_session::SessionObject {
+                            name: n.into(),
+                            captures: [format!("{n}_a"), format!("{n}_b")],
+                        })
+                        .to_vec(),
+                    videos: vec!["push".into(), "toss".into()],
+                    video_bodies: [("toss".to_string(), vec!["toy".to_string()])].into(),
+                };
+                let mut run = pipeline::run_session::RunArgs::new("data", "out/session");
+                run.quick = quick;
+                run.truth = Some("data/truth.json".into());
+                stages.extend(pipeline::run_session::stages_for(&run, &session));
+            }
             for stage in stages {
                 let argv: Vec<&str> = std::iter::once("pganeus")
                     .chain(stage.argv.iter().map(String::as_str))

@@ -67,7 +67,7 @@ pub struct DemoArgs {
 /// of 2026-11-27 grown by GA's 80 steps a frame and shrunk by its still frames since, the large tabletop of
 /// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` in CI. A fit is per body
 /// in the video.
-struct Expected {
+pub(crate) struct Expected {
     synth: f64,
     scene: f64,
     object: f64,
@@ -78,7 +78,7 @@ struct Expected {
 }
 
 /// How the demo's sizes differ between `--quick`, the default and `--scale large`.
-struct Plan {
+pub(crate) struct Plan {
     scale: ScaleArg,
     scene_steps: usize,
     object_steps: usize,
@@ -94,7 +94,7 @@ struct Plan {
     expected: Expected,
 }
 
-const QUICK: Plan = Plan {
+pub(crate) const QUICK: Plan = Plan {
     scale: ScaleArg::Small,
     scene_steps: 250,
     object_steps: 250,
@@ -116,7 +116,7 @@ const QUICK: Plan = Plan {
     },
 };
 
-const FULL: Plan = Plan {
+pub(crate) const FULL: Plan = Plan {
     scale: ScaleArg::Small,
     scene_steps: 1500,
     object_steps: 1000,
@@ -254,7 +254,7 @@ pub struct DemoStage {
 
 /// What finished: stage name → the command line it ran with and how long it took.
 #[derive(Default, Serialize, Deserialize)]
-struct Record {
+pub(crate) struct Record {
     done: BTreeMap<String, Done>,
 }
 
@@ -272,19 +272,7 @@ fn s(p: &Path) -> String {
 /// each body's two static captures and their merge, the bake, then each video's fit and eval, the report.
 fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
     let data = out.join("data");
-    let runs = out.join("runs");
-    let merged = |body: &str| out.join("merged").join(body);
-    let grid = out.join("scene.sdf");
-    let x = &plan.expected;
     let mut v = Vec::new();
-    let mut add = |name: &str, expected_s: f64, argv: Vec<String>, job: StageJob| {
-        v.push(DemoStage {
-            name: name.to_string(),
-            argv,
-            job,
-            expected_s,
-        })
-    };
     let mut synth_args: Vec<String> = vec![
         "synth".into(),
         "--preset".into(),
@@ -315,12 +303,66 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         raw_seed: 1,
         raw_size: None,
     };
-    add("synth", x.synth, synth_args, StageJob::Synth(synth_job));
-    let mut train = vec![("background".to_string(), "scene".to_string(), plan.scene_steps, x.scene)];
-    for body in &scene.desc.bodies {
-        for side in ["a", "b"] {
-            let capture = format!("{}_{side}", body.name);
-            train.push((capture.clone(), capture, plan.object_steps, x.object));
+    v.push(DemoStage {
+        name: "synth".into(),
+        argv: synth_args,
+        job: StageJob::Synth(synth_job),
+        expected_s: plan.expected.synth,
+    });
+    let contents = Contents {
+        data: data.clone(),
+        scene: "background".into(),
+        objects: scene
+            .desc
+            .bodies
+            .iter()
+            .map(|b| (b.name.clone(), [format!("{}_a", b.name), format!("{}_b", b.name)]))
+            .collect(),
+        videos: scene
+            .desc
+            .videos
+            .iter()
+            .map(|v| (v.name.clone(), v.bodies.iter().map(|b| b.name.clone()).collect()))
+            .collect(),
+        truth: Some(data.join("truth.json")),
+    };
+    v.extend(method_stages(plan, &contents, out));
+    v
+}
+
+/// What the method runs on once the data exist: the data folder, the scene's capture, each object's two
+/// captures (resting in two poses), each video with the bodies it shows, and the truth where there is one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contents {
+    pub data: PathBuf,
+    pub scene: String,
+    pub objects: Vec<(String, [String; 2])>,
+    pub videos: Vec<(String, Vec<String>)>,
+    pub truth: Option<PathBuf>,
+}
+
+/// The method's stages on `contents`, their arguments written out as a user would type them: the scene's
+/// training, each object's two trainings and their merge, the bake, then each video's fit (and eval where
+/// there is a truth), the report. Everything is written under `out` (runs/, merged/, scene.sdf, fits/).
+pub(crate) fn method_stages(plan: &Plan, contents: &Contents, out: &Path) -> Vec<DemoStage> {
+    let data = &contents.data;
+    let runs = out.join("runs");
+    let merged = |body: &str| out.join("merged").join(body);
+    let grid = out.join("scene.sdf");
+    let x = &plan.expected;
+    let mut v = Vec::new();
+    let mut add = |name: &str, expected_s: f64, argv: Vec<String>, job: StageJob| {
+        v.push(DemoStage {
+            name: name.to_string(),
+            argv,
+            job,
+            expected_s,
+        })
+    };
+    let mut train = vec![(contents.scene.clone(), "scene".to_string(), plan.scene_steps, x.scene)];
+    for (_, captures) in &contents.objects {
+        for capture in captures {
+            train.push((capture.clone(), capture.clone(), plan.object_steps, x.object));
         }
     }
     for (capture, run, steps, expected) in train {
@@ -334,33 +376,32 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         ];
         let mut job = TrainArgs::new(data.join(&capture), runs.join(&run));
         job.iterations = Some(steps);
-        if capture == "background" && plan.scene_config.is_some() {
+        if run == "scene" && plan.scene_config.is_some() {
             args.extend(["--config".into(), s(&out.join("train_scene.toml"))]);
             job.config = Some(out.join("train_scene.toml"));
         }
         add(&format!("train {run}"), expected, args, StageJob::Train(job));
     }
-    for body in &scene.desc.bodies {
-        let (a, b) = (format!("{}_a", body.name), format!("{}_b", body.name));
+    for (body, [a, b]) in &contents.objects {
         let mut args: Vec<String> = vec![
             "merge".into(),
-            s(&runs.join(&a)),
-            s(&runs.join(&b)),
+            s(&runs.join(a)),
+            s(&runs.join(b)),
             "--out".into(),
-            s(&merged(&body.name)),
+            s(&merged(body)),
             "--capture-a".into(),
-            s(&data.join(&a)),
+            s(&data.join(a)),
             "--capture-b".into(),
-            s(&data.join(&b)),
+            s(&data.join(b)),
         ];
-        let mut job = MergeArgs::new(runs.join(&a), runs.join(&b), merged(&body.name));
-        job.capture_a = Some(data.join(&a));
-        job.capture_b = Some(data.join(&b));
+        let mut job = MergeArgs::new(runs.join(a), runs.join(b), merged(body));
+        job.capture_a = Some(data.join(a));
+        job.capture_b = Some(data.join(b));
         if let Some(r) = plan.merge_field_res {
             args.extend(["--field-res".into(), r.to_string()]);
             job.field_res = r;
         }
-        add(&format!("merge {}", body.name), x.merge, args, StageJob::Merge(job));
+        add(&format!("merge {body}"), x.merge, args, StageJob::Merge(job));
     }
     let mut bake = BakeArgs::new(runs.join("scene"), grid.clone());
     bake.res = Some(plan.bake_res);
@@ -377,24 +418,24 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         ],
         StageJob::Bake(bake),
     );
-    for video in &scene.desc.videos {
-        let fit_dir = out.join("fits").join(&video.name);
+    for (video, bodies) in &contents.videos {
+        let fit_dir = out.join("fits").join(video);
         let mut args: Vec<String> = vec![
             "fit".into(),
-            s(&data.join(&video.name)),
+            s(&data.join(video)),
             "--scene".into(),
             s(&runs.join("scene")),
             "--scene-grid".into(),
             s(&grid),
         ];
-        for body in &video.bodies {
-            args.extend(["--object".into(), format!("{}={}", body.name, s(&merged(&body.name)))]);
+        for body in bodies {
+            args.extend(["--object".into(), format!("{body}={}", s(&merged(body)))]);
         }
         args.extend(["--init".into(), "auto".into(), "--out".into(), s(&fit_dir)]);
         let mut inputs = FitInputs::new(
-            data.join(&video.name),
+            data.join(video),
             runs.join("scene"),
-            video.bodies.iter().map(|b| (b.name.clone(), merged(&b.name))),
+            bodies.iter().map(|b| (b.clone(), merged(b))),
         );
         inputs.scene_grid = Some(grid.clone());
         if let Some(n) = plan.frames {
@@ -407,8 +448,8 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
             config = Some(out.join("fit.toml"));
         }
         add(
-            &format!("fit {}", video.name),
-            x.fit_per_body * video.bodies.len() as f64,
+            &format!("fit {video}"),
+            x.fit_per_body * bodies.len() as f64,
             args,
             StageJob::Fit {
                 inputs,
@@ -416,23 +457,21 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
                 out: fit_dir.clone(),
             },
         );
-        add(
-            &format!("eval {}", video.name),
-            x.eval,
-            vec![
-                "eval".into(),
-                s(&fit_dir),
-                "--truth".into(),
-                s(&data.join("truth.json")),
-                "--video".into(),
-                video.name.clone(),
-            ],
-            StageJob::Eval(EvalArgs::new(
-                fit_dir.clone(),
-                data.join("truth.json"),
-                Some(video.name.clone()),
-            )),
-        );
+        if let Some(truth) = &contents.truth {
+            add(
+                &format!("eval {video}"),
+                x.eval,
+                vec![
+                    "eval".into(),
+                    s(&fit_dir),
+                    "--truth".into(),
+                    s(truth),
+                    "--video".into(),
+                    video.clone(),
+                ],
+                StageJob::Eval(EvalArgs::new(fit_dir.clone(), truth.clone(), Some(video.clone()))),
+            );
+        }
     }
     add(
         "report",
@@ -517,9 +556,42 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
     let plan = plan_of(a);
     let scene = Scene::new(a)?;
     let out = out_of(a);
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let record_path = out.join("demo.json");
-    let mut record: Record = if a.force || !record_path.exists() {
+    let all = stages(plan, &scene, &out);
+    let title = format!(
+        "demo{} of the {} scene",
+        if a.quick { " --quick" } else { "" },
+        scene.preset
+    );
+    let record = execute(&all, plan, &out, "demo.json", a.force, &title, runner, observer)?;
+    let report = write_report(&out, plan, &scene, a.quick, &all, &record)?;
+    note(
+        observer,
+        format!(
+            "demo finished in {} (this run); report: {}",
+            minutes(t0.elapsed().as_secs_f64()),
+            report.display()
+        ),
+    );
+    Ok(report)
+}
+
+/// Runs `all` in order into `out` (creating it and the plan's settings files), each through `runner`,
+/// skipping the stages `out/<record_file>` says finished with the same command line (unless `force`),
+/// and keeping that record as stages finish; the record. `title` opens the log.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn execute(
+    all: &[DemoStage],
+    plan: &Plan,
+    out: &Path,
+    record_file: &str,
+    force: bool,
+    title: &str,
+    runner: &dyn StageRunner,
+    observer: &dyn Observer,
+) -> Result<Record> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let record_path = out.join(record_file);
+    let mut record: Record = if force || !record_path.exists() {
         Record::default()
     } else {
         let text =
@@ -527,7 +599,7 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
         serde_json::from_str(&text).map_err(|e| {
             err!(
                 Input,
-                "{}: {e} (not a demo record: give another --out, or --force)",
+                "{}: {e} (not a run record: give another --out, or --force)",
                 record_path.display()
             )
         })?
@@ -538,16 +610,13 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
     if let Some(cfg) = plan.scene_config {
         pganeus_io::write_atomic(&out.join("train_scene.toml"), cfg.as_bytes())?;
     }
-    let all = stages(plan, &scene, &out);
     let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
     // Expected seconds of the stages done or skipped, and of those run here (with the time they took).
     let (mut expected_done, mut expected_run, mut spent) = (0.0, 0.0, 0.0);
     note(
         observer,
         format!(
-            "demo{} of the {} scene: {} stages into {} (about {} on two cores)",
-            if a.quick { " --quick" } else { "" },
-            scene.preset,
+            "{title}: {} stages into {} (about {} on two cores)",
             all.len(),
             out.display(),
             minutes(total_expected)
@@ -568,12 +637,12 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
         note(
             observer,
             format!(
-                "{head}: pganeus {} (ETA for the demo {})",
+                "{head}: pganeus {} (ETA {})",
                 stage.argv.join(" "),
                 minutes((total_expected - expected_done) * pace)
             ),
         );
-        let redo = a.force || upstream_ran || record.done.contains_key(&stage.name);
+        let redo = force || upstream_ran || record.done.contains_key(&stage.name);
         upstream_ran = true;
         // What the later stages made came from this stage's old outputs: forget it, so that a stop further on
         // cannot leave them marked done.
@@ -584,7 +653,7 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
         let t = Instant::now();
         runner
             .run_stage(stage, redo, observer)
-            .with_context(|| format!("demo stage {:?} failed", stage.name))?;
+            .with_context(|| format!("stage {:?} failed", stage.name))?;
         let seconds = t.elapsed().as_secs_f64();
         note(observer, format!("{head}: done in {seconds:.0} s"));
         spent += seconds;
@@ -599,16 +668,7 @@ pub fn run(a: &DemoArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> R
         );
         pganeus_io::write_atomic(&record_path, serde_json::to_string_pretty(&record)?.as_bytes())?;
     }
-    let report = write_report(&out, plan, &scene, a.quick, &all, &record)?;
-    note(
-        observer,
-        format!(
-            "demo finished in {} (this run); report: {}",
-            minutes(t0.elapsed().as_secs_f64()),
-            report.display()
-        ),
-    );
-    Ok(report)
+    Ok(record)
 }
 
 /// The flags a stage's command line gets for a rerun: training resumes from its checkpoint when one is there,

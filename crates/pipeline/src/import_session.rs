@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::calibrate::{run as calibrate, CalibrateArgs};
+use crate::calibrate::{run as calibrate, CalibrateArgs, CalibrateOutcome};
 use crate::error::{fail, Context};
 use crate::{note, Observer, Result};
 
@@ -76,6 +76,10 @@ pub struct Session {
     pub objects: Vec<SessionObject>,
     /// The videos' captures.
     pub videos: Vec<String>,
+    /// The bodies a video shows, by video, where it does not show every object (a user's edit: `import`
+    /// cannot tell).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub video_bodies: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 /// One object of a session.
@@ -110,8 +114,14 @@ struct Layout {
     video_files: Vec<PathBuf>,
 }
 
+/// What `import` made: the session and how its calibration went.
+pub struct Imported {
+    pub session: Session,
+    pub calibration: CalibrateOutcome,
+}
+
 /// `pganeus import`.
-pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Session> {
+pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Imported> {
     let board = a.board.clone().unwrap_or_else(|| a.session.join("board.toml"));
     if !board.is_file() {
         fail!(
@@ -184,7 +194,7 @@ pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Session> {
     c.fps = a.fps;
     c.intrinsics = a.intrinsics.clone();
     c.k3 = a.k3;
-    calibrate(&c, observer)?;
+    let calibration = calibrate(&c, observer)?;
     let name = |p: &Path| {
         p.file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -203,6 +213,7 @@ pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Session> {
             })
             .collect(),
         videos: layout.videos.iter().map(|v| name(v)).collect(),
+        video_bodies: Default::default(),
     };
     for v in &session.videos {
         if let Some(why) = still_video(&a.out.join(v))? {
@@ -228,7 +239,7 @@ pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Session> {
             a.out.display()
         ),
     );
-    Ok(session)
+    Ok(Imported { session, calibration })
 }
 
 /// The session's folders and video files by role; a lone half of an object, a second camera, or a video

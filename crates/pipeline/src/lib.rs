@@ -38,6 +38,7 @@ pub mod render;
 pub mod render_trajectory;
 pub mod report_page;
 pub mod run_folder;
+pub mod run_session;
 pub mod surfaces;
 pub mod synth;
 pub mod train;

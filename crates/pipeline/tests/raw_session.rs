@@ -5,7 +5,6 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use pipeline::calibrate::{run, CalibrateArgs};
 use pipeline::import::{import_colmap, ImportArgs, ImportColmapArgs};
 use pipeline::Quiet;
 
@@ -34,25 +33,22 @@ fn aruco_session() -> &'static (PathBuf, synth::SynthScene) {
 }
 
 #[test]
-#[ignore = "slow: renders a raw session and calibrates it, about 50 s"]
-fn a_synth_raw_session_calibrates_to_its_truth() {
+#[ignore = "slow: renders a raw session and imports it whole, about 60 s"]
+fn a_synth_raw_session_imports_and_calibrates_to_its_truth() {
     // The ChArUco board's session is measured by the benchmark (docs/results.md): at this test's size its
-    // lens from 8 close-ups is 0.2-0.33 % off in focal length, above the 0.3 % this test holds the grid to.
+    // lens from 8 close-ups is 0.2-0.33 % off in focal length, above the 0.3 % this test holds the grid to;
+    // and its wide background views see the 30 mm markers at ~15 px, too few and too small to pin a camera to
+    // 2 mm (calibrate leaves such photos out).
     for kind in [calib::BoardKind::ArucoGrid] {
         let (root, scene) = aruco_session();
-        let raw = root.join("data/raw");
-        // At this test's 480 x 360, the wide background views see the ChArUco board's 30 mm markers at ~15 px,
-        // too few and too small to pin a camera to 2 mm (calibrate leaves such photos out, here all of them):
-        // its background is measured at the benchmark's size instead (docs/results.md).
-        let dirs = match kind {
-            calib::BoardKind::ArucoGrid => vec![raw.join("background"), raw.join("toy_a")],
-            calib::BoardKind::Charuco => vec![raw.join("toy_a")],
-        };
-        let mut a = CalibrateArgs::new(dirs, raw.join("board.toml"), root.join("out"));
-        a.videos = vec![raw.join(&scene.videos[0].name)];
-        a.lens_only = vec![raw.join("calibration")];
+        let data = root.join("out");
+        // `import` calibrates every folder of the session together (the close-ups for the lens only).
+        let mut a = pipeline::import_session::ImportSessionArgs::new(root.join("data/raw"), &data);
         a.width = Some(160);
-        let outcome = run(&a, &Quiet).unwrap();
+        let imported = pipeline::import_session::run(&a, &Quiet).unwrap();
+        check_session(&imported.session, &data, scene);
+        objects_masks_match_their_silhouettes(root, &data);
+        let outcome = imported.calibration;
         let dropped: usize = serde_json::from_str::<serde_json::Value>(
             &std::fs::read_to_string(root.join("out/calibration.json")).unwrap(),
         )
@@ -265,19 +261,14 @@ fn colmaps_model_of_a_raw_session_imports_to_the_true_cameras() {
     );
 }
 
-#[test]
-#[ignore = "slow: renders a raw session (shared) and imports it whole, about 60 s"]
-fn a_raw_session_imports_whole_and_its_objects_masks_match_their_silhouettes() {
-    let (root, scene) = aruco_session();
-    let data = root.join("imported");
-    let mut a = pipeline::import_session::ImportSessionArgs::new(root.join("data/raw"), &data);
-    a.width = Some(160);
-    let session = pipeline::import_session::run(&a, &Quiet).unwrap();
+/// `import`'s session of the aruco session: its scene, its one object and its video, each capture of the
+/// kind its folder says.
+fn check_session(session: &pipeline::import_session::Session, data: &Path, scene: &synth::SynthScene) {
     assert_eq!(session.scene, "background");
     assert_eq!(session.objects.len(), 1);
     assert_eq!(session.objects[0].captures, ["toy_a".to_string(), "toy_b".to_string()]);
     assert_eq!(session.videos, vec![scene.videos[0].name.clone()]);
-    assert_eq!(pipeline::import_session::read_session(&data).unwrap(), session);
+    assert_eq!(&pipeline::import_session::read_session(data).unwrap(), session);
     let subject = |c: &str| {
         let info: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(data.join(c).join("capture.json")).unwrap()).unwrap();
@@ -289,9 +280,11 @@ fn a_raw_session_imports_whole_and_its_objects_masks_match_their_silhouettes() {
     assert_eq!(subject("background"), (Some("static".into()), Some("scene".into())));
     assert_eq!(subject("toy_a"), (Some("static".into()), Some("object".into())));
     assert_eq!(subject(&scene.videos[0].name).0, Some("video".into()));
+}
 
-    // The object's masks computed from the imported (undistorted, calibrated) photos, against the true mesh
-    // posed as it rested, drawn through each calibrated camera at pixel centres.
+/// The object's masks computed from the imported (undistorted, calibrated) photos, against the true mesh
+/// posed as it rested, drawn through each calibrated camera at pixel centres.
+fn objects_masks_match_their_silhouettes(root: &Path, data: &Path) {
     for capture in ["toy_a", "toy_b"] {
         let dir = data.join(capture);
         let loaded = neus::Dataset::load(&dir).unwrap();

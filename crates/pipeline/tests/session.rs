@@ -21,7 +21,10 @@ fn session(name: &str, folders: &[&str]) -> std::path::PathBuf {
 
 fn refusal(dir: &Path) -> String {
     let out = dir.with_file_name(format!("{}-data", dir.file_name().unwrap().to_string_lossy()));
-    let e = run(&ImportSessionArgs::new(dir, &out), &Quiet).unwrap_err().to_string();
+    let e = match run(&ImportSessionArgs::new(dir, &out), &Quiet) {
+        Ok(_) => panic!("{}: imported", dir.display()),
+        Err(e) => e.to_string(),
+    };
     assert!(!out.exists(), "{}: written on a refusal", out.display());
     e
 }
