@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use crate::demo::{execute, method_stages, Contents, DemoStage, StageRunner, FULL, QUICK};
+use crate::demo::{execute, method_stages, Contents, DemoStage, Plan, StageRunner, FULL, QUICK};
 use crate::error::fail;
 use crate::import_session::{read_session, Session};
 use crate::{note, Observer, Result};
@@ -113,17 +113,24 @@ pub fn plan(a: &RunArgs) -> Result<Vec<DemoStage>> {
 
 /// The stages of `a` on `session` (without checking the data).
 pub fn stages_for(a: &RunArgs, session: &Session) -> Vec<DemoStage> {
-    let plan = if a.quick { &QUICK } else { &FULL };
-    method_stages(plan, &contents(a, session), &a.out)
+    method_stages(sizes(a), &contents(a, session), &a.out)
+}
+
+/// The demo's sizes `a` asks for: `--quick`'s or the default's.
+fn sizes(a: &RunArgs) -> &'static Plan {
+    if a.quick {
+        &QUICK
+    } else {
+        &FULL
+    }
 }
 
 /// `pganeus run`: the path of the report page.
 pub fn run(a: &RunArgs, runner: &dyn StageRunner, observer: &dyn Observer) -> Result<PathBuf> {
     let t0 = std::time::Instant::now();
     let all = plan(a)?;
-    let plan = if a.quick { &QUICK } else { &FULL };
     let title = format!("run{} of {}", if a.quick { " --quick" } else { "" }, a.data.display());
-    execute(&all, plan, &a.out, "run.json", a.force, &title, runner, observer)?;
+    execute(&all, sizes(a), &a.out, "run.json", a.force, &title, runner, observer)?;
     let report = a.out.join("report.html");
     note(
         observer,

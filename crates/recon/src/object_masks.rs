@@ -108,21 +108,23 @@ pub fn object_masks(
     // The board first as the photos show it, then again with each photo's exposure divided out.
     let mut gains = vec![1.0f32; cameras.len()];
     let mut mosaic = Mosaic::new(images, cameras, &gains, region, board.z);
+    // Where each pixel's ray meets the board, in the mosaic's cells (the same grid however it is filled).
+    let cells: Vec<Vec<Option<(f64, f64)>>> = cameras.par_iter().map(|c| mosaic.plane_cells(c)).collect();
     for _ in 0..2 {
         gains = (0..cameras.len())
             .into_par_iter()
-            .map(|i| mosaic.gain(images[i], &cameras[i]))
+            .map(|i| mosaic.gain(images[i], &cells[i]))
             .collect();
         mosaic = Mosaic::new(images, cameras, &gains, region, board.z);
     }
     let (candidates, bars): (Vec<Vec<bool>>, Vec<f32>) = (0..cameras.len())
         .into_par_iter()
         .map(|i| {
-            let d = mosaic.difference(images[i], &cameras[i], gains[i], cfg.light);
+            let width = cameras[i].width as usize;
+            let d = mosaic.difference(images[i], width, &cells[i], gains[i], cfg.light);
             let bar = (cfg.seed_sigmas * median(&d)).max(cfg.floor);
             let seeds: Vec<bool> = d.iter().map(|&v| v > bar).collect();
             let weak: Vec<bool> = d.iter().map(|&v| v > cfg.grow * bar).collect();
-            let width = cameras[i].width as usize;
             (
                 clean(&grown_from(&weak, &seeds, width), width, cfg.speck, cfg.minor),
                 bar,
@@ -150,8 +152,9 @@ pub fn object_masks(
             let sure = core.silhouette(c, cfg.steps);
             let m: Vec<bool> = (0..own.len()).map(|p| (own[p] && loose[p]) || sure[p]).collect();
             let m = clean(&m, c.width as usize, cfg.speck, cfg.minor);
-            let background: Vec<Option<[f32; 3]>> = (0..m.len())
-                .map(|p| mosaic.at_pixel(c, p).map(|b| b.map(|v| v * gains[i])))
+            let background: Vec<Option<[f32; 3]>> = cells[i]
+                .iter()
+                .map(|&cell| mosaic.colour_at(cell).map(|b| b.map(|v| v * gains[i])))
                 .collect();
             refine_edges(&m, images[i], &background, c.width as usize)
         })
@@ -242,31 +245,35 @@ impl Mosaic {
         }
     }
 
-    /// Where `cam`'s pixel `p` sees the plane, in fractional cells (cell centres at whole numbers).
-    fn cell_at(&self, cam: &Camera<f64>, p: usize) -> Option<(f64, f64)> {
+    /// Where each of `cam`'s pixels sees the plane, in fractional cells (cell centres at whole numbers);
+    /// `None` off the mosaic or where the ray misses the plane.
+    fn plane_cells(&self, cam: &Camera<f64>) -> Vec<Option<(f64, f64)>> {
         let w = cam.width as usize;
-        let ray = cam.ray((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
-        let s = (self.z - ray.origin.z) / ray.dir.z;
-        if ray.dir.z.abs() < 1e-9 || s <= 0.0 {
-            return None;
-        }
-        let x = ray.at(s);
-        let (fx, fy) = (
-            (x.x - self.lo[0]) / self.cell - 0.5,
-            (x.y - self.lo[1]) / self.cell - 0.5,
-        );
-        (fx >= 0.0 && fy >= 0.0 && fx < (self.n - 1) as f64 && fy < (self.n - 1) as f64).then_some((fx, fy))
+        (0..w * cam.height as usize)
+            .map(|p| {
+                let ray = cam.ray((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
+                let s = (self.z - ray.origin.z) / ray.dir.z;
+                if ray.dir.z.abs() < 1e-9 || s <= 0.0 {
+                    return None;
+                }
+                let x = ray.at(s);
+                let (fx, fy) = (
+                    (x.x - self.lo[0]) / self.cell - 0.5,
+                    (x.y - self.lo[1]) / self.cell - 0.5,
+                );
+                (fx >= 0.0 && fy >= 0.0 && fx < (self.n - 1) as f64 && fy < (self.n - 1) as f64).then_some((fx, fy))
+            })
+            .collect()
     }
 
-    /// Whether `cam`'s pixel `p` sees the plane under the object.
-    fn under_object(&self, cam: &Camera<f64>, p: usize) -> bool {
-        self.cell_at(cam, p)
-            .is_some_and(|(fx, fy)| self.footprint[(fy + 0.5) as usize * self.n + (fx + 0.5) as usize])
+    /// Whether the plane at `cell` lies under the object.
+    fn under_object(&self, cell: Option<(f64, f64)>) -> bool {
+        cell.is_some_and(|(fx, fy)| self.footprint[(fy + 0.5) as usize * self.n + (fx + 0.5) as usize])
     }
 
-    /// The board's colour where `cam`'s pixel `p` sees the plane (bilinear between the cells that hold it).
-    fn at_pixel(&self, cam: &Camera<f64>, p: usize) -> Option<[f32; 3]> {
-        let (fx, fy) = self.cell_at(cam, p)?;
+    /// The board's colour at `cell` (bilinear between the cells that hold it).
+    fn colour_at(&self, cell: Option<(f64, f64)>) -> Option<[f32; 3]> {
+        let (fx, fy) = cell?;
         let (x0, y0) = (fx as usize, fy as usize);
         let (ax, ay) = ((fx - x0 as f64) as f32, (fy - y0 as f64) as f32);
         let mut sum = [0.0f32; 3];
@@ -285,11 +292,12 @@ impl Mosaic {
         (weight > 0.5).then(|| sum.map(|v| v / weight))
     }
 
-    /// The photo's exposure against the board: the median ratio of summed channels where it shows it.
-    fn gain(&self, img: &[[f32; 3]], cam: &Camera<f64>) -> f32 {
+    /// The photo's exposure against the board: the median ratio of summed channels where it shows it (`cells`:
+    /// [`Self::plane_cells`] of its camera).
+    fn gain(&self, img: &[[f32; 3]], cells: &[Option<(f64, f64)>]) -> f32 {
         let ratios: Vec<f32> = (0..img.len())
             .filter_map(|p| {
-                let b = self.at_pixel(cam, p)?;
+                let b = self.colour_at(cells[p])?;
                 let (sb, si) = (b[0] + b[1] + b[2], img[p][0] + img[p][1] + img[p][2]);
                 (sb > 0.15).then(|| si / sb)
             })
@@ -306,14 +314,21 @@ impl Mosaic {
     /// the mosaic holds no board there), brightness forgiven within `light` (the board's sheen and the
     /// shading differ from view to view): the photo as it is or blurred as the mosaic is, whichever is
     /// nearer (the print's sharp edges are no object).
-    fn difference(&self, img: &[[f32; 3]], cam: &Camera<f64>, gain: f32, light: (f32, f32)) -> Vec<f32> {
-        let blurred = box_mean(img, cam.width as usize, 1);
+    fn difference(
+        &self,
+        img: &[[f32; 3]],
+        width: usize,
+        cells: &[Option<(f64, f64)>],
+        gain: f32,
+        light: (f32, f32),
+    ) -> Vec<f32> {
+        let blurred = box_mean(img, width, 1);
         (0..img.len())
             .map(|p| {
-                if self.under_object(cam, p) {
+                if self.under_object(cells[p]) {
                     return f32::INFINITY;
                 }
-                self.at_pixel(cam, p).map_or(0.0, |b| {
+                self.colour_at(cells[p]).map_or(0.0, |b| {
                     let sharp = shadow_distance(img[p].map(|v| v / gain), b, light);
                     sharp.min(shadow_distance(blurred[p].map(|v| v / gain), b, light))
                 })
