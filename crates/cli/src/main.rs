@@ -176,6 +176,7 @@ mod tests {
             ("tabletop", None, true, ScaleArg::Small, true),
             ("backdrop", Some(PhysicsArg::Rapier), false, ScaleArg::Large, false),
             ("two-body", Some(PhysicsArg::Pganeus), true, ScaleArg::Small, false),
+            ("raw", None, false, ScaleArg::Small, false),
         ] {
             let a = DemoArgs {
                 quick,
@@ -216,6 +217,7 @@ mod tests {
                     .command;
                 match (parsed, &stage.job) {
                     (Command::Synth(p), StageJob::Synth(j)) => assert_eq!(&p, j),
+                    (Command::Import(p), StageJob::Import(j)) => assert_eq!(&p, j),
                     (Command::Train(p), StageJob::Train(j)) => assert_eq!(&p, j),
                     (Command::Merge(p), StageJob::Merge(j)) => assert_eq!(&p, j),
                     (Command::Bake(p), StageJob::Bake(j)) => assert_eq!(&p, j),

@@ -8,9 +8,10 @@
 use crate::error::{err, Context};
 use crate::eval::EvalArgs;
 use crate::fit::{FitInputs, FitRun, Stage};
+use crate::import_session::ImportSessionArgs;
 use crate::report_page::ReportArgs;
 use crate::surfaces::{BakeArgs, MergeArgs};
-use crate::synth::{PhysicsArg, ScaleArg, SynthArgs};
+use crate::synth::{PhysicsArg, RawBoardArg, ScaleArg, SynthArgs};
 use crate::train::TrainArgs;
 use crate::{note, Observer, Result, Resume};
 use recon::VideoFitConfig;
@@ -29,7 +30,8 @@ use std::time::Instant;
   pganeus demo
   pganeus demo --quick --out out/demo-quick
   pganeus demo --preset backdrop --physics rapier
-  pganeus demo --preset two-body")
+  pganeus demo --preset two-body
+  pganeus demo --preset raw")
 )]
 pub struct DemoArgs {
     /// Short training and a light fit on the first 12 frames: the whole chain in about 5 minutes (a smoke
@@ -45,8 +47,9 @@ pub struct DemoArgs {
     #[cfg_attr(feature = "clap", arg(long))]
     pub force: bool,
     /// The synthetic scene (`synth --preset`): tabletop (a toy slides into a wall and drops), backdrop (the
-    /// same motion with another light, board, obstacles and a backdrop) or two-body (a toy hits a block: the
-    /// several-body fit).
+    /// same motion with another light, board, obstacles and a backdrop), two-body (a toy hits a block: the
+    /// several-body fit), or raw: the tabletop as a camera films it (`synth --raw aruco-grid`: photos through a
+    /// distorting lens with a printed board, no cameras, no masks), through `import` and `run`.
     #[cfg_attr(feature = "clap", arg(long, default_value = "tabletop"))]
     pub preset: String,
     /// What moves the bodies in the videos (`synth --physics`): the project's simulator (the preset's
@@ -58,17 +61,21 @@ pub struct DemoArgs {
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "small"))]
     pub scale: ScaleArg,
     /// The captures as a camera makes them (`synth --camera-like`): exposure and white balance per photo,
-    /// a video's drifting exposure, noise, JPEG and motion blur, the truth kept.
+    /// a video's drifting exposure, noise, JPEG and motion blur, the truth kept (the raw preset's footage
+    /// is already so).
     #[cfg_attr(feature = "clap", arg(long))]
     pub camera_like: bool,
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
 /// of 2026-11-27 grown by GA's 80 steps a frame and shrunk by its still frames since, the large tabletop of
-/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` in CI. A fit is per body
-/// in the video.
+/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` in CI, the raw preset's
+/// synth and import of 2026-12-06. A fit is per body in the video.
 pub(crate) struct Expected {
     synth: f64,
+    /// synth with the raw footage (`--preset raw`), and its import.
+    synth_raw: f64,
+    import: f64,
     scene: f64,
     object: f64,
     merge: f64,
@@ -107,6 +114,8 @@ pub(crate) const QUICK: Plan = Plan {
     merge_field_res: Some(128),
     expected: Expected {
         synth: 8.0,
+        synth_raw: 92.0,
+        import: 8.0,
         scene: 35.0,
         object: 20.0,
         merge: 12.0,
@@ -127,6 +136,8 @@ pub(crate) const FULL: Plan = Plan {
     merge_field_res: None,
     expected: Expected {
         synth: 10.0,
+        synth_raw: 92.0,
+        import: 8.0,
         scene: 275.0,
         object: 55.0,
         merge: 15.0,
@@ -142,6 +153,10 @@ const LARGE: Plan = Plan {
     object_steps: 1500,
     expected: Expected {
         synth: 170.0,
+        // Not measured: the small scale's raw footage and its import grown by their pixels (960 × 720
+        // against 480 × 360).
+        synth_raw: 370.0,
+        import: 32.0,
         scene: 1130.0,
         object: 460.0,
         merge: 55.0,
@@ -185,17 +200,41 @@ struct Scene {
     preset: String,
     physics: Option<PhysicsArg>,
     camera_like: bool,
+    /// The footage is raw (`--preset raw`): no cameras and no masks, `import` calibrates it.
+    raw: bool,
     desc: synth::SynthScene,
 }
 
+/// The demo's preset of raw footage, and the synth scene it films.
+const RAW_PRESET: &str = "raw";
+const RAW_SCENE: &str = "tabletop";
+
 impl Scene {
     fn new(a: &DemoArgs) -> Result<Scene> {
+        let raw = a.preset == RAW_PRESET;
+        if raw && a.camera_like {
+            crate::error::fail!(
+                Settings,
+                "--camera-like with --preset raw: the raw footage is already as a camera makes it"
+            );
+        }
+        let synth_preset = if raw { RAW_SCENE } else { a.preset.as_str() };
         Ok(Scene {
             preset: a.preset.clone(),
             physics: a.physics,
             camera_like: a.camera_like,
-            desc: crate::synth::named_preset(&a.preset, crate::synth::scale(a.scale))?,
+            raw,
+            desc: crate::synth::named_preset(synth_preset, crate::synth::scale(a.scale))?,
         })
+    }
+
+    /// The `synth --preset` the scene is made with.
+    fn synth_preset(&self) -> &str {
+        if self.raw {
+            RAW_SCENE
+        } else {
+            &self.preset
+        }
     }
 
     /// The engine named on the command line (none: the preset's own).
@@ -229,6 +268,7 @@ pub fn default_out(a: &DemoArgs) -> PathBuf {
 #[derive(Clone, Debug, PartialEq)]
 pub enum StageJob {
     Synth(SynthArgs),
+    Import(ImportSessionArgs),
     Train(TrainArgs),
     Merge(MergeArgs),
     Bake(BakeArgs),
@@ -276,7 +316,7 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
     let mut synth_args: Vec<String> = vec![
         "synth".into(),
         "--preset".into(),
-        scene.preset.clone(),
+        scene.synth_preset().into(),
         "--scale".into(),
         plan.scale.name().into(),
         "--out".into(),
@@ -289,8 +329,11 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
     if scene.camera_like {
         synth_args.push("--camera-like".into());
     }
+    if scene.raw {
+        synth_args.extend(["--raw".into(), "aruco-grid".into()]);
+    }
     let synth_job = SynthArgs {
-        preset: Some(scene.preset.clone()),
+        preset: Some(scene.synth_preset().into()),
         scene: None,
         scale: plan.scale,
         out: Some(data.clone()),
@@ -298,7 +341,7 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         contact_sheet: true,
         physics: scene.physics,
         print_preset: None,
-        raw: None,
+        raw: scene.raw.then_some(RawBoardArg::ArucoGrid),
         camera_like: scene.camera_like,
         raw_seed: 1,
         raw_size: None,
@@ -307,10 +350,37 @@ fn stages(plan: &Plan, scene: &Scene, out: &Path) -> Vec<DemoStage> {
         name: "synth".into(),
         argv: synth_args,
         job: StageJob::Synth(synth_job),
-        expected_s: plan.expected.synth,
+        expected_s: if scene.raw {
+            plan.expected.synth_raw
+        } else {
+            plan.expected.synth
+        },
     });
+    // Raw footage is calibrated on its board into captures the method reads, at the captures' width.
+    let method_data = if scene.raw {
+        let imported = out.join("imported");
+        let width = scene.desc.cameras.width;
+        let mut job = ImportSessionArgs::new(data.join("raw"), &imported);
+        job.width = Some(width);
+        v.push(DemoStage {
+            name: "import".into(),
+            argv: vec![
+                "import".into(),
+                s(&data.join("raw")),
+                "--out".into(),
+                s(&imported),
+                "--width".into(),
+                width.to_string(),
+            ],
+            job: StageJob::Import(job),
+            expected_s: plan.expected.import,
+        });
+        imported
+    } else {
+        data.clone()
+    };
     let contents = Contents {
-        data: data.clone(),
+        data: method_data,
         scene: "background".into(),
         objects: scene
             .desc
@@ -521,6 +591,14 @@ impl StageRunner for Library {
                 };
                 crate::synth::run(&a, observer)
             }
+            // import replaces its folder whole (the old one kept until the new one is complete).
+            StageJob::Import(a) => {
+                let a = ImportSessionArgs {
+                    force: true,
+                    ..a.clone()
+                };
+                crate::import_session::run(&a, observer).map(|_| ())
+            }
             StageJob::Train(a) => {
                 // Training resumes from its checkpoint when one is there, unless it must start over.
                 let resume = !redo && a.out.join("checkpoint.safetensors").exists();
@@ -683,7 +761,7 @@ pub fn resume_flags(stage: &DemoStage, redo: bool) -> Vec<String> {
                 vec!["--force".into()]
             }
         }
-        StageJob::Synth(_) => vec!["--force".into()],
+        StageJob::Synth(_) | StageJob::Import(_) => vec!["--force".into()],
         StageJob::Fit { .. } if redo => vec!["--force".into()],
         _ => vec![],
     }
@@ -700,6 +778,49 @@ fn minutes(s: f64) -> String {
 fn read_json(p: &Path) -> Result<Value> {
     let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}", p.display()))
+}
+
+/// The raw footage's part of the report: the cameras `import` found and the masks the method computed,
+/// against the truth.
+fn raw_section(md: &mut String, out: &Path) -> Result<()> {
+    let (imported, data) = (out.join("imported"), out.join("data"));
+    let c = crate::session_truth::cameras(&imported, &data)?;
+    writeln!(
+        md,
+        "## From raw footage\n\nThe cameras from the printed board against the truth: the lens's focal length \
+         {:.2} % off, its principal point {:.2} px; {} cameras ({} photos and frames, the rest left out) \
+         within {:.2} mm (mean {:.2}) and {:.3}° (mean {:.3}).\n",
+        c.focal_percent,
+        c.principal_px,
+        c.cameras,
+        c.photos,
+        c.centre_mm[1],
+        c.centre_mm[0],
+        c.turn_deg[1],
+        c.turn_deg[0]
+    )?;
+    let masks = crate::session_truth::masks(&imported, &out.join("runs"), &out.join("fits"), &data)?;
+    writeln!(
+        md,
+        "The computed masks against the true silhouettes (the true mesh at its true pose through the photo's \
+         true camera, with the imported image's intrinsics; video frames where the body covers at least {} \
+         pixels):\n\n| capture | body | views | IoU mean | IoU worst (view) |\n\
+         | --- | --- | --- | --- | --- |",
+        crate::session_truth::VIDEO_MIN_PIXELS
+    )?;
+    for m in &masks {
+        let worst = m.worst().map_or("–".into(), |(i, w)| format!("{w:.3} ({i})"));
+        writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {worst} |",
+            m.capture,
+            m.body,
+            m.views.len(),
+            m.mean()
+        )?;
+    }
+    writeln!(md)?;
+    Ok(())
 }
 
 /// `report.md`: what ran, how long, and how the fits compare with the truth (from each fit's eval.json),
@@ -720,13 +841,14 @@ fn write_report(
          the scene trained for {} steps, each body ({}) in two poses for {} steps each, merged, the scene baked \
          at {}³, then `fit` from `--init auto` on each video{} and `eval` against the truth.\n",
         if quick { " --quick" } else { "" },
-        scene.preset,
+        scene.synth_preset(),
         plan.scale.name(),
         scene
             .physics_name()
             .map(|p| format!(" --physics {p}"))
             .unwrap_or_default()
-            + if scene.camera_like { " --camera-like" } else { "" },
+            + if scene.camera_like { " --camera-like" } else { "" }
+            + if scene.raw { " --raw aruco-grid" } else { "" },
         plan.scene_steps,
         bodies.join(", "),
         plan.object_steps,
@@ -735,6 +857,15 @@ fn write_report(
             .map(|n| format!(" (its first {n} frames)"))
             .unwrap_or_default()
     )?;
+    if scene.raw {
+        writeln!(
+            md,
+            "The method saw only the raw footage (`data/raw/`: photos and videos through a distorting lens, \
+             with a printed board, per-photo exposure, noise, JPEG and motion blur): `import` found the lens and \
+             every camera on the board, `train` computed the objects' masks, `fit` the videos' masks against \
+             the trained scene. The truth scores them below.\n"
+        )?;
+    }
     if quick {
         writeln!(
             md,
@@ -842,6 +973,9 @@ fn write_report(
     }
     for l in mesh_lines.values() {
         writeln!(md, "{l}\n")?;
+    }
+    if scene.raw {
+        raw_section(&mut md, out)?;
     }
     for video in &scene.desc.videos {
         let v = &video.name;
@@ -1087,5 +1221,54 @@ mod tests {
             "{report}"
         );
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_raw_preset_imports_the_raw_footage_and_runs_the_method_on_what_import_wrote() {
+        let dir = PathBuf::from("out/x");
+        let mut a = args(&dir, false);
+        a.preset = "raw".into();
+        a.quick = false;
+        let scene = Scene::new(&a).unwrap();
+        let all = stages(&FULL, &scene, &dir);
+        let names: Vec<&str> = all.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "synth",
+                "import",
+                "train scene",
+                "train toy_a",
+                "train toy_b",
+                "merge toy",
+                "bake",
+                "fit slide",
+                "eval slide",
+                "fit drop",
+                "eval drop",
+                "report"
+            ]
+        );
+        assert!(all[0].argv.windows(2).any(|w| w == ["--preset", "tabletop"]));
+        assert!(all[0].argv.windows(2).any(|w| w == ["--raw", "aruco-grid"]));
+        assert!(matches!(&all[0].job, StageJob::Synth(s) if s.raw == Some(RawBoardArg::ArucoGrid)));
+        assert_eq!(
+            all[1].argv,
+            ["import", "out/x/data/raw", "--out", "out/x/imported", "--width", "160"]
+        );
+        // Every later stage reads what import wrote, and is scored against synth's truth.
+        for s in &all[2..all.len() - 1] {
+            let reads_data = s.argv.iter().any(|x| x.starts_with("out/x/data"));
+            let scored = s.argv.iter().any(|x| x == "out/x/data/truth.json");
+            assert!(!reads_data || scored, "{:?}", s.argv);
+        }
+        assert!(all[2].argv[1] == "out/x/imported/background", "{:?}", all[2].argv);
+        assert_eq!(default_out(&a), PathBuf::from("out/demo-raw"));
+        // A rerun replaces the imported folder whole.
+        assert_eq!(resume_flags(&all[1], false), ["--force"]);
+        // Raw footage is already camera-like: asking for both is a mistake, said as such.
+        a.camera_like = true;
+        let e = Scene::new(&a).err().unwrap();
+        assert!(format!("{e}").contains("--camera-like with --preset raw"), "{e}");
     }
 }

@@ -46,6 +46,9 @@ pub struct ImportSessionArgs {
     /// Solve for k3 as well (wide-angle lenses).
     #[cfg_attr(feature = "clap", arg(long))]
     pub k3: bool,
+    /// Replace `--out` if it exists (the old folder is kept until the new one is complete).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub force: bool,
 }
 
 impl ImportSessionArgs {
@@ -59,6 +62,7 @@ impl ImportSessionArgs {
             fps: 30.0,
             intrinsics: None,
             k3: false,
+            force: false,
         }
     }
 }
@@ -130,10 +134,10 @@ pub fn run(a: &ImportSessionArgs, observer: &dyn Observer) -> Result<Imported> {
             board.display()
         );
     }
-    if a.out.exists() {
+    if a.out.exists() && !a.force {
         fail!(
             OutputTaken,
-            "{} exists: import writes a new data folder (choose another --out, or remove it)",
+            "{} exists: import writes a new data folder (choose another --out, or --force to replace it)",
             a.out.display()
         );
     }

@@ -15,6 +15,7 @@
 //! | a fit scored against a truth | [`eval`] | — |
 //! | one HTML page for a run | [`report_page`] | — |
 //! | the whole method on a synthetic scene | [`demo`] | — |
+//! | an imported synthetic session against its truth: cameras and computed masks | [`session_truth`] | — |
 //!
 //! The method's decisions that need no files (which pose a frame reports, which start of a multi-start is
 //! kept) live in `recon`; this crate reads and writes the run folders around them. Errors are [`Error`]s
@@ -39,6 +40,7 @@ pub mod render_trajectory;
 pub mod report_page;
 pub mod run_folder;
 pub mod run_session;
+pub mod session_truth;
 pub mod surfaces;
 pub mod synth;
 pub mod train;
