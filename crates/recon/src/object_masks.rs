@@ -117,20 +117,24 @@ pub fn object_masks(
             .collect();
         mosaic = Mosaic::new(images, cameras, &gains, region, board.z);
     }
-    let (candidates, (bars, differences)): (Vec<Vec<bool>>, (Vec<f32>, Vec<Vec<f32>>)) = (0..cameras.len())
+    // Each view's difference from the board, its seed bar, and its candidate mask.
+    let (differences, bars): (Vec<Vec<f32>>, Vec<f32>) = (0..cameras.len())
         .into_par_iter()
         .map(|i| {
-            let width = cameras[i].width as usize;
-            let d = mosaic.difference(images[i], width, &cells[i], gains[i], cfg.light);
+            let d = mosaic.difference(images[i], cameras[i].width as usize, &cells[i], gains[i], cfg.light);
             let bar = (cfg.seed_sigmas * median(&d)).max(cfg.floor);
-            let seeds: Vec<bool> = d.iter().map(|&v| v > bar).collect();
-            let weak: Vec<bool> = d.iter().map(|&v| v > cfg.grow * bar).collect();
-            (
-                clean(&grown_from(&weak, &seeds, width), width, cfg.speck, cfg.minor),
-                (bar, d),
-            )
+            (d, bar)
         })
         .unzip();
+    let candidates: Vec<Vec<bool>> = (0..cameras.len())
+        .into_par_iter()
+        .map(|i| {
+            let (d, bar, width) = (&differences[i], bars[i], cameras[i].width as usize);
+            let seeds: Vec<bool> = d.iter().map(|&v| v > bar).collect();
+            let weak: Vec<bool> = d.iter().map(|&v| v > cfg.grow * bar).collect();
+            clean(&grown_from(&weak, &seeds, width), width, cfg.speck, cfg.minor)
+        })
+        .collect();
     let hull = Hull::new(&candidates, cameras, region, board, cfg);
     let core = Hull::new(
         &candidates,
@@ -199,6 +203,14 @@ struct Mosaic {
     plain: Vec<bool>,
 }
 
+/// One cell of the mosaic as the views show it: the board's colour where enough agree, whether it lies under
+/// the object, whether nearly all agree.
+struct MosaicCell {
+    colour: Option<[f32; 3]>,
+    footprint: bool,
+    plain: bool,
+}
+
 /// How far the board's mosaic reaches from the region's centre, in radii: a grazing view sees the board
 /// far behind the object's top.
 const MOSAIC_REACH: usize = 5;
@@ -226,7 +238,7 @@ impl Mosaic {
         let cell = r / MOSAIC_CELLS_PER_RADIUS as f64;
         let n = 2 * MOSAIC_REACH * MOSAIC_CELLS_PER_RADIUS;
         let lo = [c.x - MOSAIC_REACH as f64 * r, c.y - MOSAIC_REACH as f64 * r];
-        let cells: Vec<(Option<[f32; 3]>, (bool, bool))> = (0..n * n)
+        let cells: Vec<MosaicCell> = (0..n * n)
             .into_par_iter()
             .map(|k| {
                 let x = Vec3::new(
@@ -249,12 +261,16 @@ impl Mosaic {
                     .then(|| std::array::from_fn(|ch| median(&group.iter().map(|&v| seen[v][ch]).collect::<Vec<_>>())));
                 // Only the board under the region can be under the object.
                 let under_region = (x.x - c.x).hypot(x.y - c.y) <= r;
-                let plain = agreed && group.len() as f64 >= MOSAIC_MOST * seen.len() as f64;
-                (colour, (!agreed && under_region && seen.len() >= MOSAIC_AGREE, plain))
+                MosaicCell {
+                    colour,
+                    footprint: !agreed && under_region && seen.len() >= MOSAIC_AGREE,
+                    plain: agreed && group.len() as f64 >= MOSAIC_MOST * seen.len() as f64,
+                }
             })
             .collect();
-        let (colours, flags): (Vec<_>, Vec<(bool, bool)>) = cells.into_iter().unzip();
-        let (footprint, plain) = flags.into_iter().unzip();
+        let colours = cells.iter().map(|c| c.colour).collect();
+        let footprint = cells.iter().map(|c| c.footprint).collect();
+        let plain = cells.iter().map(|c| c.plain).collect();
         Mosaic {
             lo,
             cell,
