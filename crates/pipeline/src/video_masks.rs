@@ -128,6 +128,80 @@ pub fn compute(
     })
 }
 
+/// A body's look ([`recon::body_masks::Look`]) as `camera` would see it: its reconstruction rendered resting
+/// on each of its six sides where the camera's axis meets the board (the side it shows in a video is not
+/// known before the fit).
+pub fn body_look(object: &neus::ObjectModel, camera: &geom::Camera<f64>) -> recon::body_masks::Look {
+    use geom::{Pose, Quat, Vec3};
+    use neus::compose::{render_composed, Behind, Composer, Layer};
+    let axis = camera.ray(camera.width as f64 / 2.0, camera.height as f64 / 2.0);
+    let s = if axis.dir.z < -1e-6 {
+        -axis.origin.z / axis.dir.z
+    } else {
+        0.3
+    };
+    let (lo, hi) = object.mesh.bounds();
+    let reach = (0..3).map(|i| lo[i].abs().max(hi[i].abs())).fold(0.0, f64::max);
+    let at = axis.at(s) + Vec3::new(0.0, 0.0, reach);
+    let quarter = std::f64::consts::FRAC_PI_2;
+    let sides = [
+        Quat::identity(),
+        Quat::exp(Vec3::new(2.0 * quarter, 0.0, 0.0)),
+        Quat::exp(Vec3::new(quarter, 0.0, 0.0)),
+        Quat::exp(Vec3::new(-quarter, 0.0, 0.0)),
+        Quat::exp(Vec3::new(0.0, quarter, 0.0)),
+        Quat::exp(Vec3::new(0.0, -quarter, 0.0)),
+    ];
+    let mut composer = Composer::default();
+    let mut colours = Vec::new();
+    for q in sides {
+        let pose = Pose::new(q, at);
+        let field = object.route(&pose, camera);
+        let layer = Layer::object(&field.field, &field.capture_from_body, &pose, 0);
+        let img = render_composed(&[layer], 1, Behind::Colour([0.0; 3]), camera, &mut composer);
+        colours.extend(
+            (0..img.rgb.len())
+                .filter(|&p| img.object_opacity[p] > 0.5)
+                .map(|p| img.rgb[p]),
+        );
+    }
+    recon::body_masks::Look::of(colours)
+}
+
+/// Each body's masks (`[body][frame]`) in a video of several bodies: everything that moves
+/// ([`compute`]), split among `objects` by their looks ([`body_look`]) and followed from frame to frame
+/// ([`recon::body_masks`]); a body with a first pose in `guesses` is followed from where it draws.
+pub fn compute_for_bodies(
+    video: &Path,
+    c: &pganeus_io::CaptureIndex,
+    scene: &neus::checkpoint::LoadedField,
+    objects: &[&neus::ObjectModel],
+    guesses: &[Option<geom::Pose<f64>>],
+    observer: &dyn Observer,
+) -> Result<Vec<Vec<Vec<bool>>>> {
+    let moving = compute(video, c, scene, observer)?;
+    let camera = crate::fit::fixed_camera(video, c)?;
+    let looks: Vec<recon::body_masks::Look> = objects.iter().map(|o| body_look(o, &camera)).collect();
+    let frames = c
+        .images
+        .iter()
+        .map(|p| crate::images::reference_frame(p))
+        .collect::<Result<Vec<_>>>()?;
+    let refs: Vec<&[[f32; 3]]> = frames.iter().map(|f| f.as_slice()).collect();
+    let seeds: Vec<Option<Vec<bool>>> = objects
+        .iter()
+        .zip(guesses.iter().chain(std::iter::repeat(&None)))
+        .map(|(o, g)| g.map(|pose| geom::silhouette(&camera, &o.mesh, &pose)))
+        .collect();
+    Ok(recon::body_masks::split_by_body(
+        &moving.masks,
+        &refs,
+        moving.width,
+        &looks,
+        &seeds,
+    ))
+}
+
 /// Writes `masks` (each `width` pixels a row) into `dir` as `000.png`, `001.png`, … (white inside).
 pub fn write_masks(dir: &Path, masks: &[Vec<bool>], width: usize) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

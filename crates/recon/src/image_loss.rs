@@ -641,7 +641,7 @@ fn bounding_box(mask: &[bool], width: u32) -> Option<[u32; 4]> {
 
 /// Each pixel's distance (pixels) to the nearest set pixel of `mask`: a two-pass chamfer transform with
 /// steps of 1 and √2 (within 8 % of Euclidean), enough for a pull. Without a set pixel, a large distance.
-fn distance_to_mask(mask: &[bool], width: u32, height: u32) -> Vec<f32> {
+pub(crate) fn distance_to_mask(mask: &[bool], width: u32, height: u32) -> Vec<f32> {
     let (w, h) = (width as usize, height as usize);
     let far = 1e6f32;
     let mut d: Vec<f32> = mask.iter().map(|&m| if m { 0.0 } else { far }).collect();

@@ -1,6 +1,7 @@
 //! Inverse problems on the differentiable simulator: the PGA step of Eq. 11
 //! (physics from a pose sequence) and target reaching (Sec. 4.1).
 
+pub mod body_masks;
 pub mod brightness_drift;
 mod clearance;
 pub mod colliding_bodies;

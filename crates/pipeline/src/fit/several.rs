@@ -67,6 +67,8 @@ pub(super) struct Prepared {
     scene_field: neus::checkpoint::LoadedField,
     grid: Option<SdfGrid>,
     rigid: Vec<RigidBody>,
+    /// Per body: its masks were computed (the video had none): written into the run folder for inspection.
+    computed_masks: Vec<bool>,
 }
 
 /// Every input read and checked, and the record of the fit.
@@ -79,12 +81,48 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let mut fps_of_capture = None;
     let mut videos = Vec::new();
     let capture = pganeus_io::open_capture(&a.video)?;
-    for (name, _) in objects {
-        let (frames, fps) = read_video(&a.video, &capture, name, false, a.frames, None)?;
+    let loaded = load_objects(objects)?;
+    let (scene_field, grid) = load_scene(a)?;
+    // A video without a body's masks: what moves, found against the scene, split among the bodies.
+    let missing: Vec<bool> = objects.iter().map(|(n, _)| !has_masks(&capture, n, false)).collect();
+    let computed = if missing.iter().any(|&m| m) {
+        tracing::info!(
+            "{}: no mask_<body>/ for {}: computing the bodies' masks from the frames, the scene and their looks",
+            a.video.display(),
+            objects
+                .iter()
+                .zip(&missing)
+                .filter(|(_, &m)| m)
+                .map(|((n, _), _)| n.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let models: Vec<&ObjectModel> = loaded.iter().map(|(_, o)| &**o).collect();
+        // Bodies that look alike are told apart by where their guessed first poses put them.
+        let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
+            vec![None; models.len()]
+        } else {
+            let named: Vec<(&str, &ObjectModel)> = loaded.iter().map(|(n, o)| (n.as_str(), &**o)).collect();
+            read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
+        };
+        Some(crate::video_masks::compute_for_bodies(
+            &a.video,
+            &capture,
+            &scene_field,
+            &models,
+            &guesses,
+            &crate::Quiet,
+        )?)
+    } else {
+        None
+    };
+    for (i, (name, _)) in objects.iter().enumerate() {
+        let own = computed.as_ref().filter(|_| missing[i]).map(|c| c[i].as_slice());
+        let (frames, fps) = read_video(&a.video, &capture, name, false, a.frames, own)?;
         fps_of_capture = fps_of_capture.or(fps);
         videos.push(frames);
     }
-    for ((name, object), frames) in load_objects(objects)?.into_iter().zip(videos) {
+    for ((name, object), frames) in loaded.into_iter().zip(videos) {
         bodies.push(Body { name, object, frames });
     }
     let n = bodies[0].frames.len();
@@ -101,7 +139,6 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
             check_guess_in_view(&cam, g, &b.name, &a.init)?;
         }
     }
-    let (scene_field, grid) = load_scene(a)?;
     let rigid = bodies
         .iter()
         .zip(objects)
@@ -120,6 +157,7 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
         scene_field,
         grid,
         rigid,
+        computed_masks: missing.into_iter().map(|m| m && computed.is_some()).collect(),
     };
     Ok((prepared, record))
 }
@@ -135,6 +173,12 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let (a, t_start) = (ctx.inputs, ctx.t_start);
     let n = p.bodies[0].frames.len();
     let cam = p.bodies[0].frames[0].camera;
+    for (b, _) in p.bodies.iter().zip(&p.computed_masks).filter(|(_, &c)| c) {
+        let masks: Vec<Vec<bool>> = b.frames.iter().map(|f| f.mask.clone()).collect();
+        let dir = ctx.out.join(format!("mask_{}", b.name));
+        crate::video_masks::write_masks(&dir, &masks, cam.width as usize)?;
+        tracing::info!("the computed masks of {}: {}", b.name, dir.display());
+    }
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, n, ctx.config, p.rigid)?;
     let scene_pre = scene_through(&p.scene_field, &cam);
