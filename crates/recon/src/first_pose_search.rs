@@ -560,6 +560,7 @@ mod tests {
             mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
             exposure: 1.0,
             shutter: 0.0,
+            mask_computed: false,
         };
         let defaults = FirstPoseSearchConfig::default();
         let cfg = FirstPoseSearchConfig {

@@ -53,6 +53,10 @@ pub struct FrameTarget {
     /// Seconds the shutter was open (0: an instant). A body whose motion is known
     /// ([`PreparedFrame::set_motion`]) is then drawn as the mean over that time ([`crate::shutter`]).
     pub shutter: f64,
+    /// The mask was computed from the frame ([`crate::video_masks`]), not drawn: its edge is uncertain by
+    /// about a pixel (a body's partial pixels, a blurred edge), so the pixels along it are left to the colour
+    /// terms ([`PreparedFrame`]'s edge band).
+    pub mask_computed: bool,
 }
 
 impl FrameTarget {
@@ -253,6 +257,8 @@ pub struct PreparedFrame<'a> {
     mask_box: Option<[u32; 4]>,
     /// The fitted body's velocity at the frame's instant, for the frame's shutter time ([`Self::set_motion`]).
     motion: Option<Motion>,
+    /// Pixels on a computed mask's edge (either side): compared by colour, not by the silhouette terms.
+    edge_band: Vec<bool>,
 }
 
 impl<'a> PreparedFrame<'a> {
@@ -285,6 +291,11 @@ impl<'a> PreparedFrame<'a> {
             mask_distance: distance_to_mask(&frame.mask, w, h),
             mask_box: bounding_box(&frame.mask, w),
             motion: None,
+            edge_band: if frame.mask_computed {
+                edge_band(&frame.mask, w as usize)
+            } else {
+                Vec::new()
+            },
         })
     }
 
@@ -473,8 +484,12 @@ impl<'a> PreparedFrame<'a> {
             pixels: pixels.len(),
             ..ImageLoss::default()
         };
-        // The colour L1 over the pixels inside the mask, after the brightness gain (fitted, or the frame's).
-        let in_mask: Vec<usize> = (0..pixels.len()).filter(|&j| self.frame.mask[pixels[j]]).collect();
+        // The colour L1 over the pixels inside the mask (and on a computed mask's uncertain edge, where the
+        // composed colour decides), after the brightness gain (fitted, or the frame's).
+        let on_edge = |p: usize| self.edge_band.get(p).copied().unwrap_or(false);
+        let in_mask: Vec<usize> = (0..pixels.len())
+            .filter(|&j| self.frame.mask[pixels[j]] || on_edge(pixels[j]))
+            .collect();
         let rendered_in: Vec<[f64; 3]> = in_mask.iter().map(|&j| rendered_rgb[j].map(f64::from)).collect();
         let target_in: Vec<[f64; 3]> = in_mask
             .iter()
@@ -497,6 +512,7 @@ impl<'a> PreparedFrame<'a> {
             let rendered_rgb = rendered_rgb[j];
             let op = opacity[j] as f64;
             let inside = self.frame.mask[p];
+            let edge = on_edge(p);
             let m = if inside { 1.0 } else { 0.0 };
             let dist = self.mask_distance[p] as f64 / weights.pull_scale_px;
             let mut g_rgb = [0.0f32; 3];
@@ -504,7 +520,7 @@ impl<'a> PreparedFrame<'a> {
                 let e = (rendered_rgb[k] - self.frame.rgb[p][k]) as f64;
                 out.mse += e * e / 3.0;
             }
-            if inside {
+            if inside || edge {
                 for k in 0..3 {
                     g_rgb[k] = (weights.colour * colour_grad_of[j][k] / n) as f32;
                 }
@@ -514,13 +530,15 @@ impl<'a> PreparedFrame<'a> {
                     *g += (weights.chromaticity * d / n) as f32;
                 }
             }
-            out.silhouette += (op - m) * (op - m);
+            // The silhouette terms leave a computed mask's edge to the colours.
+            let shape = if edge { 0.0 } else { 1.0 };
+            out.silhouette += shape * (op - m) * (op - m);
             out.pull += op * dist;
             out.intersection += (op > 0.5 && inside) as usize;
             out.union += (op > 0.5 || inside) as usize;
             if grad {
                 // Each sub-pose's render enters the mean with its share.
-                let g_op = (weights.silhouette * 2.0 * (op - m) + weights.pull * dist) / n;
+                let g_op = (weights.silhouette * shape * 2.0 * (op - m) + weights.pull * dist) / n;
                 grads.push(RayGradient {
                     rgb: g_rgb.map(|g| g * share),
                     depth: 0.0,
@@ -641,6 +659,25 @@ fn bounding_box(mask: &[bool], width: u32) -> Option<[u32; 4]> {
 
 /// Each pixel's distance (pixels) to the nearest set pixel of `mask`: a two-pass chamfer transform with
 /// steps of 1 and √2 (within 8 % of Euclidean), enough for a pull. Without a set pixel, a large distance.
+/// The pixels on `mask`'s edge, either side: those with a 4-neighbour of the other kind.
+fn edge_band(mask: &[bool], width: usize) -> Vec<bool> {
+    let height = mask.len() / width.max(1);
+    (0..mask.len())
+        .map(|p| {
+            let (x, y) = (p % width, p / width);
+            [
+                (x > 0).then(|| p - 1),
+                (x + 1 < width).then(|| p + 1),
+                (y > 0).then(|| p - width),
+                (y + 1 < height).then(|| p + width),
+            ]
+            .into_iter()
+            .flatten()
+            .any(|q| mask[q] != mask[p])
+        })
+        .collect()
+}
+
 pub(crate) fn distance_to_mask(mask: &[bool], width: u32, height: u32) -> Vec<f32> {
     let (w, h) = (width as usize, height as usize);
     let far = 1e6f32;
@@ -767,6 +804,7 @@ mod tests {
             mask,
             exposure: 1.0,
             shutter: 0.0,
+            mask_computed: false,
         };
         let ([mu, mv], area) = frame.mask_centroid().unwrap();
         assert!(
@@ -814,6 +852,7 @@ mod tests {
             mask: silhouette(&camera, &mesh, &truth),
             exposure: 1.0,
             shutter: 0.0,
+            mask_computed: false,
         };
         // 12 % farther along the line of sight: 20 % less area.
         let eye = camera.center();

@@ -79,6 +79,7 @@ fn frames_of_the_wrong_size_are_refused_by_index() {
         mask: vec![false; n],
         exposure: 1.0,
         shutter: 0.0,
+        mask_computed: false,
     };
     let frames = vec![frame(n), frame(n), frame(n - 1)];
     let c = ContactParams::default();

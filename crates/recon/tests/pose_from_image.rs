@@ -30,6 +30,7 @@ fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
         mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
         exposure: 1.0,
         shutter: 0.0,
+        mask_computed: false,
     };
     assert!(
         frame.mask.iter().filter(|&&m| m).count() > 300,
@@ -88,6 +89,7 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
         mask: vec![false; 48],
         exposure: 1.0,
         shutter: 0.0,
+        mask_computed: false,
     };
     let cfg = PoseFitConfig::default;
     assert_eq!(
@@ -148,6 +150,7 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         mask: (0..(w * h) as usize).map(|p| img.object_opacity[p * 2] > 0.5).collect(),
         exposure: 1.0,
         shutter: 0.0,
+        mask_computed: false,
     };
     let shown = frame.mask.iter().filter(|&&m| m).count();
     let ball_shown = (0..(w * h) as usize)
@@ -209,4 +212,61 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         e_with * 1e3
     );
     assert!(e_with < 2e-3, "{e_with} m");
+}
+
+/// A computed mask takes every pixel a body touches, a ring of a pixel too large; fitted to it as to a drawn
+/// mask, the silhouette pulls the body toward the camera to fill the ring. Marked as computed, its edge is
+/// left to the colours, and the body stays where the image shows it.
+#[test]
+fn a_computed_masks_edge_is_left_to_the_colours() {
+    let (w, h) = (96, 72);
+    let cam = camera(w, h);
+    let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
+    let toy = toy();
+    let mut composer = Composer::default();
+    let behind = prerender_scene(&scene, &cam, &mut composer);
+    let truth = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.01, 0.02, 0.0));
+    let layer = Layer::object(&toy.primary.field, &toy.primary.capture_from_body, &truth, 0);
+    let img = render_composed(&[layer], 1, Behind::Scene(&behind), &cam, &mut composer);
+    let drawn: Vec<bool> = img.object_opacity.iter().map(|&o| o > 0.5).collect();
+    let ring = geom::mask::dilate(&drawn, w as usize, 1);
+    let guess = Pose::new(truth.q, truth.t + Vec3::new(0.004, -0.003, 0.002));
+    let cfg = PoseFitConfig {
+        iterations: 80,
+        rays_per_step: 512,
+        ..PoseFitConfig::default()
+    };
+    let eye = cam.world_to_cam.inverse().t;
+    let err = |p: &Pose<f64>| {
+        let (a, b) = (sphere_centre(&toy, p), sphere_centre(&toy, &truth));
+        // Along the line of sight, positive toward the camera.
+        ((b - a).dot((eye - b) * (1.0 / (eye - b).norm())), (a - b).norm())
+    };
+    let fitted = |mask_computed: bool| {
+        let frame = FrameTarget {
+            camera: cam,
+            rgb: img.rgb.clone(),
+            mask: ring.clone(),
+            exposure: 1.0,
+            shutter: 0.0,
+            mask_computed,
+        };
+        let mut fit = PoseFromImage::new(cfg.clone(), &toy, &behind, &frame, guess).expect("a valid frame");
+        fit.run();
+        err(&fit.pose)
+    };
+    let (drawn_like, computed) = (fitted(false), fitted(true));
+    eprintln!(
+        "toward the camera / off: as a drawn mask {:.2} / {:.2} mm, as a computed one {:.2} / {:.2} mm",
+        -drawn_like.0 * 1e3,
+        drawn_like.1 * 1e3,
+        -computed.0 * 1e3,
+        computed.1 * 1e3
+    );
+    assert!(
+        computed.1 < 0.7 * drawn_like.1 && computed.1 < 1.5e-3,
+        "as a computed mask {:.2} mm off, as a drawn one {:.2} mm",
+        computed.1 * 1e3,
+        drawn_like.1 * 1e3
+    );
 }

@@ -621,6 +621,7 @@ fn with_noise(frames: &[recon::FrameTarget], amplitude: f64) -> Vec<recon::Frame
             mask: f.mask.clone(),
             exposure: f.exposure,
             shutter: f.shutter,
+            mask_computed: f.mask_computed,
         })
         .collect()
 }

@@ -59,6 +59,7 @@ fn blurred_frame(toy: &ObjectModel, behind: &[ComposedRay], cam: &Camera<f64>, t
         mask,
         exposure: 1.0,
         shutter: SHUTTER,
+        mask_computed: false,
     }
 }
 

@@ -471,6 +471,7 @@ pub(crate) fn read_video(
             mask,
             exposure: 1.0,
             shutter,
+            mask_computed: masks.is_none(),
         });
     }
     let mask_dir = match &masks {

@@ -116,6 +116,7 @@ pub fn film_poses(ball: &ObjectModel, poses: &[Pose<f64>]) -> (Vec<ComposedRay>,
                 mask: img.object_opacity.iter().map(|&o| o > 0.5).collect(),
                 exposure: 1.0,
                 shutter: 0.0,
+                mask_computed: false,
             }
         })
         .collect();
