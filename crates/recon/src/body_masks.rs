@@ -1,4 +1,4 @@
-//! One mask per body from the mask of everything that moves in a video ([`crate::video_masks`]): the
+//! One mask per body from the mask of everything that moves in a video ([`mod@crate::video_masks`]): the
 //! bodies told apart by their colours where they first appear, then followed from frame to frame.
 //!
 //! - **Which body a region is**: each body's look is the spread of its colours' chromaticity (the share of

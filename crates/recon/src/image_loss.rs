@@ -53,7 +53,7 @@ pub struct FrameTarget {
     /// Seconds the shutter was open (0: an instant). A body whose motion is known
     /// ([`PreparedFrame::set_motion`]) is then drawn as the mean over that time ([`crate::shutter`]).
     pub shutter: f64,
-    /// The mask was computed from the frame ([`crate::video_masks`]), not drawn: its edge is uncertain by
+    /// The mask was computed from the frame ([`mod@crate::video_masks`]), not drawn: its edge is uncertain by
     /// about a pixel (a body's partial pixels, a blurred edge), so the pixels along it are left to the colour
     /// terms ([`PreparedFrame`]'s edge band).
     pub mask_computed: bool,
