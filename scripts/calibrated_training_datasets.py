@@ -35,6 +35,15 @@ def intrinsics(world_mat):
     return k / k[2, 2]
 
 
+def on_truth_pinhole(raw, kc, f, lens_k, lens_d):
+    """A raw photo undistorted with the lens (lens_k, lens_d) onto the truth capture's pinhole kc at the raw
+    size (OpenCV's pixel centres), then shrunk by f to the capture's size."""
+    h, w = raw.shape[:2]
+    target = np.array([[f * kc[0, 0], 0, f * kc[0, 2] - 0.5], [0, f * kc[1, 1], f * kc[1, 2] - 0.5], [0, 0, 1]])
+    m1, m2 = cv2.initUndistortRectifyMap(lens_k, lens_d, None, target, (w, h), cv2.CV_32FC1)
+    return cv2.resize(cv2.remap(raw, m1, m2, cv2.INTER_LINEAR), (round(w / f), round(h / f)), interpolation=cv2.INTER_AREA)
+
+
 def carried_mask(mask, truth_k, report, truth_lens):
     """The truth's mask (drawn with the pinhole truth_k) resampled onto calibrate's capture pixels; truth_lens:
     camera_truth.json's `lens`."""
@@ -87,13 +96,8 @@ def main() -> None:
                 i = files.index(image)
                 kc = intrinsics(truth_mats[f"world_mat_{i}"])
                 if kind.startswith("truth_cameras"):
-                    # The truth capture's pinhole at the raw size (OpenCV's pixel centres), then shrunk to it.
                     raw = cv2.imread(f"{session}/raw/{name}/{image}")
-                    h, w = raw.shape[:2]
-                    target = np.array([[f * kc[0, 0], 0, f * kc[0, 2] - 0.5], [0, f * kc[1, 1], f * kc[1, 2] - 0.5], [0, 0, 1]])
-                    m1, m2 = cv2.initUndistortRectifyMap(lens_k, lens_d, None, target, (w, h), cv2.CV_32FC1)
-                    small = cv2.resize(cv2.remap(raw, m1, m2, cv2.INTER_LINEAR), (round(w / f), round(h / f)), interpolation=cv2.INTER_AREA)
-                    cv2.imwrite(f"{cd}/image/{k:03d}.png", small)
+                    cv2.imwrite(f"{cd}/image/{k:03d}.png", on_truth_pinhole(raw, kc, f, lens_k, lens_d))
                     mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
                 elif kind == "truth_renders":
                     shutil.copy(f"{session}/{name}/image/{renders[i]}", f"{cd}/image/{k:03d}.png")

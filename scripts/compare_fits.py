@@ -13,24 +13,7 @@ import json
 import math
 import sys
 
-
-def qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return [
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ]
-
-
-def conj(q):
-    return [q[0], -q[1], -q[2], -q[3]]
-
-
-def rotate(q, v):
-    return qmul(qmul(q, [0.0, *v]), conj(q))[1:]
+from guess_from_truth import qconj as conj, qmul, rotate
 
 
 def compose(a, b):

@@ -21,12 +21,7 @@ import sys
 import cv2
 import numpy as np
 
-
-def intrinsics(world_mat):
-    """K of world_mat = K [R | t] (RQ decomposition), positive diagonal, K[2,2] = 1."""
-    q, r = np.linalg.qr(np.flipud(world_mat[:3, :3]).T)
-    k = np.abs(np.fliplr(np.flipud(r.T)))
-    return k / k[2, 2]
+from calibrated_training_datasets import intrinsics, on_truth_pinhole
 
 
 def main() -> None:
@@ -55,14 +50,7 @@ def main() -> None:
             i = files.index(image)
             kc = intrinsics(truth_mats[f"world_mat_{i}"])
             raw = cv2.imread(f"{session}/raw/{name}/{image}")
-            h, w = raw.shape[:2]
-            # The truth capture's pinhole at the raw size (OpenCV's pixel centres), then shrunk to it.
-            target = np.array([[f * kc[0, 0], 0, f * kc[0, 2] - 0.5], [0, f * kc[1, 1], f * kc[1, 2] - 0.5], [0, 0, 1]])
-            m1, m2 = cv2.initUndistortRectifyMap(lens_k, lens_d, None, target, (w, h), cv2.CV_32FC1)
-            small = cv2.resize(
-                cv2.remap(raw, m1, m2, cv2.INTER_LINEAR), (round(w / f), round(h / f)), interpolation=cv2.INTER_AREA
-            )
-            cv2.imwrite(f"{cd}/image/{k:03d}.png", small)
+            cv2.imwrite(f"{cd}/image/{k:03d}.png", on_truth_pinhole(raw, kc, f, lens_k, lens_d))
             mats[f"world_mat_{k}"] = truth_mats[f"world_mat_{i}"]
             mats[f"scale_mat_{k}"] = truth_mats[f"scale_mat_{i}"]
             for d in mask_dirs:

@@ -775,7 +775,7 @@ fn minutes(s: f64) -> String {
     }
 }
 
-fn read_json(p: &Path) -> Result<Value> {
+pub(crate) fn read_json(p: &Path) -> Result<Value> {
     let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}", p.display()))
 }

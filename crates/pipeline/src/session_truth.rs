@@ -8,6 +8,7 @@ use std::path::Path;
 use geom::{Camera, Pose, Quat, Vec3};
 use serde_json::Value;
 
+use crate::demo::read_json;
 use crate::error::{err, Context};
 use crate::Result;
 
@@ -51,11 +52,6 @@ impl MaskScore {
 /// A video frame is scored where the body covers at least this many pixels (the bar: a body
 /// smaller than that is a few pixels' edge, where one pixel moves the IoU by percents).
 pub const VIDEO_MIN_PIXELS: usize = 200;
-
-fn read_json(p: &Path) -> Result<Value> {
-    let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))
-}
 
 /// Each camera of a capture folder.
 fn capture_cameras(dir: &Path) -> Result<Vec<Camera<f64>>> {
@@ -202,13 +198,6 @@ pub fn cameras(imported: &Path, truth_dir: &Path) -> Result<CameraScore> {
     })
 }
 
-/// A mask image as coverage (any channel's first sample above half).
-fn read_mask(path: &Path) -> Result<Vec<bool>> {
-    let image = pganeus_io::read_image(path)?;
-    let c = image.channels as usize;
-    Ok(image.data.chunks(c).map(|p| p[0] > 127).collect())
-}
-
 /// The mask files of a folder of `NNN.png`, sorted.
 fn mask_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut files: Vec<_> = std::fs::read_dir(dir)
@@ -248,7 +237,7 @@ fn score_masks(
         if truth.iter().filter(|&&x| x).count() < min_pixels {
             continue;
         }
-        let found = read_mask(file)?;
+        let found = crate::images::read_mask(file)?;
         if found.len() != truth.len() {
             crate::error::fail!(Input, "{}: not the capture's image size", file.display());
         }

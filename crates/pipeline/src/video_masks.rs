@@ -73,6 +73,8 @@ pub struct ComputedMasks {
     /// The scene rendered through the video's camera.
     pub rendered: Vec<[f32; 3]>,
     pub width: usize,
+    /// The frames, as the fit reads them.
+    pub frames: Vec<Vec<[f32; 3]>>,
 }
 
 /// The masks of a video's moving bodies (the capture `c`, opened from `video`), computed against the scene's
@@ -125,6 +127,7 @@ pub fn compute(
         stats,
         rendered,
         width,
+        frames,
     })
 }
 
@@ -182,12 +185,7 @@ pub fn compute_for_bodies(
     let moving = compute(video, c, scene, observer)?;
     let camera = crate::fit::fixed_camera(video, c)?;
     let looks: Vec<recon::body_masks::Look> = objects.iter().map(|o| body_look(o, &camera)).collect();
-    let frames = c
-        .images
-        .iter()
-        .map(|p| crate::images::reference_frame(p))
-        .collect::<Result<Vec<_>>>()?;
-    let refs: Vec<&[[f32; 3]]> = frames.iter().map(|f| f.as_slice()).collect();
+    let refs: Vec<&[[f32; 3]]> = moving.frames.iter().map(|f| f.as_slice()).collect();
     let seeds: Vec<Option<Vec<bool>>> = objects
         .iter()
         .zip(guesses.iter().chain(std::iter::repeat(&None)))
@@ -272,6 +270,7 @@ pub fn run(a: &MasksArgs, observer: &dyn Observer) -> Result<MasksReport> {
             stats,
             rendered,
             width,
+            ..
         } = compute(&a.video, &c, &scene, observer)?;
         // The rendering and the background it became, for inspection.
         let rgb = |img: &[[f32; 3]]| Image {

@@ -303,14 +303,19 @@ impl Mosaic {
             .collect()
     }
 
+    /// The index of the cell nearest the fractional `cell`.
+    fn nearest(&self, cell: Option<(f64, f64)>) -> Option<usize> {
+        cell.map(|(fx, fy)| (fy + 0.5) as usize * self.n + (fx + 0.5) as usize)
+    }
+
     /// Whether nearly every view that sees the plane at `cell` shows it alike.
     fn plain_at(&self, cell: Option<(f64, f64)>) -> bool {
-        cell.is_some_and(|(fx, fy)| self.plain[(fy + 0.5) as usize * self.n + (fx + 0.5) as usize])
+        self.nearest(cell).is_some_and(|k| self.plain[k])
     }
 
     /// Whether the plane at `cell` lies under the object.
     fn under_object(&self, cell: Option<(f64, f64)>) -> bool {
-        cell.is_some_and(|(fx, fy)| self.footprint[(fy + 0.5) as usize * self.n + (fx + 0.5) as usize])
+        self.nearest(cell).is_some_and(|k| self.footprint[k])
     }
 
     /// The board's colour at `cell` (bilinear between the cells that hold it).

@@ -2,8 +2,9 @@
 //! found again from a guess 2 cm off (a third of its size) and turned, by the
 //! composed renderer's pose gradients of colour and silhouette.
 
+use geom::Camera;
 use geom::{Pose, Quat, Vec3};
-use neus::compose::{prerender_scene, render_composed, Behind, Composer, Layer};
+use neus::compose::{prerender_scene, render_composed, Behind, ComposedImage, ComposedRay, Composer, Layer};
 use neus::object_model::ObjectField;
 use neus::untrained_field::untrained_field;
 use neus::{FieldInit, ObjectModel};
@@ -13,10 +14,10 @@ use std::path::PathBuf;
 use crate::sphere_toy;
 use sphere_toy::{bounds_mesh, camera, sphere_centre, toy};
 
-#[test]
-fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
-    let (w, h) = (96, 72);
-    let cam = camera(w, h);
+/// The sphere toy rendered on an untrained board at a known pose through a 96 × 72 camera: the camera, the
+/// toy, the board pre-rendered through it, the true pose and the frame's colours and the toy's opacity.
+fn toy_on_the_board() -> (Camera<f64>, ObjectModel, Vec<ComposedRay>, Pose<f64>, ComposedImage) {
+    let cam = camera(96, 72);
     let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
     let toy = toy();
     let mut composer = Composer::default();
@@ -24,6 +25,12 @@ fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
     let truth = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.01, 0.02, 0.0));
     let layer = Layer::object(&toy.primary.field, &toy.primary.capture_from_body, &truth, 0);
     let img = render_composed(&[layer], 1, Behind::Scene(&behind), &cam, &mut composer);
+    (cam, toy, behind, truth, img)
+}
+
+#[test]
+fn the_first_pose_is_found_from_a_guess_two_centimetres_off() {
+    let (cam, toy, behind, truth, img) = toy_on_the_board();
     let frame = FrameTarget {
         camera: cam,
         rgb: img.rgb.clone(),
@@ -219,17 +226,9 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
 /// left to the colours, and the body stays where the image shows it.
 #[test]
 fn a_computed_masks_edge_is_left_to_the_colours() {
-    let (w, h) = (96, 72);
-    let cam = camera(w, h);
-    let scene = untrained_field(FieldInit::Board, Vec3::new(0.0, 0.0, 0.05), 0.3, 7);
-    let toy = toy();
-    let mut composer = Composer::default();
-    let behind = prerender_scene(&scene, &cam, &mut composer);
-    let truth = Pose::new(Quat::exp(Vec3::new(0.0, 0.0, 0.4)), Vec3::new(0.01, 0.02, 0.0));
-    let layer = Layer::object(&toy.primary.field, &toy.primary.capture_from_body, &truth, 0);
-    let img = render_composed(&[layer], 1, Behind::Scene(&behind), &cam, &mut composer);
+    let (cam, toy, behind, truth, img) = toy_on_the_board();
     let drawn: Vec<bool> = img.object_opacity.iter().map(|&o| o > 0.5).collect();
-    let ring = geom::mask::dilate(&drawn, w as usize, 1);
+    let ring = geom::mask::dilate(&drawn, cam.width as usize, 1);
     let guess = Pose::new(truth.q, truth.t + Vec3::new(0.004, -0.003, 0.002));
     let cfg = PoseFitConfig {
         iterations: 80,

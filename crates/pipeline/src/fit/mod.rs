@@ -421,6 +421,17 @@ pub(crate) fn has_masks(c: &pganeus_io::CaptureIndex, name: &str, single: bool) 
     c.extra_masks.iter().any(|(n, _)| n == name) || (single && c.masks.is_some())
 }
 
+/// Body `name`'s masks, computed (the video had none), written into the fit folder `out` as `mask_<name>/`
+/// for inspection.
+pub(crate) fn write_computed_masks(out: &Path, name: &str, frames: &[FrameTarget]) -> Result<()> {
+    let masks: Vec<Vec<bool>> = frames.iter().map(|f| f.mask.clone()).collect();
+    let dir = out.join(format!("mask_{name}"));
+    let width = frames.first().map_or(1, |f| f.camera.width as usize);
+    crate::video_masks::write_masks(&dir, &masks, width)?;
+    tracing::info!("the computed masks of {name}: {}", dir.display());
+    Ok(())
+}
+
 /// The video's frames for body `name` (the capture `c`, opened from `dir`): images, the body's masks
 /// (`computed` where the video has none) and the one fixed camera.
 pub(crate) fn read_video(

@@ -83,6 +83,12 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let capture = pganeus_io::open_capture(&a.video)?;
     let loaded = load_objects(objects)?;
     let (scene_field, grid) = load_scene(a)?;
+    let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
+        vec![None; loaded.len()]
+    } else {
+        let named: Vec<(&str, &ObjectModel)> = loaded.iter().map(|(n, o)| (n.as_str(), &**o)).collect();
+        read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
+    };
     // A video without a body's masks: what moves, found against the scene, split among the bodies.
     let missing: Vec<bool> = objects.iter().map(|(n, _)| !has_masks(&capture, n, false)).collect();
     let computed = if missing.iter().any(|&m| m) {
@@ -99,12 +105,6 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
         );
         let models: Vec<&ObjectModel> = loaded.iter().map(|(_, o)| &**o).collect();
         // Bodies that look alike are told apart by where their guessed first poses put them.
-        let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
-            vec![None; models.len()]
-        } else {
-            let named: Vec<(&str, &ObjectModel)> = loaded.iter().map(|(n, o)| (n.as_str(), &**o)).collect();
-            read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
-        };
         Some(crate::video_masks::compute_for_bodies(
             &a.video,
             &capture,
@@ -127,12 +127,6 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     }
     let n = bodies[0].frames.len();
     let fps = video_fps(a, fps_of_capture)?;
-    let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
-        vec![None; bodies.len()]
-    } else {
-        let named: Vec<(&str, &ObjectModel)> = bodies.iter().map(|b| (b.name.as_str(), &*b.object)).collect();
-        read_guesses(&a.init, &named)?.into_iter().map(Some).collect()
-    };
     let cam = bodies[0].frames[0].camera;
     for (b, g) in bodies.iter().zip(&guesses) {
         if let Some(g) = g {
@@ -174,10 +168,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let n = p.bodies[0].frames.len();
     let cam = p.bodies[0].frames[0].camera;
     for (b, _) in p.bodies.iter().zip(&p.computed_masks).filter(|(_, &c)| c) {
-        let masks: Vec<Vec<bool>> = b.frames.iter().map(|f| f.mask.clone()).collect();
-        let dir = ctx.out.join(format!("mask_{}", b.name));
-        crate::video_masks::write_masks(&dir, &masks, cam.width as usize)?;
-        tracing::info!("the computed masks of {}: {}", b.name, dir.display());
+        write_computed_masks(ctx.out, &b.name, &b.frames)?;
     }
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, n, ctx.config, p.rigid)?;

@@ -132,10 +132,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let (a, t_start) = (ctx.inputs, ctx.t_start);
     let cam = p.frames[0].camera;
     if p.computed_masks {
-        let masks: Vec<Vec<bool>> = p.frames.iter().map(|f| f.mask.clone()).collect();
-        let dir = ctx.out.join(format!("mask_{}", p.name));
-        crate::video_masks::write_masks(&dir, &masks, cam.width as usize)?;
-        tracing::info!("the computed masks: {}", dir.display());
+        write_computed_masks(ctx.out, &p.name, &p.frames)?;
     }
     let grid = scene_grid(p.grid, &p.scene_field, &a.scene, ctx.out, ctx.observer)?;
     let world = fit_world(grid, p.fps, p.frames.len(), ctx.config, vec![p.body])?;
