@@ -4,7 +4,10 @@
 use crate::error::{err, fail, Context};
 use crate::Result;
 use geom::{Camera, Pose};
+use neus::compose::{prerender_scene, ComposedRay, Composer};
 use serde::Deserialize;
+use std::path::Path;
+use std::time::Instant;
 
 /// An opened capture's cameras, one per image, in its world frame.
 pub fn world_cameras(c: &pganeus_io::CaptureIndex) -> Result<Vec<geom::Camera<f64>>> {
@@ -16,6 +19,41 @@ pub fn world_cameras(c: &pganeus_io::CaptureIndex) -> Result<Vec<geom::Camera<f6
                 .map_err(|e| err!(Input, "{}: camera {i}: {e}", c.dir.join("cameras_sphere.npz").display()))
         })
         .collect()
+}
+
+/// The one camera of a video `c` (in `dir`): every `world_mat` must be the first's.
+pub fn fixed_camera(dir: &Path, c: &pganeus_io::CaptureIndex) -> Result<Camera<f64>> {
+    let cameras = world_cameras(c)?;
+    let m0 = cameras[0].world_mat();
+    let scale = m0.iter().flatten().map(|v| v.abs()).fold(1e-12, f64::max);
+    for (k, cam) in cameras.iter().enumerate().skip(1) {
+        let m = cam.world_mat();
+        let diff = m
+            .iter()
+            .flatten()
+            .zip(m0.iter().flatten())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        if diff > 1e-9 * scale {
+            fail!(
+                Input,
+                "{}: world_mat_{k} differs from world_mat_0 (by {diff:.3e}): a video must come from one fixed camera",
+                dir.join("cameras_sphere.npz").display()
+            );
+        }
+    }
+    Ok(cameras[0])
+}
+
+/// The scene through the video's fixed camera, once: what every render of the fit composes its bodies over.
+pub fn scene_through(scene: &neus::checkpoint::LoadedField, cam: &Camera<f64>) -> Vec<ComposedRay> {
+    let t = Instant::now();
+    let pre = prerender_scene(scene, cam, &mut Composer::default());
+    tracing::info!(
+        "the scene rendered through the video's camera in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    pre
 }
 
 /// A camera given by the user.

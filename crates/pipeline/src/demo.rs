@@ -10,6 +10,7 @@ use crate::eval::EvalArgs;
 use crate::fit::{FitInputs, FitRun, Stage};
 use crate::import_session::ImportSessionArgs;
 use crate::report_page::ReportArgs;
+use crate::run_folder::read_json;
 use crate::surfaces::{BakeArgs, MergeArgs};
 use crate::synth::{PhysicsArg, RawBoardArg, ScaleArg, SynthArgs};
 use crate::train::TrainArgs;
@@ -773,11 +774,6 @@ fn minutes(s: f64) -> String {
     } else {
         format!("{:.1} min", s / 60.0)
     }
-}
-
-pub(crate) fn read_json(p: &Path) -> Result<Value> {
-    let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}", p.display()))
 }
 
 /// The raw footage's part of the report: the cameras `import` found and the masks the method computed,

@@ -46,6 +46,12 @@ pub fn settings_over<T: serde::Serialize + serde::de::DeserializeOwned>(
         .map_err(|e| err!(Input, "{source}: {e}"))
 }
 
+/// A JSON file of a run, read whole.
+pub fn read_json(p: &std::path::Path) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}", p.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::config_over;

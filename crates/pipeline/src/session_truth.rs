@@ -8,8 +8,8 @@ use std::path::Path;
 use geom::{Camera, Pose, Quat, Vec3};
 use serde_json::Value;
 
-use crate::demo::read_json;
 use crate::error::{err, Context};
+use crate::run_folder::read_json;
 use crate::Result;
 
 /// How far the imported cameras are from the truth, over every photo and video frame `import` kept.

@@ -85,7 +85,7 @@ pub fn compute(
     scene: &neus::checkpoint::LoadedField,
     observer: &dyn Observer,
 ) -> Result<ComputedMasks> {
-    let camera = crate::fit::fixed_camera(video, c)?;
+    let camera = crate::cameras::fixed_camera(video, c)?;
     let width = camera.width as usize;
     let pb = Task::start(observer, "reading frames", c.images.len() as u64);
     let frames = c
@@ -116,7 +116,7 @@ pub fn compute(
             frames.len()
         );
     }
-    let rendered: Vec<[f32; 3]> = crate::fit::scene_through(scene, &camera)
+    let rendered: Vec<[f32; 3]> = crate::cameras::scene_through(scene, &camera)
         .into_iter()
         .map(|r| r.rgb)
         .collect();
@@ -183,7 +183,7 @@ pub fn compute_for_bodies(
     observer: &dyn Observer,
 ) -> Result<Vec<Vec<Vec<bool>>>> {
     let moving = compute(video, c, scene, observer)?;
-    let camera = crate::fit::fixed_camera(video, c)?;
+    let camera = crate::cameras::fixed_camera(video, c)?;
     let looks: Vec<recon::body_masks::Look> = objects.iter().map(|o| body_look(o, &camera)).collect();
     let refs: Vec<&[[f32; 3]]> = moving.frames.iter().map(|f| f.as_slice()).collect();
     let seeds: Vec<Option<Vec<bool>>> = objects

@@ -19,14 +19,14 @@
 mod several;
 mod single;
 
-use crate::cameras::world_cameras;
+use crate::cameras::{fixed_camera, scene_through};
 use crate::error::{err, fail, Context};
 use crate::images::{read_mask, reference_frame};
 use crate::run_folder::checkpoint_of;
 use crate::{Error, Observer, Result, Resume, Task};
 use geom::{Camera, Pose, Quat, Vec3};
 use neus::checkpoint::load_field;
-use neus::compose::{prerender_scene, ComposedRay, Composer};
+use neus::compose::{ComposedRay, Composer};
 use neus::ObjectModel;
 use pganeus_io::Image;
 use recon::video_fit::pose_from_guess;
@@ -392,30 +392,6 @@ pub(crate) struct RecordInputs {
     pub(crate) no_ga: bool,
 }
 
-/// The one camera of a video `c` (in `dir`): every `world_mat` must be the first's.
-pub(crate) fn fixed_camera(dir: &Path, c: &pganeus_io::CaptureIndex) -> Result<Camera<f64>> {
-    let cameras = world_cameras(c)?;
-    let m0 = cameras[0].world_mat();
-    let scale = m0.iter().flatten().map(|v| v.abs()).fold(1e-12, f64::max);
-    for (k, cam) in cameras.iter().enumerate().skip(1) {
-        let m = cam.world_mat();
-        let diff = m
-            .iter()
-            .flatten()
-            .zip(m0.iter().flatten())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        if diff > 1e-9 * scale {
-            fail!(
-                Input,
-                "{}: world_mat_{k} differs from world_mat_0 (by {diff:.3e}): a video must come from one fixed camera",
-                dir.join("cameras_sphere.npz").display()
-            );
-        }
-    }
-    Ok(cameras[0])
-}
-
 /// Whether the video `c` has masks for body `name` (its `mask_<NAME>/`, or with one body `mask/`).
 pub(crate) fn has_masks(c: &pganeus_io::CaptureIndex, name: &str, single: bool) -> bool {
     c.extra_masks.iter().any(|(n, _)| n == name) || (single && c.masks.is_some())
@@ -685,17 +661,6 @@ pub(crate) fn fit_world(
         .validate()
         .map_err(|e| err!(Settings, "settings: sim.{}: {}", e.field, e.msg))?;
     Ok(world)
-}
-
-/// The scene through the video's fixed camera, once: what every render of the fit composes its bodies over.
-pub(crate) fn scene_through(scene: &neus::checkpoint::LoadedField, cam: &Camera<f64>) -> Vec<ComposedRay> {
-    let t = Instant::now();
-    let pre = prerender_scene(scene, cam, &mut Composer::default());
-    tracing::info!(
-        "the scene rendered through the video's camera in {:.1} s",
-        t.elapsed().as_secs_f64()
-    );
-    pre
 }
 
 /// The output folder: a new one (or, starting over, one emptied of stage results), or the same fit resumed;
