@@ -23,10 +23,11 @@ use crate::fit_physics::{
     fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartContact, StartResult, StartsOn,
 };
 use crate::poses_from_video::carried_on;
+use crate::resting_start::{resting_start, RestingStart};
 use crate::value_ranges::{contact_value_ranges, RangeScan, ValueRange};
 use crate::video_fit::{clearance, launch_guess, launch_start, TOUCHING};
 use crate::CONTACT_STARTS;
-use geom::Pose;
+use geom::{Camera, Pose};
 use sim::sdf::Sdf;
 use sim::{BodyState, World};
 
@@ -139,6 +140,8 @@ pub struct ObservedBodies {
     pub eye: Option<[f64; 3]>,
     /// Per body, per frame: GA held the body on the scene ([`Observed::depth_held`]). Empty: none.
     pub depth_held: Vec<Vec<bool>>,
+    /// Per body: at rest from the start ([`Self::settle_resting`]). Empty: none.
+    pub resting: Vec<Option<RestingStart>>,
 }
 
 impl ObservedBodies {
@@ -149,6 +152,25 @@ impl ObservedBodies {
             weights,
             ..Self::default()
         }
+    }
+
+    /// Each body at rest on the scene from the start ([`resting_start`], in the images of `camera`) is
+    /// observed at its resting pose over its still frames and starts there at rest ([`StartContact::Rest`]:
+    /// no launch, its pose held). The rests found, per body.
+    pub fn settle_resting(&mut self, world: &World, camera: &Camera<f64>) -> &[Option<RestingStart>] {
+        self.resting = self
+            .poses
+            .iter_mut()
+            .enumerate()
+            .map(|(b, poses)| {
+                let rest = resting_start(&world.bodies[b], &world.scene, poses, camera)?;
+                for p in &mut poses[..rest.frames] {
+                    *p = rest.pose;
+                }
+                Some(rest)
+            })
+            .collect();
+        &self.resting
     }
 
     /// Body `b`'s observations over frames `from..to`, with the camera and the held frames of that span.
@@ -175,7 +197,10 @@ impl ObservedBodies {
 /// How each body launches: along the scene the first frame shows it on (with `in_plane`).
 fn launch_starts(world: &World, observed: &ObservedBodies, in_plane: bool) -> Vec<StartContact> {
     (0..observed.poses.len())
-        .map(|b| launch_start(&world.bodies[b], &world.scene, &observed.poses[b][0], in_plane))
+        .map(|b| match observed.resting.get(b).copied().flatten() {
+            Some(rest) => rest.start(),
+            None => launch_start(&world.bodies[b], &world.scene, &observed.poses[b][0], in_plane),
+        })
         .collect()
 }
 
@@ -266,15 +291,16 @@ pub fn fit_colliding_bodies(
     let free = contacts.first().map_or(n, |c| c.1).clamp(2, n);
     let mut world = world;
     world.config.frames = n;
+    // A body the first frame shows on the scene launches along it; one at rest there does not launch.
+    let starts = launch_starts(&world, &observed, launch.in_plane);
     for (b, ps) in poses.iter().enumerate() {
         let touching = clearance(&world.bodies[b], &world.scene, &ps[0]) < TOUCHING;
         let launch = &ps[..(1 + launch_frames).min(free)];
         let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
+        let (v, omega) = starts[b].allowed_launch(v, omega);
         world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
     }
     let guess = world.clone();
-    // A body the first frame shows on the scene launches along it.
-    let starts = launch_starts(&world, &observed, launch.in_plane);
     let observed_to = |upto: usize| observed_from_start(&observed, &starts, upto);
     let grid: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
     let mut steps = Vec::new();

@@ -247,6 +247,9 @@ impl StartContact {
     /// The launch `(v0, ω0)` nearest to the given one that this start allows (the parts it rules out
     /// taken away): the same subspace PA and PGA fit in.
     pub fn allowed_launch(&self, v: [f64; 3], omega: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        if let StartContact::Rest { .. } = self {
+            return ([0.0; 3], [0.0; 3]);
+        }
         let mut u = Unknowns::default();
         u.push_launch(0, *self, true, true);
         let mut p: Vec<f64> = v.iter().chain(&omega).copied().collect();
@@ -322,6 +325,10 @@ impl PhysicsFit {
                 return Err(FitError::BadPose(i));
             }
             world.initial[o.body].pose = Pose::new(o.poses[0].q.normalize_or_identity(), o.poses[0].t);
+            if let StartContact::Rest { .. } = o.start {
+                world.initial[o.body].v = Vec3::new(0.0, 0.0, 0.0);
+                world.initial[o.body].omega = Vec3::new(0.0, 0.0, 0.0);
+            }
             let diameter = 2.0 * world.bodies[o.body].bounding_radius;
             sights.push(
                 o.poses
@@ -349,7 +356,7 @@ impl PhysicsFit {
         let mut contact_values = Vec::new();
         for (&b, &start) in bodies.iter().zip(&starts) {
             let o = world.body_param_offset(b);
-            if cfg.fit_initial_pose {
+            if cfg.fit_initial_pose && !matches!(start, StartContact::Rest { .. }) {
                 for k in 0..6 {
                     unknowns.push_param(o + k, probe_scale(k), false);
                 }

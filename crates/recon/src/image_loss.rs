@@ -41,6 +41,7 @@ use serde::{Deserialize, Serialize};
 use std::sync::{Mutex, MutexGuard};
 
 /// One frame of a fixed camera: its image and one body's mask.
+#[derive(Clone)]
 pub struct FrameTarget {
     pub camera: Camera<f64>,
     /// Row-major, `width × height`, linear 0–1 as the renderer outputs.
@@ -60,6 +61,17 @@ pub struct FrameTarget {
 }
 
 impl FrameTarget {
+    /// The frame with its mask's whole outline in the silhouette terms, computed or not: the first pose is
+    /// found from the outline (its overlap and its pull), and leaving a computed edge's pixels to the colours
+    /// pays only in the later stages' fine fit (on a camera-like backdrop the band let the first pose slide
+    /// 40 mm into a wrong minimum).
+    pub fn with_whole_outline(&self) -> FrameTarget {
+        FrameTarget {
+            mask_computed: false,
+            ..self.clone()
+        }
+    }
+
     /// The mask's centroid in pixel coordinates and its area in pixels (`None` when it is empty).
     pub fn mask_centroid(&self) -> Option<([f64; 2], usize)> {
         let w = self.camera.width as usize;

@@ -21,6 +21,7 @@ pub mod pose_from_image;
 pub mod poses_from_video;
 pub mod reported_poses;
 pub mod rest;
+pub mod resting_start;
 pub mod seen_space;
 pub mod shutter;
 pub mod target;
@@ -52,6 +53,7 @@ pub use poses_from_video::{
     FramePose, PosesFromVideo, PosesFromVideoConfig, PosesFromVideoError, StartFrom, STILL_LOSS_SLACK,
 };
 pub use reported_poses::{reported_poses, simulation_misses, ReportedPose};
+pub use resting_start::{resting_start, RestingStart};
 pub use seen_space::scene_less_seen;
 pub use shutter::Motion;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};

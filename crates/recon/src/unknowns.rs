@@ -66,6 +66,9 @@ impl Unknowns {
     /// `velocity`, `spin`: whether each is fitted at all.
     pub fn push_launch(&mut self, first: usize, start: StartContact, velocity: bool, spin: bool) {
         let (v, w) = (first, first + 3);
+        if let StartContact::Rest { .. } = start {
+            return;
+        }
         match start {
             StartContact::Touching { normal } | StartContact::Face { normal } if velocity => {
                 self.push_in_plane(v, normal, probe_scale(6))
@@ -188,6 +191,9 @@ pub enum StartContact {
     /// one side of it into the scene, which stops it within a substep, so the video cannot tell it (a
     /// sliding box's fit took a spin of 11 rad/s about such an axis and lost the slide).
     Face { normal: [f64; 3] },
+    /// At rest on the scene from the start until something moves it ([`crate::resting_start`]): no launch
+    /// (v0 = ω0 = 0) and its resting pose held, whether or not the fit moves the other initial poses.
+    Rest { normal: [f64; 3] },
 }
 
 /// The pattern search's first step for a parameter: 2 mm and 0.02 rad of initial pose, 5 cm/s, 0.5 rad/s,

@@ -122,7 +122,7 @@ const FACE_WIDTH: f64 = 0.25;
 /// two off (the tabletop slide's first pose from a guess 15° off touched along an edge, which freed a spin
 /// about the board's axes that the fit then took: 3.65 rad/s off, 0.31 on the face, 320 × 240), and a reconstructed face's normals are
 /// a degree or two rough. A ball's cap that faces within it is `sin 5°` = 0.09 of its radius wide.
-const FACING_ANGLE: f64 = 5.0 * std::f64::consts::PI / 180.0;
+pub(crate) const FACING_ANGLE: f64 = 5.0 * std::f64::consts::PI / 180.0;
 
 /// The narrower RMS half-width of `points` in the plane spanned by `a` and `b` (the square root of the
 /// smaller eigenvalue of their 2 × 2 covariance); 0 without points.

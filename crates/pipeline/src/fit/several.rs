@@ -273,7 +273,14 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let t = Instant::now();
     let ranges = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
     time("ranges", t);
-    finish(&m, &kept.world, &stand_ins, losses, &ranges, &timings, &mut outcome)?;
+    let rests = pga_observed(&m, kept_ga).resting;
+    let reported = Reported {
+        ga: &stand_ins,
+        sim_losses: losses,
+        ranges: &ranges,
+        rests: &rests,
+    };
+    finish(&m, &kept.world, reported, &timings, &mut outcome)?;
     outcome.ga = Some(stand_ins);
     outcome.ranges = ranges;
     outcome.world = Some(kept.world);
@@ -395,7 +402,7 @@ fn stage_first(
                 &m.cfg.first_pose,
                 &body.object,
                 &m.scene_pre,
-                &body.frames[0],
+                &body.frames[0].with_whole_outline(),
                 starts[b].0,
             )?;
             set_exposures(&mut m.bodies[b].frames, exposure, &m.drift);
@@ -408,7 +415,8 @@ fn stage_first(
     let mut entries = Map::new();
     for (b, body) in m.bodies.iter().enumerate() {
         let occluders = others(m, b, |o| fitted.get(o).map_or(starts[o].0, |f| f.0));
-        let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &body.frames[0], starts[b].0) {
+        let frame = body.frames[0].with_whole_outline();
+        let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &frame, starts[b].0) {
             Ok(f) => f.with_occluders(occluders),
             Err(recon::PoseFitError::EmptyMask) => fail!(
                 Input,
@@ -456,7 +464,7 @@ fn auto_guess(m: &Multi, log: &mut Log, b: usize) -> Result<Pose<f64>> {
         &m.world.scene,
         &body.object,
         &m.scene_pre,
-        &body.frames[0],
+        &body.frames[0].with_whole_outline(),
         &body.name,
         &m.video,
         &m.out,
@@ -657,6 +665,18 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     }
     let cfg = pga_config(m);
     let pairs = m.world.pairs();
+    let observed = pga_observed(m, ga);
+    for (body, rest) in m.bodies.iter().zip(&observed.resting) {
+        if let Some(rest) = rest {
+            tracing::info!(
+                "{}: still in frames 0-{}: at rest on the scene until struck (no launch; its pose from those frames)",
+                body.name,
+                rest.frames - 1
+            );
+            log.write(json!({"stage": "pga", "body": body.name, "at_rest_frames": rest.frames,
+                "rest_pose": {"t": rest.pose.t.to_array(), "q": rest.pose.q.to_array_re()}}))?;
+        }
+    }
     // At most: the launch, the frames after the first collision, each pair, the final joint fit.
     let steps = 3 + pairs.len();
     let per_step = if m.cfg.pga_multi_start {
@@ -670,7 +690,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         &cfg,
         m.cfg.pga_multi_start,
         m.world.clone(),
-        pga_observed(m, ga),
+        observed,
         launch_settings(m),
         &mut |label, i, r| {
             rows.push(start_row(json!({"stage": "pga", "step": label}), i, r));
@@ -762,14 +782,16 @@ fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
         .map(|(rs, body)| ga_weights_of(rs, eye, body.bounding_radius))
         .collect();
     let pinned = m.cfg.ga.contact.pins_depth();
-    recon::ObservedBodies {
+    let mut observed = recon::ObservedBodies {
         eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
         depth_held: ga
             .iter()
             .map(|rs| rs.iter().map(|r| r.in_contact && pinned).collect())
             .collect(),
         ..recon::ObservedBodies::new(poses, weights)
-    }
+    };
+    observed.settle_resting(&m.world, &m.bodies[0].frames[0].camera);
+    observed
 }
 
 fn launch_settings(m: &Multi) -> recon::LaunchSettings {
@@ -837,17 +859,30 @@ fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
     Ok(w)
 }
 
+/// What `finish` reports beside the world: GA's stand-in poses, the simulation's image terms, the value
+/// ranges, and the bodies at rest from the start.
+struct Reported<'a> {
+    ga: &'a [Vec<FramePose>],
+    sim_losses: Vec<Vec<ImageLoss>>,
+    ranges: &'a [ValueRange],
+    rests: &'a [Option<recon::RestingStart>],
+}
+
 /// The final trajectory of every body (simulated where it explains the video, GA's pose where it clearly
 /// does not), renders with every body, the strip and the animation.
 fn finish(
     m: &Multi,
     world: &World,
-    ga: &[Vec<FramePose>],
-    sim_losses: Vec<Vec<ImageLoss>>,
-    ranges: &[ValueRange],
+    reported: Reported,
     timings: &Map<String, Value>,
     outcome: &mut FitOutcome,
 ) -> Result<()> {
+    let Reported {
+        ga,
+        sim_losses,
+        ranges,
+        rests,
+    } = reported;
     let n = m.bodies[0].frames.len();
     let nb = m.bodies.len();
     let traj = world.simulate(&world.params());
@@ -944,6 +979,11 @@ fn finish(
             *pose = pganeus_io::Pose::from_geom(r);
         }
         tb.extra.extend(object_entry(&body.object, &mesh));
+        if let Some(rest) = rests.get(b).copied().flatten() {
+            let mut start = serde_json::to_value(rest.start())?;
+            start["still_frames"] = json!(rest.frames);
+            tb.extra.insert("start".into(), start);
+        }
         tb.extra.insert("frames".into(), json!(rows[b]));
         let mut stages = Map::new();
         stages.insert("simulated".into(), metric_rows(&sim_losses[b]));

@@ -264,7 +264,8 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         tracing::info!("the guess sank {:.1} mm into the scene: lifted out", lift * 1e3);
     }
     if searched {
-        let exposure = exposure_at(&job.cfg.first_pose, &job.object, &job.scene_pre, &job.frames[0], start)?;
+        let frame = job.frames[0].with_whole_outline();
+        let exposure = exposure_at(&job.cfg.first_pose, &job.object, &job.scene_pre, &frame, start)?;
         set_exposures(&mut job.frames, exposure, &job.drift);
     }
     let cfg: &PoseFitConfig = &job.cfg.first_pose;
@@ -296,7 +297,8 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         let steps = cfg_k.iterations;
         // Over the shutter at the pace of the two frames before (unknown before them).
         let motion = (k >= 2).then(|| recon::Motion::between(&poses[k - 2], &poses[k - 1], 1.0 / job.fps));
-        let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &job.frames[k], start_k) {
+        let frame = job.frames[k].with_whole_outline();
+        let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &frame, start_k) {
             Ok(f) => f.with_motion(motion),
             Err(recon::PoseFitError::EmptyMask) if k == 0 => {
                 fail!(
@@ -409,7 +411,7 @@ fn auto_guess(job: &mut Job) -> Result<Pose<f64>> {
         &job.world.scene,
         &job.object,
         &job.scene_pre,
-        &job.frames[0],
+        &job.frames[0].with_whole_outline(),
         &job.name,
         &job.video,
         &job.out,
