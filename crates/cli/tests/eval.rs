@@ -86,13 +86,36 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     );
 
     // Every pose 4 mm off: 4 mm in position and ADD, a silhouette IoU below 1.
+    // The fit's rows say the simulation drew the body at the truth, 4 mm from GA's poses, and that three of
+    // the four frames are reported from it.
     let mut shifted = fit.clone();
-    for p in shifted["bodies"][0]["poses"].as_array_mut().unwrap() {
+    let mut rows = Vec::new();
+    for (k, p) in shifted["bodies"][0]["poses"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .enumerate()
+    {
         let moved = pose(p);
+        rows.push(
+            json!({"frame": k, "pose": if k < 3 { "simulated" } else { "ga" }, "simulated": put(&moved),
+            "sim_from_ga_mm": 4.0, "sim_from_ga_deg": 0.0}),
+        );
         *p = put(&Pose::new(moved.q, moved.t + Vec3::new(0.0, 0.0024, 0.0032)));
     }
-    let r = eval(&shifted, &d.join("shifted"), &truth_path);
+    shifted["bodies"][0]["frames"] = json!(rows);
+    let (r, printed) = eval_printing(&shifted, &d.join("shifted"), &truth_path);
     let s = &r["summary"]["toy"];
+    assert_eq!(s["simulated_frames"], 3, "{s}");
+    assert_eq!(s["sim_position_mm"]["worst"].as_f64().unwrap(), 0.0, "{s}");
+    assert_eq!(s["sim_from_ga_mm"]["mean"].as_f64().unwrap(), 4.0, "{s}");
+    assert!(
+        printed.contains("toy: 3 of 4 frames reported from the simulation of the fitted physics"),
+        "{printed}"
+    );
+    let csv = std::fs::read_to_string(d.join("shifted/eval.csv")).unwrap();
+    // The simulation's distance from the truth (position, rotation) and from GA's pose close each row.
+    assert!(csv.lines().nth(1).unwrap().ends_with(",0.0,0.0,4.0"), "{csv}");
     for k in ["position_mm", "add_mm"] {
         for m in ["mean", "worst"] {
             assert!((s[k][m].as_f64().unwrap() - 4.0).abs() < 1e-3, "{k} {m}: {s}");
@@ -149,14 +172,13 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
     }
     let csv = std::fs::read_to_string(d.join("deeper/eval.csv")).unwrap();
     assert!(
-        csv.lines()
-            .next()
-            .unwrap()
-            .ends_with(",along_sight_mm,across_sight_mm,rotation_sym_deg"),
+        csv.lines().next().unwrap().ends_with(
+            ",along_sight_mm,across_sight_mm,rotation_sym_deg,sim_position_mm,sim_rotation_deg,sim_from_ga_mm"
+        ),
         "{csv}"
     );
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
-    assert_eq!(row.len(), 13, "{csv}");
+    assert_eq!(row.len(), 16, "{csv}");
     let cell = |i: usize| row[i].parse::<f64>().unwrap();
     assert!((cell(10) - 3.0).abs() < 2e-3 && (cell(11) - 1.0).abs() < 2e-3, "{csv}");
 

@@ -129,6 +129,8 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             (vec![], vec![], vec![], vec![], vec![], vec![]);
         let (mut along, mut across) = (vec![], vec![]);
         let (mut fitted, mut true_) = (vec![], vec![]);
+        // The fitted physics' own poses: how many frames report them, their distance from GA's and the truth.
+        let (mut simulated, mut sim_from_ga, mut sim_pos, mut sim_rot) = (0usize, vec![], vec![], vec![]);
         let eye = camera.map(|c| c.center());
         for k in 0..n {
             let est = entry.poses[k].to_geom().compose(&from_truth);
@@ -156,10 +158,22 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
             // The fit's own image scores, where it wrote them (per body with several bodies).
             let own = entry.extra.get("frames").or_else(|| fit.extra.get("frames"));
             if let Some(f) = own.and_then(|f| f.get(k)) {
-                for key in ["psnr", "iou", "pose"] {
+                for key in ["psnr", "iou", "pose", "sim_from_ga_mm", "sim_from_ga_deg"] {
                     if let Some(v) = f.get(key) {
                         row[format!("fit_{key}")] = v.clone();
                     }
+                }
+                simulated += usize::from(f["pose"] == "simulated");
+                if let Some(d) = f["sim_from_ga_mm"].as_f64() {
+                    sim_from_ga.push(d);
+                }
+                // Where the fitted physics draws the body, against the truth.
+                if let Ok(sim) = serde_json::from_value::<pganeus_io::Pose>(f["simulated"].clone()) {
+                    let e = r.points.errors(&sim.to_geom().compose(&from_truth), &tru);
+                    row["sim_position_mm"] = num(e.position, 1e3, 3);
+                    row["sim_rotation_deg"] = num(e.rotation_up_to_symmetry.to_degrees(), 1.0, 3);
+                    sim_pos.push(e.position * 1e3);
+                    sim_rot.push(e.rotation_up_to_symmetry.to_degrees());
                 }
             }
             rows.push(row);
@@ -177,6 +191,14 @@ fn score_poses(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef], camera: O
         let mut s = json!({"frames": n, "position_mm": stat(&pos), "rotation_deg": stat(&rot),
             "rotation_sym_deg": stat(&rot_sym), "symmetries": r.points.symmetries(),
             "add_mm": stat(&add), "add_s_mm": stat(&adds)});
+        if !sim_pos.is_empty() {
+            s["simulated_frames"] = json!(simulated);
+            s["sim_position_mm"] = stat(&sim_pos);
+            s["sim_rotation_deg"] = stat(&sim_rot);
+        }
+        if !sim_from_ga.is_empty() {
+            s["sim_from_ga_mm"] = stat(&sim_from_ga);
+        }
         if !along.is_empty() {
             s["along_sight_mm"] = stat(&along);
             s["across_sight_mm"] = stat(&across);
@@ -593,7 +615,7 @@ pub fn run(a: &EvalArgs, observer: &dyn Observer) -> Result<EvalReport> {
     let out = a.out.clone().unwrap_or_else(|| dir.join("eval.json"));
     let csv_path = a.csv.clone().unwrap_or_else(|| out.with_extension("csv"));
     let mut csv =
-        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose,along_sight_mm,across_sight_mm,rotation_sym_deg\n");
+        String::from("body,frame,position_mm,rotation_deg,add_mm,add_s_mm,silhouette_iou,fit_iou,fit_psnr,fit_pose,along_sight_mm,across_sight_mm,rotation_sym_deg,sim_position_mm,sim_rotation_deg,sim_from_ga_mm\n");
     for r in report["frames"].as_array().into_iter().flatten() {
         let f = |k: &str| match &r[k] {
             Value::Null => String::new(),
@@ -602,7 +624,7 @@ pub fn run(a: &EvalArgs, observer: &dyn Observer) -> Result<EvalReport> {
         };
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             f("body"),
             f("frame"),
             f("position_mm"),
@@ -615,7 +637,10 @@ pub fn run(a: &EvalArgs, observer: &dyn Observer) -> Result<EvalReport> {
             f("fit_pose"),
             f("along_sight_mm"),
             f("across_sight_mm"),
-            f("rotation_sym_deg")
+            f("rotation_sym_deg"),
+            f("sim_position_mm"),
+            f("sim_rotation_deg"),
+            f("fit_sim_from_ga_mm")
         )?;
     }
     pganeus_io::write_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
@@ -655,6 +680,20 @@ fn summary_lines(report: &Value) -> Vec<String> {
             lines.push(format!(
                 "{body}: position along the camera's line of sight (absolute) mm mean {} worst {} (frame {}); across it mean {} worst {} (frame {})",
                 a["mean"], a["worst"], a["worst_frame"], x["mean"], x["worst"], x["worst_frame"]
+            ));
+        }
+        if let Some(k) = s["simulated_frames"].as_u64() {
+            lines.push(format!(
+                "{body}: {k} of {} frames reported from the simulation of the fitted physics; it draws the body {} mm from GA's poses (mean; worst {}, frame {}) and {} mm from the truth (worst {}, frame {}; rotation mean {}°, worst {}°)",
+                s["frames"],
+                s["sim_from_ga_mm"]["mean"],
+                s["sim_from_ga_mm"]["worst"],
+                s["sim_from_ga_mm"]["worst_frame"],
+                s["sim_position_mm"]["mean"],
+                s["sim_position_mm"]["worst"],
+                s["sim_position_mm"]["worst_frame"],
+                s["sim_rotation_deg"]["mean"],
+                s["sim_rotation_deg"]["worst"]
             ));
         }
         let p = &report["parameters"][body];

@@ -11,8 +11,8 @@ use crate::{note, Observer};
 use geom::{Camera, Intrinsics, Pose, TriMesh, Vec3};
 use pganeus_io::{Image, Trajectory};
 use report::run_page::{
-    error_table, eval_path, f64_at, fmt, frame_charts, loss_charts, parameter_table, path_charts, training_charts, GA,
-    GUESS, LAUNCH, PA, PGA, TRUTH,
+    error_table, eval_path, f64_at, fmt, frame_charts, loss_charts, parameter_table, path_charts, simulation_chart,
+    training_charts, GA, GUESS, LAUNCH, PA, PGA, TRUTH,
 };
 use report::{face_towards, turntable, Chart, Mark, Page, Paint, Raster, Series};
 use serde_json::Value;
@@ -342,6 +342,10 @@ fn fit_section(page: &mut Page, plots: &mut Plots, fit: &Path, name: &str, a: &R
     let mut charts = path_charts(name, &traj, &stages, eval.as_ref());
     charts.extend(schedule_charts(name, &traj, fit, eval.as_ref())?);
     charts.extend(frame_charts(name, &traj, &stages));
+    if let Some((key, chart, note)) = simulation_chart(name, &traj, eval.as_ref()) {
+        page.note(&note);
+        charts.push((key, chart));
+    }
     charts.extend(loss_charts(name, &log_lines(&fit.join("log.jsonl"))));
     plots.add(page, charts)?;
     Ok(())

@@ -347,6 +347,60 @@ pub fn frame_charts(
     vec![(format!("{name}_iou"), iou), (format!("{name}_psnr"), psnr)]
 }
 
+/// Per body, how far the simulation of the fitted physics draws the body from GA's pose in each frame
+/// (`trajectory.json`'s rows) and, with `eval`, from the truth; with a sentence that counts the frames
+/// reported from the simulation. None for a fit written before these rows.
+pub fn simulation_chart(name: &str, traj: &Trajectory, eval: Option<&Value>) -> Option<(String, Chart, String)> {
+    let mut chart = Chart::new(
+        "the simulation of the fitted physics against GA and the truth",
+        "frame",
+        "distance (mm)",
+    );
+    let mut counts = Vec::new();
+    for (i, b) in traj.bodies.iter().enumerate() {
+        let rows = b
+            .extra
+            .get("frames")
+            .or_else(|| traj.extra.get("frames"))
+            .and_then(Value::as_array)?;
+        let from_ga: Vec<(f64, f64)> = rows
+            .iter()
+            .filter_map(|r| Some((f64_at(r, "frame")?, f64_at(r, "sim_from_ga_mm")?)))
+            .collect();
+        if from_ga.is_empty() {
+            return None;
+        }
+        let simulated = rows.iter().filter(|r| r["pose"] == "simulated").count();
+        counts.push(format!(
+            "{}: {simulated} of {} frames from the simulation",
+            b.name,
+            rows.len()
+        ));
+        let shade = |c: [u8; 3]| c.map(|v| (v as usize * 2 / (2 + i)) as u8);
+        chart
+            .series
+            .push(Series::new(format!("{}: from GA", b.name), from_ga, Mark::Line).colored(shade(GA)));
+        let truth: Vec<(f64, f64)> = eval
+            .and_then(|e| e["frames"].as_array())
+            .into_iter()
+            .flatten()
+            .filter(|r| r["body"] == b.name.as_str())
+            .filter_map(|r| Some((f64_at(r, "frame")?, f64_at(r, "sim_position_mm")?)))
+            .collect();
+        if !truth.is_empty() {
+            chart
+                .series
+                .push(Series::new(format!("{}: from the truth", b.name), truth, Mark::Line).colored(shade(PGA)));
+        }
+    }
+    let note = format!(
+        "Reported from the simulation of the fitted physics: {}; the other frames from GA, where the simulation \
+         misses the video.",
+        counts.join("; ")
+    );
+    Some((format!("{name}_simulation"), chart, note))
+}
+
 /// A `[lo, hi]` range as `fit` writes it (`restitution_range`, `friction_range`), if `v` is one.
 pub fn range_pair(v: &Value) -> Option<[f64; 2]> {
     match v.as_array()?.as_slice() {
@@ -420,5 +474,38 @@ mod tests {
             rotation_text(&json!({"rotation_deg": sym, "rotation_sym_deg": sym, "symmetries": 8})),
             "1.20 / 2.00"
         );
+    }
+
+    #[test]
+    fn the_simulation_chart_counts_the_simulated_frames_and_draws_both_distances_per_body() {
+        let rows = |b: &str| {
+            json!([{"frame": 0, "pose": "simulated", "sim_from_ga_mm": 0.5, "body": b},
+                   {"frame": 1, "pose": "ga", "sim_from_ga_mm": 7.0},
+                   {"frame": 2, "pose": "simulated", "sim_from_ga_mm": 1.0}])
+        };
+        let body = |name: &str, frames: Value| {
+            json!({"name": name, "initial": {"t": [0.0, 0.0, 0.0], "q": [1.0, 0.0, 0.0, 0.0], "v": [0.0, 0.0, 0.0],
+                   "omega": [0.0, 0.0, 0.0]}, "poses": [], "frames": frames})
+        };
+        let trajectory = |bodies: Vec<Value>| -> Trajectory {
+            serde_json::from_value(json!({"capture": "collide", "fps": 30.0, "bodies": bodies,
+                "contact": {"restitution": 0.5, "friction": 0.3, "model": "pganeus"}}))
+            .unwrap()
+        };
+        let traj = trajectory(vec![body("toy", rows("toy")), body("block", rows("block"))]);
+        let eval = json!({"frames": [{"body": "toy", "frame": 0, "sim_position_mm": 0.7},
+                                     {"body": "toy", "frame": 1, "sim_position_mm": 9.0}]});
+        let (key, chart, note) = simulation_chart("collide", &traj, Some(&eval)).unwrap();
+        assert_eq!(key, "collide_simulation");
+        assert!(
+            note.contains("toy: 2 of 3 frames from the simulation; block: 2 of 3"),
+            "{note}"
+        );
+        let labels: Vec<&str> = chart.series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(labels, ["toy: from GA", "toy: from the truth", "block: from GA"]);
+        assert_eq!(chart.series[1].points, [(0.0, 0.7), (1.0, 9.0)]);
+        // A fit written before these rows: no chart.
+        let old = trajectory(vec![body("toy", json!([{"frame": 0, "pose": "simulated"}]))]);
+        assert!(simulation_chart("collide", &old, None).is_none());
     }
 }

@@ -357,6 +357,19 @@ fn is_auto(init: &Path) -> bool {
     init.as_os_str() == "auto"
 }
 
+/// A frame's row of `trajectory.json` with where the simulation draws the body (its pose, as the body's
+/// poses are written) and, where GA fitted the frame, how far that is from GA's pose: what `eval` and the
+/// report show of how much of the motion the fitted physics explains.
+pub(crate) fn with_simulation(mut row: Value, sim: &Pose<f64>, ga: Option<&FramePose>) -> Value {
+    row["simulated"] = json!({"t": sim.t.to_array(), "q": sim.q.to_array_re()});
+    if let Some(ga) = ga.filter(|g| g.fitted) {
+        let turn = (sim.q * ga.pose.q.conj()).normalize_or_identity().log().norm();
+        row["sim_from_ga_mm"] = json!(((sim.t - ga.pose.t).norm() * 1e6).round() / 1e3);
+        row["sim_from_ga_deg"] = json!((turn.to_degrees() * 1e3).round() / 1e3);
+    }
+    row
+}
+
 /// An `init.json` entry.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

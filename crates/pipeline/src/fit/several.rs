@@ -949,9 +949,10 @@ fn finish(
             let inter = (0..mask.len()).filter(|&p| ours(p) && mask[p]).count();
             let union = (0..mask.len()).filter(|&p| ours(p) || mask[p]).count();
             let iou = if union == 0 { 1.0 } else { inter as f64 / union as f64 };
-            rows[b].push(json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0,
+            let row = json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0,
                 "iou": (iou * 1e4).round() / 1e4, "pose": source[b][k],
-                "brightness": (m.drift[k] * 1e4).round() / 1e4}));
+                "brightness": (m.drift[k] * 1e4).round() / 1e4});
+            rows[b].push(with_simulation(row, &sim_poses[b][k], ga[b].get(k)));
         }
         let mut rgb = Image::new(w, h, 3);
         let mut input = Image::new(w, h, 3);

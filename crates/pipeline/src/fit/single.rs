@@ -1065,10 +1065,9 @@ fn finish(
         let inter = ours.iter().zip(&f.mask).filter(|(a, b)| **a && **b).count();
         let union = ours.iter().zip(&f.mask).filter(|(a, b)| **a || **b).count();
         let iou = if union == 0 { 1.0 } else { inter as f64 / union as f64 };
-        rows.push(
-            json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0, "iou": (iou * 1e4).round() / 1e4,
-            "pose": source[k], "brightness": (job.drift[k] * 1e4).round() / 1e4}),
-        );
+        let row = json!({"frame": k, "psnr": (psnr * 100.0).round() / 100.0, "iou": (iou * 1e4).round() / 1e4,
+            "pose": source[k], "brightness": (job.drift[k] * 1e4).round() / 1e4});
+        rows.push(with_simulation(row, &sim_poses[k], ga.and_then(|g| g.get(k))));
         let mut input = Image::new(w, h, 3);
         for (p, c) in f.rgb.iter().enumerate() {
             input.data[p * 3..p * 3 + 3].copy_from_slice(&c.map(to8));
