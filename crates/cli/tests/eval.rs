@@ -104,6 +104,8 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
         *p = put(&Pose::new(moved.q, moved.t + Vec3::new(0.0, 0.0024, 0.0032)));
     }
     shifted["bodies"][0]["frames"] = json!(rows);
+    // And that twice the substeps draw it elsewhere from frame 2 on.
+    shifted["horizon"] = json!({"predictable_frames": 2, "threshold_px": 0.75, "step_spread_px": [0.0, 0.1, 2.0, 9.0]});
     let (r, printed) = eval_printing(&shifted, &d.join("shifted"), &truth_path);
     let s = &r["summary"]["toy"];
     assert_eq!(s["simulated_frames"], 3, "{s}");
@@ -113,6 +115,11 @@ fn eval_scores_the_truth_as_zero_and_a_shift_as_its_length() {
         printed.contains("toy: 3 of 4 frames reported from the simulation of the fitted physics"),
         "{printed}"
     );
+    assert!(
+        printed.contains("the fitted motion converges in its step size over frames 0-1 of 4 only"),
+        "{printed}"
+    );
+    assert_eq!(r["horizon"]["predictable_frames"], 2);
     let csv = std::fs::read_to_string(d.join("shifted/eval.csv")).unwrap();
     // The simulation's distance from the truth (position, rotation) and from GA's pose close each row.
     assert!(csv.lines().nth(1).unwrap().ends_with(",0.0,0.0,4.0"), "{csv}");

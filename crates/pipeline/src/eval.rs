@@ -491,6 +491,10 @@ pub fn score(
     if let Some(p) = pair_errors(&fit, video) {
         report["pairs"] = p;
     }
+    if let Some(h) = fit.extra.get("horizon") {
+        report["horizon"] = json!({"predictable_frames": h["predictable_frames"],
+            "frames": h["step_spread_px"].as_array().map_or(0, Vec::len)});
+    }
     if let Some(b) = brightness_errors(&fit, &truth, &name) {
         report["brightness"] = b;
     }
@@ -724,6 +728,17 @@ fn summary_lines(report: &Value) -> Vec<String> {
                 f["v0_error_m_s"],
                 f["v0_error_percent"],
                 f["omega0_error_rad_s"]
+            ));
+        }
+    }
+    if let (Some(k), Some(n)) = (
+        report["horizon"]["predictable_frames"].as_u64(),
+        report["horizon"]["frames"].as_u64(),
+    ) {
+        if k < n {
+            lines.push(format!(
+                "the fitted motion converges in its step size over frames 0-{} of {n} only: the frames after are chaotic",
+                k.saturating_sub(1)
             ));
         }
     }

@@ -173,6 +173,18 @@ impl ObservedBodies {
         &self.resting
     }
 
+    /// These observations over their first `n` frames only (each body's poses, weights and held flags).
+    pub fn before(&self, n: usize) -> ObservedBodies {
+        let cut = |v: &Vec<Vec<bool>>| v.iter().map(|h| h[..n.min(h.len())].to_vec()).collect();
+        ObservedBodies {
+            poses: self.poses.iter().map(|p| p[..n.min(p.len())].to_vec()).collect(),
+            weights: self.weights.iter().map(|w| w[..n.min(w.len())].to_vec()).collect(),
+            eye: self.eye,
+            depth_held: cut(&self.depth_held),
+            resting: self.resting.clone(),
+        }
+    }
+
     /// Body `b`'s observations over frames `from..to`, with the camera and the held frames of that span.
     fn span(&self, b: usize, from: usize, to: usize) -> Observed {
         // Each body's flags are empty or one per frame ([`fit_colliding_bodies`] checks).

@@ -10,6 +10,7 @@ pub mod exposure_gain;
 pub mod first_pose_search;
 pub mod fit_physics;
 pub mod flight;
+pub mod horizon;
 pub mod image_loss;
 pub mod image_precision;
 pub mod least_squares;
@@ -42,6 +43,7 @@ pub use fit_physics::{
     PhysicsFitConfig, PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
 pub use flight::{check_flight, first_contact_frame, fit_holding_launch, FlightCheck, MIN_FLIGHT_FRAMES};
+pub use horizon::{predictable_frames, Horizon, HORIZON_PX};
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use image_precision::ImagePrecision;
 pub use physics_from_video::{
@@ -57,6 +59,8 @@ pub use resting_start::{resting_start, RestingStart};
 pub use seen_space::scene_less_seen;
 pub use shutter::Motion;
 pub use target::{TargetConfig, TargetError, TargetReach, TargetStats};
-pub use value_ranges::{contact_value_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO};
+pub use value_ranges::{
+    contact_value_ranges, widen_by_ranges, widen_by_starts, RangeScan, ValueRange, RANGE_LOSS_RATIO,
+};
 pub use video_fit::VideoFitConfig;
 pub use video_masks::{video_masks, VideoMaskConfig, VideoMaskStats};

@@ -173,6 +173,17 @@ pub fn widen_by_starts(ranges: &mut [ValueRange], starts: &[StartResult], on: St
     }
 }
 
+/// Each of `ranges` widened to hold the range of the same value in `wider` (the ranges the frames before a
+/// motion's predictable horizon allow: [`crate::horizon`]).
+pub fn widen_by_ranges(ranges: &mut [ValueRange], wider: &[ValueRange]) {
+    for r in ranges.iter_mut() {
+        for w in wider.iter().filter(|w| w.value == r.value) {
+            r.lo = r.lo.min(w.lo);
+            r.hi = r.hi.max(w.hi);
+        }
+    }
+}
+
 /// The ranges of the contact values `cfg` fits, for a world fitted to `observed` (by this fit or a schedule
 /// of them: its initial states and values are taken as they are; the initial poses are refitted with the
 /// rest only with `cfg.fit_initial_pose`).
@@ -195,6 +206,27 @@ pub fn contact_value_ranges(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ranges_widen_to_the_same_values_wider_ranges_only() {
+        let r = |value, lo, hi| ValueRange {
+            value,
+            fitted: 0.3,
+            lo,
+            hi,
+        };
+        let mut ranges = vec![
+            r(ContactValue::SceneRestitution(None), 0.25, 0.35),
+            r(ContactValue::SceneFriction(None), 0.28, 0.32),
+        ];
+        let wider = [
+            r(ContactValue::SceneRestitution(None), 0.001, 0.999),
+            r(ContactValue::PairFriction(0), 0.0, 1.0),
+        ];
+        widen_by_ranges(&mut ranges, &wider);
+        assert_eq!((ranges[0].lo, ranges[0].hi), (0.001, 0.999));
+        assert_eq!((ranges[1].lo, ranges[1].hi), (0.28, 0.32));
+    }
 
     fn start(loss: f64, restitution: f64, friction: f64) -> StartResult {
         StartResult {

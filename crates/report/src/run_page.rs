@@ -393,11 +393,25 @@ pub fn simulation_chart(name: &str, traj: &Trajectory, eval: Option<&Value>) -> 
                 .push(Series::new(format!("{}: from the truth", b.name), truth, Mark::Line).colored(shade(PGA)));
         }
     }
-    let note = format!(
+    let mut note = format!(
         "Reported from the simulation of the fitted physics: {}; the other frames from GA, where the simulation \
          misses the video.",
         counts.join("; ")
     );
+    let h = traj.extra.get("horizon");
+    if let (Some(k), Some(n)) = (
+        h.and_then(|h| h["predictable_frames"].as_u64()),
+        h.and_then(|h| h["step_spread_px"].as_array()).map(Vec::len),
+    ) {
+        if (k as usize) < n {
+            note.push_str(&format!(
+                " The simulation converges in its step size over frames 0–{} of {n} only: after that the motion \
+                 is chaotic (twice the substeps draw it elsewhere), no model can follow it, and the contact \
+                 values' ranges are those the frames before allow.",
+                k.saturating_sub(1)
+            ));
+        }
+    }
     Some((format!("{name}_simulation"), chart, note))
 }
 
@@ -504,6 +518,18 @@ mod tests {
         let labels: Vec<&str> = chart.series.iter().map(|s| s.label.as_str()).collect();
         assert_eq!(labels, ["toy: from GA", "toy: from the truth", "block: from GA"]);
         assert_eq!(chart.series[1].points, [(0.0, 0.7), (1.0, 9.0)]);
+        assert!(!note.contains("converges"), "{note}");
+        // A motion that stops converging in its step size after frame 1: the note says so.
+        let mut chaotic = traj.clone();
+        chaotic.extra.insert(
+            "horizon".into(),
+            json!({"predictable_frames": 2, "step_spread_px": [0.0, 0.2, 4.0]}),
+        );
+        let (_, _, note) = simulation_chart("collide", &chaotic, None).unwrap();
+        assert!(
+            note.contains("converges in its step size over frames 0–1 of 3 only"),
+            "{note}"
+        );
         // A fit written before these rows: no chart.
         let old = trajectory(vec![body("toy", json!([{"frame": 0, "pose": "simulated"}]))]);
         assert!(simulation_chart("collide", &old, None).is_none());

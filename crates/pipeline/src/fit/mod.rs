@@ -357,6 +357,31 @@ fn is_auto(init: &Path) -> bool {
     init.as_os_str() == "auto"
 }
 
+/// Where the simulation of the fitted `world` stops converging in its step size, seen by `camera`
+/// ([`recon::horizon`]), logged when that is before the video's end.
+fn horizon_of(world: &World, camera: &Camera<f64>, log: &mut Log) -> Result<recon::Horizon> {
+    let h = recon::predictable_frames(world, camera);
+    let n = h.spread_px.len();
+    if h.frames < n {
+        tracing::info!(
+            "the fitted motion converges in its step size over frames 0-{} of {n} only (twice the substeps draw \
+             it {:.1} px away by the end): the frames after cannot tell the physics, whatever made them; the \
+             value ranges widen to what the frames before allow",
+            h.frames.saturating_sub(1),
+            h.spread_px.last().copied().unwrap_or(0.0)
+        );
+    }
+    log.write(json!({"stage": "horizon", "predictable_frames": h.frames, "frames": n,
+        "step_spread_px": h.spread_px.iter().map(|d| (d * 100.0).round() / 100.0).collect::<Vec<_>>()}))?;
+    Ok(h)
+}
+
+/// `trajectory.json`'s record of the motion's predictable horizon ([`horizon_of`]).
+fn horizon_entry(h: &recon::Horizon) -> Value {
+    json!({"predictable_frames": h.frames, "threshold_px": recon::HORIZON_PX,
+        "step_spread_px": h.spread_px.iter().map(|d| (d * 100.0).round() / 100.0).collect::<Vec<_>>()})
+}
+
 /// A frame's row of `trajectory.json` with where the simulation draws the body (its pose, as the body's
 /// poses are written) and, where GA fitted the frame, how far that is from GA's pose: what `eval` and the
 /// report show of how much of the motion the fitted physics explains.

@@ -822,10 +822,25 @@ fn value_ranges(
         &pb.follow(),
     )
     .context("PGA's value ranges")?;
-    pb.finish();
     for step in steps.iter().filter(|s| s.whole_video) {
         recon::widen_by_starts(&mut ranges, &step.starts, step.on, step.loss);
     }
+    // What the frames the simulation can predict allow, where they end before the video does.
+    let horizon = horizon_of(world, &m.bodies[0].frames[0].camera, log)?;
+    let n = ga.first().map_or(0, Vec::len);
+    if horizon.frames >= 2 && horizon.frames < n {
+        let within = colliding_value_ranges(
+            &pga_config(m),
+            world,
+            &pga_observed(m, ga).before(horizon.frames),
+            launch_settings(m),
+            m.cfg.ranges,
+            &pb.follow(),
+        )
+        .context("PGA's value ranges over the predictable frames")?;
+        recon::widen_by_ranges(&mut ranges, &within);
+    }
+    pb.finish();
     tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
     report_ranges(&ranges, &mut |row| log.write(row))?;
     Ok(ranges)
@@ -971,6 +986,8 @@ fn finish(
     let mut extra = Map::new();
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(m.video));
+    let horizon = recon::predictable_frames(world, &camera);
+    extra.insert("horizon".into(), horizon_entry(&horizon));
     let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, extra);
     write_ranges(&mut t, ranges);
     for (b, body) in m.bodies.iter().enumerate() {

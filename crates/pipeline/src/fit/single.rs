@@ -729,6 +729,12 @@ fn stage_pga(
     if let Some((starts, loss)) = starts {
         recon::widen_by_starts(&mut ranges, &starts, recon::StartsOn::Scene, loss);
     }
+    // What the frames the simulation can predict allow, where they end before the video does.
+    let horizon = horizon_of(&world, &job.frames[0].camera, &mut job.log)?;
+    if horizon.frames >= 2 && horizon.frames < ranges_ga.len() {
+        let within = value_ranges(job, &world, &ranges_ga[..horizon.frames], start_contact)?;
+        recon::widen_by_ranges(&mut ranges, &within);
+    }
     report_ranges(&ranges, &mut |row| job.log.write(row))?;
     Ok(PgaResult {
         world,
@@ -1092,6 +1098,8 @@ fn finish(
     extra.insert("stages".into(), Value::Object(stages));
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(job.video));
+    let horizon = recon::predictable_frames(world, &job.frames[0].camera);
+    extra.insert("horizon".into(), horizon_entry(&horizon));
     let mut t = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, extra);
     write_ranges(&mut t, ranges);
     for (pose, r) in t.bodies[0].poses.iter_mut().zip(&reported) {
