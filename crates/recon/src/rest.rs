@@ -30,10 +30,11 @@ pub fn is_still(a: &Pose<f64>, b: &Pose<f64>, eye: Vec3<f64>, radius: f64) -> bo
 pub const REST_FRAMES: usize = 3;
 
 /// A body from frame 0 is still while it stays within this many of its image's precisions
-/// ([`ImagePrecision`]: across the line of sight, along it, and turned by the across precision over its
-/// radius) of frame 0's pose and of the frame before's: what one image tells, not the body's size
-/// ([`is_still`]'s share of the radius is GA's precision at 320 × 240; the two-body video at 160 × 120
-/// places its resting block to 0.2–1 mm across and 0.7° from frame to frame).
+/// ([`ImagePrecision`]: across the line of sight, along it, and turned by the across precision over half
+/// its bounding radius, the lever most of its surface has) of frame 0's pose and of the frame before's:
+/// what one image tells, not the body's size ([`is_still`]'s share of the radius is GA's precision at
+/// 320 × 240; the two-body demo at 160 × 120, f = 145 px, tracks its resting block 0.8–1.8 mm across and
+/// 2–5.6° apart from frame to frame, within 2.2 mm and 6°).
 pub const REST_SIGMAS: f64 = 3.0;
 
 /// How many frames from frame 0 the body of `diameter` seen by `camera` stays still in (frame 0 counted):
@@ -48,7 +49,7 @@ pub fn still_run(poses: &[Pose<f64>], camera: &Camera<f64>, diameter: f64) -> us
         let turn = (b.q * a.q.conj()).normalize_or_identity().log().norm();
         across < REST_SIGMAS * p.across
             && along.abs() < REST_SIGMAS * p.along
-            && turn < REST_SIGMAS * p.across / (0.5 * diameter).max(1e-9)
+            && turn < REST_SIGMAS * p.across / (0.25 * diameter).max(1e-9)
     };
     (1..poses.len())
         .find(|&k| !(near(&poses[k - 1], &poses[k]) && near(&poses[0], &poses[k])))
