@@ -316,6 +316,18 @@ rays_per_step = 256
             [r[0].as_f64().unwrap(), r[1].as_f64().unwrap()]
         };
         let (kn, mu) = (range("restitution_range"), range("friction_range"));
+        // How long the fitted motion converges in its step size: the ball flies predictably until it lands.
+        let horizon = &fitted.extra["horizon"];
+        let predictable = horizon["predictable_frames"].as_u64().expect("the horizon") as usize;
+        let spread = horizon["step_spread_px"].as_array().expect("the spread per frame");
+        assert_eq!(spread.len(), fitted.bodies[0].poses.len());
+        assert!(predictable >= 3, "{horizon}");
+        assert!(
+            spread[..predictable]
+                .iter()
+                .all(|d| d.as_f64().unwrap() <= recon::HORIZON_PX),
+            "{horizon}"
+        );
         eprintln!(
             "restitution {} in {kn:?}, friction {} in {mu:?}",
             fitted.contact.restitution, fitted.contact.friction
