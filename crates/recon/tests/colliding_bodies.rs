@@ -13,6 +13,16 @@ use recon::{fit_colliding_bodies, PhysicsFitConfig};
 use sim::sdf::{Cuboid, Plane, Shape};
 use sim::{BodyState, ContactParams, ContactSampling, MassSpec, RigidBody, SimConfig, World};
 
+/// The board's true values, and the pair's (unlike the board's).
+const SCENE: ContactParams = ContactParams {
+    restitution: 0.4,
+    friction: 0.25,
+};
+const PAIR: ContactParams = ContactParams {
+    restitution: 0.7,
+    friction: 0.15,
+};
+
 fn world(toy_v: [f64; 3], scene: ContactParams, pair: ContactParams) -> World {
     let ground = Shape::Plane(Plane {
         normal: [0.0, 0.0, 1.0],
@@ -55,14 +65,7 @@ fn world(toy_v: [f64; 3], scene: ContactParams, pair: ContactParams) -> World {
 #[test]
 #[ignore = "slow: the collision schedule finds the collision frame and both contacts' values from poses, ~43 s"]
 fn finds_the_collision_and_the_values_of_both_contacts() {
-    let scene = ContactParams {
-        restitution: 0.4,
-        friction: 0.25,
-    };
-    let pair = ContactParams {
-        restitution: 0.7,
-        friction: 0.15,
-    };
+    let (scene, pair) = (SCENE, PAIR);
     let truth = world([1.3, 0.0, 0.0], scene, pair);
     let traj = truth.simulate(&truth.params());
     let touch = traj
@@ -167,14 +170,7 @@ fn jittered(poses: &[Vec<Pose<f64>>], eye: Vec3<f64>) -> Vec<Vec<Pose<f64>>> {
 #[test]
 #[ignore = "slow: the collision schedule on jittered poses with a block at rest until struck, ~40 s"]
 fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
-    let scene = ContactParams {
-        restitution: 0.4,
-        friction: 0.25,
-    };
-    let pair = ContactParams {
-        restitution: 0.7,
-        friction: 0.15,
-    };
+    let (scene, pair) = (SCENE, PAIR);
     let truth = world([1.3, 0.0, 0.0], scene, pair);
     let traj = truth.simulate(&truth.params());
     let touch = traj.contacts.iter().position(|c| c.pairs[0]).unwrap();
