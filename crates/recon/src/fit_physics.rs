@@ -356,7 +356,7 @@ impl PhysicsFit {
         let mut contact_values = Vec::new();
         for (&b, &start) in bodies.iter().zip(&starts) {
             let o = world.body_param_offset(b);
-            if cfg.fit_initial_pose && !matches!(start, StartContact::Rest { .. }) {
+            if cfg.fit_initial_pose {
                 for k in 0..6 {
                     unknowns.push_param(o + k, probe_scale(k), false);
                 }
