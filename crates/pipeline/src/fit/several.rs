@@ -415,8 +415,7 @@ fn stage_first(
     let mut entries = Map::new();
     for (b, body) in m.bodies.iter().enumerate() {
         let occluders = others(m, b, |o| fitted.get(o).map_or(starts[o].0, |f| f.0));
-        let frame = body.frames[0].with_whole_outline();
-        let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &frame, starts[b].0) {
+        let mut fit = match PoseFromImage::new(cfg.clone(), &body.object, &m.scene_pre, &body.frames[0], starts[b].0) {
             Ok(f) => f.with_occluders(occluders),
             Err(recon::PoseFitError::EmptyMask) => fail!(
                 Input,

@@ -297,8 +297,7 @@ fn stage_first(job: &mut Job, guess: Option<Pose<f64>>, run: bool) -> Result<Fir
         let steps = cfg_k.iterations;
         // Over the shutter at the pace of the two frames before (unknown before them).
         let motion = (k >= 2).then(|| recon::Motion::between(&poses[k - 2], &poses[k - 1], 1.0 / job.fps));
-        let frame = job.frames[k].with_whole_outline();
-        let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &frame, start_k) {
+        let mut fit = match PoseFromImage::new(cfg_k, &job.object, &job.scene_pre, &job.frames[k], start_k) {
             Ok(f) => f.with_motion(motion),
             Err(recon::PoseFitError::EmptyMask) if k == 0 => {
                 fail!(
