@@ -64,7 +64,7 @@ impl FrameTarget {
     /// The frame with its mask's whole outline in the silhouette terms, computed or not: the search for a
     /// first pose works from the outline (its overlap and its pull), and leaving a computed edge's pixels to
     /// the colours pays only once a pose is near (on the camera-like backdrop's drop the band let the search
-    /// end 44 mm off, in a wrong minimum; without it 21 mm, which the first-pose fit then brought to 7 mm).
+    /// end 43 mm off, in a wrong minimum; without it 21 mm, which the first-pose fit then brought to 7 mm).
     pub fn with_whole_outline(&self) -> FrameTarget {
         FrameTarget {
             mask_computed: false,
