@@ -191,7 +191,7 @@ pub enum StartContact {
     /// one side of it into the scene, which stops it within a substep, so the video cannot tell it (a
     /// sliding box's fit took a spin of 11 rad/s about such an axis and lost the slide).
     Face { normal: [f64; 3] },
-    /// At rest on the scene from the start until something moves it ([`crate::resting_start`]): no launch
+    /// At rest on the scene from the start until something moves it ([`mod@crate::resting_start`]): no launch
     /// (v0 = ω0 = 0), from its resting pose (refitted with the others' where a fit moves the initial poses:
     /// held there, the error of its pose on a reconstructed scene went into the body that strikes it, 12 mm
     /// at the three balls' first frame).
