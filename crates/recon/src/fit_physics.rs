@@ -245,16 +245,14 @@ pub enum ContactValue {
 
 impl StartContact {
     /// The launch `(v0, ω0)` nearest to the given one that this start allows (the parts it rules out
-    /// taken away): the same subspace PA and PGA fit in.
+    /// taken away): the same subspace PA and PGA fit in; a part no value of the start sets is zero (all of
+    /// a body at rest's launch).
     pub fn allowed_launch(&self, v: [f64; 3], omega: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-        if let StartContact::Rest { .. } = self {
-            return ([0.0; 3], [0.0; 3]);
-        }
         let mut u = Unknowns::default();
         u.push_launch(0, *self, true, true);
-        let mut p: Vec<f64> = v.iter().chain(&omega).copied().collect();
-        let x = u.values(&p);
-        u.set(&mut p, &x);
+        let given: Vec<f64> = v.iter().chain(&omega).copied().collect();
+        let mut p = vec![0.0; 6];
+        u.set(&mut p, &u.values(&given));
         ([p[0], p[1], p[2]], [p[3], p[4], p[5]])
     }
 }
@@ -325,9 +323,10 @@ impl PhysicsFit {
                 return Err(FitError::BadPose(i));
             }
             world.initial[o.body].pose = Pose::new(o.poses[0].q.normalize_or_identity(), o.poses[0].t);
+            // A body at rest has no launch, fitted or held (no value sets it: the launch guess would stay).
             if let StartContact::Rest { .. } = o.start {
-                world.initial[o.body].v = Vec3::new(0.0, 0.0, 0.0);
-                world.initial[o.body].omega = Vec3::new(0.0, 0.0, 0.0);
+                let state = &mut world.initial[o.body];
+                (state.v, state.omega) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.0));
             }
             let diameter = 2.0 * world.bodies[o.body].bounding_radius;
             sights.push(

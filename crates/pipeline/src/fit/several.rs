@@ -271,7 +271,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
         save_carved_scene(&kept.world, &m.out)?;
     }
     let t = Instant::now();
-    let ranges = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
+    let (ranges, horizon) = value_ranges(&m, &mut log, &kept.world, kept_ga, &kept.steps)?;
     time("ranges", t);
     let rests = pga_observed(&m, kept_ga).resting;
     let reported = Reported {
@@ -279,6 +279,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
         sim_losses: losses,
         ranges: &ranges,
         rests: &rests,
+        horizon: &horizon,
     };
     finish(&m, &kept.world, reported, &timings, &mut outcome)?;
     outcome.ga = Some(stand_ins);
@@ -802,20 +803,21 @@ fn launch_settings(m: &Multi) -> recon::LaunchSettings {
 
 /// The ranges of the reported world's contact values that the GA poses it was fitted to cannot tell apart,
 /// widened by the starts of the schedule's steps over the whole video that ended within their bar
-/// (`steps`: none for a world read back; logged).
+/// (`steps`: none for a world read back; logged), and the predictable horizon they honour.
 fn value_ranges(
     m: &Multi,
     log: &mut Log,
     world: &World,
     ga: &[Vec<FramePose>],
     steps: &[recon::ScheduleStep],
-) -> Result<Vec<ValueRange>> {
+) -> Result<(Vec<ValueRange>, recon::Horizon)> {
     let t = Instant::now();
     let pb = Task::start(m.observer, "value ranges", 0);
+    let observed = pga_observed(m, ga);
     let mut ranges = colliding_value_ranges(
         &pga_config(m),
         world,
-        &pga_observed(m, ga),
+        &observed,
         launch_settings(m),
         m.cfg.ranges,
         &pb.follow(),
@@ -831,7 +833,7 @@ fn value_ranges(
         let within = colliding_value_ranges(
             &pga_config(m),
             world,
-            &pga_observed(m, ga).before(horizon.frames),
+            &observed.before(horizon.frames),
             launch_settings(m),
             m.cfg.ranges,
             &pb.follow(),
@@ -842,7 +844,7 @@ fn value_ranges(
     pb.finish();
     tracing::info!("value ranges: {:.1} s", t.elapsed().as_secs_f64());
     report_ranges(&ranges, &mut |row| log.write(row))?;
-    Ok(ranges)
+    Ok((ranges, horizon))
 }
 
 /// The world of a PGA file this command wrote: each body's initial state, the scene's and the pairs' values.
@@ -874,12 +876,13 @@ fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
 }
 
 /// What `finish` reports beside the world: GA's stand-in poses, the simulation's image terms, the value
-/// ranges, and the bodies at rest from the start.
+/// ranges, the bodies at rest from the start and the predictable horizon.
 struct Reported<'a> {
     ga: &'a [Vec<FramePose>],
     sim_losses: Vec<Vec<ImageLoss>>,
     ranges: &'a [ValueRange],
     rests: &'a [Option<recon::RestingStart>],
+    horizon: &'a recon::Horizon,
 }
 
 /// The final trajectory of every body (simulated where it explains the video, GA's pose where it clearly
@@ -896,6 +899,7 @@ fn finish(
         sim_losses,
         ranges,
         rests,
+        horizon,
     } = reported;
     let n = m.bodies[0].frames.len();
     let nb = m.bodies.len();
@@ -985,8 +989,7 @@ fn finish(
     let mut extra = Map::new();
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(m.video));
-    let horizon = recon::predictable_frames(world, &camera);
-    extra.insert("horizon".into(), horizon_entry(&horizon));
+    extra.insert("horizon".into(), horizon_entry(horizon));
     let mut t = scene_file::trajectory_file(&m.capture, world, &traj, sim::ENGINE, extra);
     write_ranges(&mut t, ranges);
     for (b, body) in m.bodies.iter().enumerate() {

@@ -189,7 +189,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
             unreachable!("no_pa and no_ga are refused together")
         };
         if wanted.contains(&Stage::Pga) || wanted.contains(&Stage::Ga) {
-            finish(&mut job, &pa, None, &[], None, &timings, &mut outcome)?;
+            finish(&mut job, &pa, None, &timings, &mut outcome)?;
             outcome.world = Some(pa);
         }
         return Ok(with_read_back(outcome, &job.log));
@@ -207,15 +207,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     let pga = stage_pga(&mut job, start_world, ga, !a.no_pa, first.start)?;
     time("pga", t);
     timings.insert("pga_rounds".into(), json!(pga.rounds));
-    finish(
-        &mut job,
-        &pga.world,
-        Some(&pga.ga),
-        &pga.ranges,
-        pga.flight.as_ref(),
-        &timings,
-        &mut outcome,
-    )?;
+    finish(&mut job, &pga.world, Some(&pga), &timings, &mut outcome)?;
     outcome.ga = Some(vec![pga.ga]);
     outcome.ranges = pga.ranges;
     outcome.world = Some(pga.world);
@@ -609,6 +601,8 @@ struct PgaResult {
     ranges: Vec<ValueRange>,
     /// The launch over the flight alone and its test ([`launch_from_flight`]), where there is a flight.
     flight: Option<Value>,
+    /// The frames over which the world's simulation converges in its step size.
+    horizon: recon::Horizon,
 }
 
 /// Stage 4, PGA on GA's poses, then GA ↔ PGA while the simulated trajectory's image loss falls, then GA's
@@ -741,6 +735,7 @@ fn stage_pga(
         rounds: kept,
         ranges,
         flight,
+        horizon,
     })
 }
 
@@ -999,12 +994,11 @@ fn value_ranges(
 fn finish(
     job: &mut Job,
     world: &World,
-    ga: Option<&[FramePose]>,
-    ranges: &[ValueRange],
-    flight: Option<&Value>,
+    pga: Option<&PgaResult>,
     timings: &Map<String, Value>,
     outcome: &mut FitOutcome,
 ) -> Result<()> {
+    let ga = pga.map(|p| p.ga.as_slice());
     let traj = world.simulate(&world.params());
     let n = job.frames.len();
     let sim_poses: Vec<Pose<f64>> = traj.frames.iter().map(|f| f[0].pose).collect();
@@ -1097,15 +1091,18 @@ fn finish(
     extra.insert("stages".into(), Value::Object(stages));
     extra.insert("timings_s".into(), Value::Object(timings.clone()));
     extra.insert("video".into(), json!(job.video));
-    let horizon = recon::predictable_frames(world, &job.frames[0].camera);
+    let horizon = match pga {
+        Some(p) => p.horizon.clone(),
+        None => recon::predictable_frames(world, &job.frames[0].camera),
+    };
     extra.insert("horizon".into(), horizon_entry(&horizon));
     let mut t = scene_file::trajectory_file(&job.capture, world, &traj, sim::ENGINE, extra);
-    write_ranges(&mut t, ranges);
+    write_ranges(&mut t, pga.map_or(&[], |p| p.ranges.as_slice()));
     for (pose, r) in t.bodies[0].poses.iter_mut().zip(&reported) {
         *pose = pganeus_io::Pose::from_geom(r);
     }
     t.bodies[0].extra.extend(object_entry(&job.object, "object.ply"));
-    if let Some(f) = flight {
+    if let Some(f) = pga.and_then(|p| p.flight.as_ref()) {
         t.bodies[0].extra.insert("flight".into(), f.clone());
     }
     // The object's mesh beside the trajectory, in the body frame.
