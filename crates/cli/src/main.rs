@@ -8,8 +8,8 @@ mod docs_check;
 use clap::{Parser, Subcommand};
 use commands::Bars;
 use pipeline::{
-    board, calibrate, demo, eval, import, import_session, render, report_page, run_session, surfaces, synth, train,
-    video_masks,
+    board, calibrate, demo, eval, fit, import, import_session, render, report_page, run_session, surfaces, synth,
+    train, video_masks,
 };
 
 #[derive(Parser)]
@@ -60,7 +60,7 @@ enum Command {
     /// Masks of the moving bodies in every frame of a fixed-camera video, computed against the trained scene.
     Masks(video_masks::MasksArgs),
     /// A body's pose in every frame of a fixed-camera video and the physics that explains it (first pose, PA, GA, PGA).
-    Fit(commands::fit::FitArgs),
+    Fit(fit::FitArgs),
     /// Score a fit against a scene's truth.json: per-frame position, rotation, ADD(-S), silhouette IoU; launch and contact errors; the object's mesh.
     Eval(eval::EvalArgs),
     /// One self-contained HTML page for a run's folder: inputs, meshes, each fit's motion (video and a novel view), charts (PNG and SVG too), tables.
@@ -112,7 +112,12 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Merge(a) => surfaces::merge(&a, &bars)?,
         Command::Simulate(a) => commands::simulate::run(a)?,
         Command::Target(a) => commands::target::run(a)?,
-        Command::Fit(a) => commands::fit::run(a, &bars)?,
+        Command::Fit(a) => {
+            let outcome = fit::run(&a, &bars)?;
+            if !outcome.summary.is_empty() {
+                println!("{}", outcome.summary);
+            }
+        }
         Command::Eval(a) => eval::run(&a, &bars).map(|_| ())?,
         Command::Masks(a) => video_masks::run(&a, &bars).map(|_| ())?,
         Command::Report(a) => report_page::run(&a, &bars)?,
@@ -129,6 +134,18 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
 mod tests {
     use super::*;
     use clap::CommandFactory;
+
+    /// A library caller's `FitArgs::new` is the command with only the required flags.
+    #[test]
+    fn fit_args_new_has_the_commands_defaults() {
+        let argv = [
+            "pganeus", "fit", "v", "--scene", "s", "--object", "toy=m", "--init", "auto", "--out", "o",
+        ];
+        let Command::Fit(parsed) = Cli::try_parse_from(argv).unwrap().command else {
+            panic!("not a fit")
+        };
+        assert_eq!(parsed, fit::FitArgs::new("v", "s", &["toy=m"], "o"));
+    }
 
     /// Every subcommand's `--help` ends with examples, and every example parses: its subcommand and flags
     /// exist and take the values given.

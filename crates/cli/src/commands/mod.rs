@@ -2,7 +2,6 @@ pub mod bench_compose;
 pub mod bench_contact;
 pub mod bench_sim;
 pub mod bench_train;
-pub mod fit;
 pub mod fit_physics;
 pub mod simulate;
 pub mod target;

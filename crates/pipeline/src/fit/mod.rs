@@ -16,8 +16,11 @@
 //! # Ok::<(), pipeline::Error>(())
 //! ```
 
+mod args;
 mod several;
 mod single;
+
+pub use args::{run, FitArgs};
 
 use crate::cameras::{fixed_camera, scene_through};
 use crate::error::{err, fail, Context};
@@ -98,6 +101,7 @@ impl FitInputs {
 
 /// The stages of a fit, in order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Stage {
     /// The first pose from the guess, and the launch guess from the next frames.
