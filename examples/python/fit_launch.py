@@ -1,9 +1,9 @@
 """Fit the launch velocity of a dropped box from its poses with the simulator's exact gradients.
 
-The "measured" poses are a simulation with a launch the fit does not know, plus 1 mm of noise; the fit
-starts from rest and takes Gauss-Newton steps on the poses' squared error, the Jacobian from
-``World.simulate_with_gradients``. With ``--torch`` the same fit runs as a PyTorch loss through
-``pganeus.torch.simulate`` (needs torch).
+The "measured" positions are a simulation with a launch the fit does not know, plus 1 mm of noise; the fit
+starts from rest and takes Levenberg-Marquardt steps on the squared error of the flight's positions, the
+Jacobian from ``World.simulate_with_gradients``. With ``--torch`` the same fit runs as a PyTorch loss through
+``pganeus.torch.simulate`` (needs torch). Both fit the flight's frames.
 
     python examples/python/fit_launch.py [--torch]
 """
@@ -19,6 +19,7 @@ import pganeus
 
 TRUE_V0 = np.array([0.45, -0.2, 0.8])
 WRT = ["box.v.x", "box.v.y", "box.v.z"]
+FLIGHT = 6  # frames before the box can reach the board from its height at any launch fitted here
 
 
 def dropped_box() -> pganeus.World:
@@ -38,19 +39,46 @@ def measured_positions(world: pganeus.World, rng: np.random.Generator) -> np.nda
 
 
 def fit_numpy(world: pganeus.World, target: np.ndarray) -> np.ndarray:
+    """The launch from the flight (the frames before the landing), as `fit` takes it: there the error is a
+    smooth bowl around the launch, while the landing on an edge makes it rugged (a fit from rest over every
+    frame stops in one of its pits, 12.7 mm and 19 % off)."""
     names = world.param_names
     columns = [names.index(n) for n in WRT]
-    params = world.params.copy()
-    for step in range(10):
+    params = levenberg_marquardt(world, target, world.params.copy(), columns, frames=FLIGHT)
+    everywhere = np.linalg.norm(world.simulate(params)[:, 0, :3] - target, axis=1)
+    print(f"the fitted launch simulated over all {len(target)} frames: {1000 * everywhere.mean():.2f} mm mean, "
+          f"{1000 * everywhere.max():.2f} mm worst from the measured positions")
+    return params[columns]
+
+
+def levenberg_marquardt(world, target, params, columns, frames):
+    """Gauss-Newton steps from the exact Jacobian, damped until each lowers the error of the first `frames`."""
+    damping = 1e-3
+
+    def residual(p):
+        return (world.simulate(p)[:frames, 0, :3] - target[:frames]).reshape(-1)
+
+    print(f"frames 0-{frames - 1}:")
+    for step in range(30):
         states, jac, _ = world.simulate_with_gradients(params, wrt=WRT)
-        r = (states[:, 0, :3] - target).reshape(-1)
-        J = jac[:, 0, :3, :].reshape(-1, len(WRT))
-        delta = np.linalg.lstsq(J, -r, rcond=None)[0]
-        params[columns] += delta
-        print(f"step {step}: rms {np.sqrt(np.mean(r**2)) * 1000:.2f} mm, v0 = {np.round(params[columns], 4)}")
+        r = (states[:frames, 0, :3] - target[:frames]).reshape(-1)
+        J = jac[:frames, 0, :3, :].reshape(-1, len(WRT))
+        JtJ, Jtr = J.T @ J, J.T @ r
+        while damping < 1e6:
+            delta = np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), -Jtr)
+            trial = params.copy()
+            trial[columns] += delta
+            if residual(trial) @ residual(trial) < r @ r:
+                params, damping = trial, damping / 3
+                break
+            damping *= 4
+        else:
+            break
+        rms = np.sqrt(np.mean(residual(params) ** 2))
+        print(f"  step {step}: rms {rms * 1000:.2f} mm, v0 = {np.round(params[columns], 4)}")
         if np.abs(delta).max() < 1e-6:
             break
-    return params[columns]
+    return params
 
 
 def fit_torch(world: pganeus.World, target: np.ndarray) -> np.ndarray:
@@ -64,7 +92,7 @@ def fit_torch(world: pganeus.World, target: np.ndarray) -> np.ndarray:
     for step in range(300):
         optimiser.zero_grad()
         states = pganeus.torch.simulate(world, v0, WRT)
-        loss = ((states[:, 0, :3] - goal) ** 2).mean()
+        loss = ((states[:FLIGHT, 0, :3] - goal[:FLIGHT]) ** 2).mean()  # the flight, as fit_numpy
         loss.backward()
         optimiser.step()
         if step % 50 == 0:

@@ -71,10 +71,10 @@ def cli_binary() -> Path:
 
 @pytest.fixture(scope="session")
 def tiny(tmp_path_factory) -> dict:
-    """A tiny dataset (`tests/data/tiny_slide.toml`), its scene and its box trained 20 steps each, and the
+    """A tiny dataset (`scenes/synth_tiny_slide.toml`), its scene and its box trained 20 steps each, and the
     small fit's settings file."""
     d = tmp_path_factory.mktemp("tiny")
-    data = pganeus.synth(d / "data", preset=None, scene=HERE / "data" / "tiny_slide.toml")
+    data = pganeus.synth(d / "data", preset=None, scene=REPO / "scenes" / "synth_tiny_slide.toml")
     scene = pganeus.train(data / "background", d / "runs" / "scene", kind="scene", iterations=20, no_preview=True)
     box = pganeus.train(data / "box_a", d / "runs" / "box", iterations=20, preview_res=32)
     grid = pganeus.bake(scene, d / "scene.sdf", res=64)

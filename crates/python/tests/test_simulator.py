@@ -177,3 +177,15 @@ def test_a_world_on_a_grid_matches_the_same_plane():
     for w in (on_grid, on_plane):
         w.add_body("ball", sphere=0.02, mass=0.05, t=[0.0, 0.0, 0.1], v=[0.2, 0.0, 0.0], restitution=0.5)
     np.testing.assert_allclose(on_grid.simulate(), on_plane.simulate(), atol=1e-6)
+
+
+def test_the_launch_example_recovers_the_launch():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[3] / "examples" / "python" / "fit_launch.py"
+    out = subprocess.run([sys.executable, str(example)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    off = float(out.stdout.strip().splitlines()[-1].split(": ")[-1].split(" %")[0])
+    assert off < 2.0, out.stdout

@@ -209,7 +209,7 @@ def test_merge_mesh_and_report(tiny, fitted, tmp_path):
 
 def test_calibrate_a_raw_session(tmp_path):
     # The tiny scene with raw footage of a printed ChArUco board through a distorting lens, at 384 x 288.
-    data = pganeus.synth(tmp_path / "data", preset=None, scene=Path(__file__).parent / "data" / "tiny_slide.toml",
+    data = pganeus.synth(tmp_path / "data", preset=None, scene=Path(__file__).resolve().parents[3] / "scenes" / "synth_tiny_slide.toml",
                          raw="charuco", raw_size="384x288")
     raw = data / "raw"
     out = pganeus.calibrate([raw / "box_a"], board=raw / "board.toml", out=tmp_path / "captures",

@@ -1,0 +1,235 @@
+"""The workflow end to end on two tiny synthetic sessions: every stage through Snakemake with two cores, the
+outputs byte for byte those of the commands run by hand, a second run with nothing to do, a changed
+setting of one session rerunning that session's rules alone, the lint, and the Slurm profile's dry run."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+WORKFLOW = Path(__file__).resolve().parents[1]
+REPO = WORKFLOW.parent
+SNAKEFILE = WORKFLOW / "Snakefile"
+# Keys whose values are wall-clock times: all two runs of the same stage may differ in.
+TIME_KEYS = {"timings_s", "seconds"}
+
+SMALL_FIT = """
+launch_frames = 2
+rounds = 1
+pga_multi_start = false
+[first_pose]
+iterations = 30
+rays_per_step = 128
+[pa]
+iterations = 20
+rays_per_frame = 64
+window_steps = 5
+[ga]
+contact_points = 8
+[ga.pose]
+iterations = 10
+rays_per_step = 128
+[ga.end_search]
+screened = 2
+screen_iterations = 5
+refined = 1
+twin_iterations = 5
+[ga.end_search.refine]
+iterations = 10
+rays_per_step = 128
+[pga]
+iterations = 10
+"""
+
+SETTINGS = {"scene_iterations": 20, "object_iterations": 20, "bake_res": 64, "merge_res": 48,
+            "merge_field_res": 64, "frames": 3}
+
+
+def pganeus_bin() -> str:
+    given = os.environ.get("PGANEUS_BIN")
+    if given:
+        return given
+    for candidate in (REPO / "target" / "debug" / "pganeus", REPO / "target" / "release" / "pganeus"):
+        if candidate.exists():
+            return str(candidate)
+    found = shutil.which("pganeus")
+    if not found:
+        pytest.fail("no pganeus command: build it (cargo build --profile test -p pganeus) or set PGANEUS_BIN")
+    return found
+
+
+def run(argv, cwd=None):
+    out = subprocess.run([str(a) for a in argv], capture_output=True, text=True, cwd=cwd)
+    assert out.returncode == 0, f"{argv}\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
+    return out
+
+
+def snakemake(d: Path, *args):
+    return run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "config.yaml",
+                "--directory", d, *args])
+
+
+def rotation_to_quaternion(r):
+    w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
+    v = [np.copysign(np.sqrt(max(0.0, 1 + 2 * r[i, i] - np.trace(r))) / 2, r[(i + 2) % 3, (i + 1) % 3] - r[(i + 1) % 3, (i + 2) % 3])
+         for i in range(3)]
+    q = np.array([w, *v])
+    return q / np.linalg.norm(q)
+
+
+def matrix(t, q):
+    w, x, y, z = np.asarray(q) / np.linalg.norm(q)
+    m = np.eye(4)
+    m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                 [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+    m[:3, 3] = t
+    return m
+
+
+def init_file(data: Path, path: Path) -> Path:
+    """The box's first pose from the truth, as init.json (so that no fit spends its time searching)."""
+    truth = json.loads((data / "truth.json").read_text())
+    lay = next(c["pose"] for c in truth["bodies"][0]["static_captures"] if c["capture"] == "box_a")
+    start = truth["videos"][0]["bodies"][0]["initial"]
+    m = matrix(start["t"], start["q"]) @ np.linalg.inv(matrix(lay["t"], lay["q"]))
+    path.write_text(json.dumps({"box": {"capture": "box_a", "t": list(m[:3, 3]), "q": list(rotation_to_quaternion(m[:3, :3]))}}))
+    return path
+
+
+def contents(folder: Path, roots: list[str], skip=("logs", "benchmarks", ".snakemake", "report.html")) -> dict:
+    """Every file under `folder` but the workflow's own records: text files with the session's folder
+    (`roots`, as the commands were given it) written as SESSION, JSON without its times, the rest as bytes."""
+    out = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        rel = path.relative_to(folder)
+        if rel.parts[0] in skip or path.name in skip:
+            continue
+        if path.suffix in (".json", ".jsonl", ".toml", ".csv"):
+            text = path.read_text()
+            for root in sorted(roots, key=len, reverse=True):
+                text = text.replace(root, "SESSION")
+            if path.suffix == ".json":
+                out[str(rel)] = without_times(json.loads(text))
+            elif path.suffix == ".jsonl":
+                out[str(rel)] = [without_times(json.loads(l)) for l in text.splitlines() if l.strip()]
+            else:
+                out[str(rel)] = text
+        else:
+            out[str(rel)] = path.read_bytes()
+    return out
+
+
+def without_times(value):
+    if isinstance(value, dict):
+        return {k: without_times(v) for k, v in value.items() if k not in TIME_KEYS and not k.endswith("_s")}
+    if isinstance(value, list):
+        return [without_times(v) for v in value]
+    return value
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    d = tmp_path_factory.mktemp("workflow")
+    scene = (REPO / "scenes" / "synth_tiny_slide.toml").read_text()
+    # The second session: the box launched faster and turning.
+    other = scene.replace("v = [0.6, 0.0, 0.0]", "v = [0.8, 0.1, 0.0]").replace("omega = [0.0, 0.0, 0.0]", "omega = [0.0, 0.0, 2.0]")
+    assert other != scene
+    (d / "two.toml").write_text(other)
+    pganeus = pganeus_bin()
+    run([pganeus, "synth", "--scene", REPO / "scenes" / "synth_tiny_slide.toml", "--out", d / "data" / "one"])
+    run([pganeus, "synth", "--scene", d / "two.toml", "--out", d / "data" / "two"])
+    (d / "small_fit.toml").write_text(SMALL_FIT)
+    config = {
+        "pganeus": pganeus,
+        "out": "results",
+        "defaults": {**SETTINGS, "fit_config": str(d / "small_fit.toml")},
+        "sessions": {
+            name: {"data": str(d / "data" / name), "init": str(init_file(d / "data" / name, d / f"init_{name}.json"))}
+            for name in ("one", "two")
+        },
+    }
+    (d / "config.yaml").write_text(json.dumps(config))  # JSON is YAML
+    snakemake(d, "--cores", "2", "--keep-going")
+    return {"dir": d, "config": config, "pganeus": pganeus}
+
+
+def test_every_stage_runs_and_the_summary_has_both_sessions(sessions):
+    out = sessions["dir"] / "results"
+    for s in ("one", "two"):
+        for f in ("runs/scene/checkpoint.safetensors", "runs/box_a/checkpoint.safetensors", "merged/box/merged.ply",
+                  "scene.sdf", "fits/slide/trajectory.json", "fits/slide/eval.json", "report.html",
+                  "logs/fit_slide.log", "benchmarks/fit_slide.tsv"):
+            assert (out / s / f).exists(), f"{s}/{f}"
+    summary = (out / "summary.csv").read_text().splitlines()
+    assert len(summary) == 3 and all(",scored," in row for row in summary[1:]), summary
+
+
+def test_the_outputs_are_the_commands_run_by_hand(sessions):
+    d, pganeus = sessions["dir"], sessions["pganeus"]
+    data, hand = d / "data" / "one", d / "by_hand" / "one"
+    s = {**sessions["config"]["defaults"], **sessions["config"]["sessions"]["one"]}
+    for capture, kind, iterations in (("background", "scene", s["scene_iterations"]),
+                                      ("box_a", "object", s["object_iterations"]),
+                                      ("box_b", "object", s["object_iterations"])):
+        out = hand / "runs" / ("scene" if kind == "scene" else capture)
+        run([pganeus, "train", data / capture, "--out", out, "--kind", kind, "--iterations", iterations, "--force"])
+    run([pganeus, "merge", hand / "runs" / "box_a", hand / "runs" / "box_b", "--out", hand / "merged" / "box",
+         "--capture-a", data / "box_a", "--capture-b", data / "box_b", "--res", s["merge_res"], "--field-res",
+         s["merge_field_res"]])
+    run([pganeus, "bake", hand / "runs" / "scene", "--out", hand / "scene.sdf", "--res", s["bake_res"]])
+    run([pganeus, "fit", data / "slide", "--scene", hand / "runs" / "scene", "--scene-grid", hand / "scene.sdf",
+         "--object", f"box={hand / 'merged' / 'box'}", "--init", s["init"], "--config", s["fit_config"],
+         "--frames", s["frames"], "--out", hand / "fits" / "slide", "--force"])
+    run([pganeus, "eval", hand / "fits" / "slide", "--truth", data / "truth.json", "--video", "slide"])
+    run([pganeus, "report", hand])
+    by_hand = contents(hand, [str(hand)])
+    by_workflow = contents(d / "results" / "one", [str(d / "results" / "one"), "results/one"])
+    assert sorted(by_hand) == sorted(by_workflow)
+    for name in by_hand:
+        assert by_hand[name] == by_workflow[name], f"{name} differs between the workflow and the commands"
+
+
+def test_a_second_run_has_nothing_to_do(sessions):
+    out = snakemake(sessions["dir"], "--cores", "2", "-n")
+    assert "Nothing to be done" in out.stdout + out.stderr, out.stdout
+
+
+def test_a_changed_setting_reruns_that_session_alone(sessions):
+    d = sessions["dir"]
+    config = json.loads((d / "config.yaml").read_text())
+    config["sessions"]["two"]["bake_res"] = 48
+    changed = d / "changed.yaml"
+    changed.write_text(json.dumps(config))
+    out = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", changed, "--directory", d,
+               "-n", "--quiet", "rules"])
+    text = out.stdout + out.stderr
+    rules = {line.split()[0] for line in text.splitlines() if line.strip() and line.split()[0] in
+             {"train_scene", "train_object", "merge", "bake", "fit", "eval", "report"}}
+    assert rules == {"bake", "fit", "eval", "report"}, text
+    # Which outputs: session two's alone.
+    detail = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", changed, "--directory", d,
+                  "-n", "-p"]).stdout
+    outputs = [l.split(":", 1)[1] for l in detail.splitlines() if l.strip().startswith("output:")]
+    assert any("results/two/scene.sdf" in o for o in outputs), detail
+    assert all("results/two/" in o and "results/one/" not in o for o in outputs), outputs
+
+
+def test_the_workflow_lints_clean_and_the_slurm_profile_plans(sessions):
+    d = sessions["dir"]
+    lint = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "config.yaml",
+                "--directory", d, "--lint"])
+    assert "Lints for" not in lint.stdout + lint.stderr
+    config = json.loads((d / "config.yaml").read_text())
+    config["sessions"]["two"]["scene_iterations"] = 30
+    (d / "slurm.yaml").write_text(json.dumps(config))
+    plan = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "slurm.yaml",
+                "--directory", d, "--profile", WORKFLOW / "profiles" / "slurm", "-n"])
+    assert "train_scene" in plan.stdout and "results/two/" in plan.stdout, plan.stdout
