@@ -233,3 +233,24 @@ def test_the_workflow_lints_clean_and_the_slurm_profile_plans(sessions):
     plan = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "slurm.yaml",
                 "--directory", d, "--profile", WORKFLOW / "profiles" / "slurm", "-n"])
     assert "train_scene" in plan.stdout and "results/two/" in plan.stdout, plan.stdout
+
+
+def test_a_failed_session_keeps_the_others_and_is_in_the_summary(sessions):
+    d = sessions["dir"]
+    broken = d / "data" / "broken"
+    shutil.copytree(d / "data" / "one", broken)
+    for image in (broken / "background" / "image").iterdir():
+        image.write_bytes(b"not a PNG")
+    config = json.loads((d / "config.yaml").read_text())
+    config["sessions"]["broken"] = {"data": str(broken), "init": config["sessions"]["one"]["init"]}
+    (d / "with_broken.yaml").write_text(json.dumps(config))
+    out = subprocess.run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "with_broken.yaml",
+                          "--directory", d, "--cores", "2", "--keep-going"], capture_output=True, text=True)
+    assert out.returncode != 0, "a failed job fails the workflow"
+    # The broken session's object still trained (keep-going), the others' outputs untouched.
+    assert (d / "results" / "broken" / "merged" / "box" / "merged.ply").exists()
+    rows = {(r.split(",")[0], r.split(",")[2]) for r in (d / "results" / "summary.csv").read_text().splitlines()[1:]}
+    assert ("one", "scored") in rows and ("two", "scored") in rows, rows
+    assert ("broken", "failed in train_scene") in rows, rows
+    summary = (d / "results" / "summary.md").read_text()
+    assert "background" in summary and "broken" in summary, summary
