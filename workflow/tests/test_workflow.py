@@ -1,6 +1,8 @@
-"""The workflow end to end on two tiny synthetic sessions: every stage through Snakemake with two cores, the
-outputs byte for byte those of the commands run by hand, a second run with nothing to do, a changed
-setting of one session rerunning that session's rules alone, the lint, and the Slurm profile's dry run."""
+"""The workflow end to end on two tiny synthetic sessions, one calibrated and one raw (imported, its masks
+computed): every stage through Snakemake with two cores, the outputs byte for byte those of the commands
+run by hand, a second run with nothing to do, a changed setting of one session rerunning that session's
+rules alone, a broken session failing alone and named in the summary, the lint, and the Slurm profile's
+dry run."""
 
 from __future__ import annotations
 
@@ -145,15 +147,20 @@ def sessions(tmp_path_factory):
     (d / "two.toml").write_text(other)
     pganeus = pganeus_bin()
     run([pganeus, "synth", "--scene", REPO / "scenes" / "synth_tiny_slide.toml", "--out", d / "data" / "one"])
-    run([pganeus, "synth", "--scene", d / "two.toml", "--out", d / "data" / "two"])
+    # Session two is raw: photos and videos of a printed ChArUco board through a distorting lens, imported by
+    # the workflow (its captures at 64 px wide), its masks computed.
+    run([pganeus, "synth", "--scene", d / "two.toml", "--out", d / "data" / "two", "--raw", "charuco",
+         "--raw-size", "384x288"])
     (d / "small_fit.toml").write_text(SMALL_FIT)
     config = {
         "pganeus": pganeus,
         "out": "results",
         "defaults": {**SETTINGS, "fit_config": str(d / "small_fit.toml")},
         "sessions": {
-            name: {"data": str(d / "data" / name), "init": str(init_file(d / "data" / name, d / f"init_{name}.json"))}
-            for name in ("one", "two")
+            "one": {"data": str(d / "data" / "one"), "init": str(init_file(d / "data" / "one", d / "init_one.json"))},
+            "two": {"raw": str(d / "data" / "two" / "raw"), "import_width": 64,
+                    "truth": str(d / "data" / "two" / "truth.json"),
+                    "init": str(init_file(d / "data" / "two", d / "init_two.json"))},
         },
     }
     (d / "config.yaml").write_text(json.dumps(config))  # JSON is YAML
@@ -168,6 +175,9 @@ def test_every_stage_runs_and_the_summary_has_both_sessions(sessions):
                   "scene.sdf", "fits/slide/trajectory.json", "fits/slide/eval.json", "report.html",
                   "logs/fit_slide.log", "benchmarks/fit_slide.tsv"):
             assert (out / s / f).exists(), f"{s}/{f}"
+    # The raw session was imported, and its video's masks computed.
+    assert (out / "two" / "data" / "session.json").exists()
+    assert len(list((out / "two" / "data" / "slide" / "mask_box").glob("*.png"))) == 4
     summary = (out / "summary.csv").read_text().splitlines()
     assert len(summary) == 3 and all(",scored," in row for row in summary[1:]), summary
 

@@ -222,3 +222,13 @@ def test_calibrate_a_raw_session(tmp_path):
     error = np.linalg.norm(centres(calibrated["W2C"]) - centres(truth["W2C"]), axis=1)
     assert error.max() < 0.01, error  # metres: the board's world is the truth's
     assert (out / "slide").is_dir() and (out / "calibration.json").exists()
+
+
+def test_masks_of_a_video_and_of_an_object_capture(tiny, tmp_path):
+    video = pganeus.masks(tiny["data"] / "slide", scene=tiny["scene"], body="box", out=tmp_path / "video_masks")
+    frames = sorted(video.iterdir())
+    assert video == tmp_path / "video_masks" and len(frames) == 4, frames
+    capture = tmp_path / "box_a"
+    shutil.copytree(tiny["data"] / "box_a", capture, ignore=shutil.ignore_patterns("mask"))
+    photos = pganeus.masks(capture, out=tmp_path / "object_masks")
+    assert len(list(photos.iterdir())) == len(list((capture / "image").iterdir()))

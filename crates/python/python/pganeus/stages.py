@@ -154,19 +154,31 @@ def calibrate(
     return Path(out)
 
 
-def masks(video: PathLike, *, scene: PathLike, body: str = "body", progress: Progress = None, **options: Any) -> Path:
-    """Masks of a video's moving body from the scene rendered through the video's camera; returns the mask
-    folder. Options as ``pganeus masks``: ``out``.
+def masks(
+    capture: PathLike,
+    *,
+    scene: Optional[PathLike] = None,
+    body: str = "body",
+    progress: Progress = None,
+    **options: Any,
+) -> Path:
+    """Masks computed without a network; returns their folder. For a video (``scene``: the scene's run),
+    the moving ``body`` against the scene rendered through the video's camera (``mask_<body>/``); for a
+    static object capture (no ``scene``), the object against the board from its photos alone (``mask/``).
+    Options as ``pganeus masks``: ``out``.
     """
-    _run("masks", [video], {"scene": scene, "body": body, **options}, progress)
-    return Path(options.get("out") or Path(video) / f"mask_{body}")
+    if scene is None:
+        _run("masks", [capture], options, progress)
+        return Path(options.get("out") or Path(capture) / "mask")
+    _run("masks", [capture], {"scene": scene, "body": body, **options}, progress)
+    return Path(options.get("out") or Path(capture) / f"mask_{body}")
 
 
 def synth(out: PathLike, *, preset: Optional[str] = "tabletop", progress: Progress = None, **options: Any) -> Path:
     """A synthetic dataset with its truth (captures, videos, ``truth.json``); returns ``out``.
 
     Options as ``pganeus synth``: ``scene`` (a scene file instead of ``preset``), ``scale`` ("small",
-    "full"), ``physics`` ("pganeus", "rapier"), ``camera_like``, ``raw``, ``contact_sheet``, ``force``.
+    "large"), ``physics`` ("pganeus", "rapier"), ``camera_like``, ``raw``, ``contact_sheet``, ``force``.
     """
     if options.get("scene") is not None:
         preset = None
