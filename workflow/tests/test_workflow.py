@@ -7,64 +7,24 @@ dry run."""
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 WORKFLOW = Path(__file__).resolve().parents[1]
 REPO = WORKFLOW.parent
 SNAKEFILE = WORKFLOW / "Snakefile"
-# Keys whose values are wall-clock times: all two runs of the same stage may differ in.
-TIME_KEYS = {"timings_s", "seconds"}
-
-SMALL_FIT = """
-launch_frames = 2
-rounds = 1
-pga_multi_start = false
-[first_pose]
-iterations = 30
-rays_per_step = 128
-[pa]
-iterations = 20
-rays_per_frame = 64
-window_steps = 5
-[ga]
-contact_points = 8
-[ga.pose]
-iterations = 10
-rays_per_step = 128
-[ga.end_search]
-screened = 2
-screen_iterations = 5
-refined = 1
-twin_iterations = 5
-[ga.end_search.refine]
-iterations = 10
-rays_per_step = 128
-[pga]
-iterations = 10
-"""
+# The helpers the Python package's tests use too (they import nothing of the package).
+sys.path.insert(0, str(REPO / "crates" / "python" / "tests"))
+from pganeus_testing import SMALL_FIT, TINY_SCENE, cli_binary, contents, first_pose_guess  # noqa: E402
 
 SETTINGS = {"scene_iterations": 20, "object_iterations": 20, "bake_res": 64, "merge_res": 48,
             "merge_field_res": 64, "frames": 3}
-
-
-def pganeus_bin() -> str:
-    given = os.environ.get("PGANEUS_BIN")
-    if given:
-        return given
-    for candidate in (REPO / "target" / "debug" / "pganeus", REPO / "target" / "release" / "pganeus"):
-        if candidate.exists():
-            return str(candidate)
-    found = shutil.which("pganeus")
-    if not found:
-        pytest.fail("no pganeus command: build it (cargo build --profile test -p pganeus) or set PGANEUS_BIN")
-    return found
+# The workflow's own records, which running the commands by hand does not write (report.html records times).
+RECORDS = ("logs", "benchmarks", ".snakemake", "report.html")
 
 
 def run(argv, cwd=None):
@@ -78,75 +38,22 @@ def snakemake(d: Path, *args):
                 "--directory", d, *args])
 
 
-def rotation_to_quaternion(r):
-    w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
-    v = [np.copysign(np.sqrt(max(0.0, 1 + 2 * r[i, i] - np.trace(r))) / 2, r[(i + 2) % 3, (i + 1) % 3] - r[(i + 1) % 3, (i + 2) % 3])
-         for i in range(3)]
-    q = np.array([w, *v])
-    return q / np.linalg.norm(q)
-
-
-def matrix(t, q):
-    w, x, y, z = np.asarray(q) / np.linalg.norm(q)
-    m = np.eye(4)
-    m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                 [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-    m[:3, 3] = t
-    return m
-
-
 def init_file(data: Path, path: Path) -> Path:
     """The box's first pose from the truth, as init.json (so that no fit spends its time searching)."""
-    truth = json.loads((data / "truth.json").read_text())
-    lay = next(c["pose"] for c in truth["bodies"][0]["static_captures"] if c["capture"] == "box_a")
-    start = truth["videos"][0]["bodies"][0]["initial"]
-    m = matrix(start["t"], start["q"]) @ np.linalg.inv(matrix(lay["t"], lay["q"]))
-    path.write_text(json.dumps({"box": {"capture": "box_a", "t": list(m[:3, 3]), "q": list(rotation_to_quaternion(m[:3, :3]))}}))
+    path.write_text(json.dumps({"box": first_pose_guess(data / "truth.json", "slide", "box", "box_a")}))
     return path
-
-
-def contents(folder: Path, roots: list[str], skip=("logs", "benchmarks", ".snakemake", "report.html")) -> dict:
-    """Every file under `folder` but the workflow's own records: text files with the session's folder
-    (`roots`, as the commands were given it) written as SESSION, JSON without its times, the rest as bytes."""
-    out = {}
-    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
-        rel = path.relative_to(folder)
-        if rel.parts[0] in skip or path.name in skip:
-            continue
-        if path.suffix in (".json", ".jsonl", ".toml", ".csv"):
-            text = path.read_text()
-            for root in sorted(roots, key=len, reverse=True):
-                text = text.replace(root, "SESSION")
-            if path.suffix == ".json":
-                out[str(rel)] = without_times(json.loads(text))
-            elif path.suffix == ".jsonl":
-                out[str(rel)] = [without_times(json.loads(l)) for l in text.splitlines() if l.strip()]
-            else:
-                out[str(rel)] = text
-        else:
-            out[str(rel)] = path.read_bytes()
-    return out
-
-
-def without_times(value):
-    if isinstance(value, dict):
-        return {k: without_times(v) for k, v in value.items() if k not in TIME_KEYS and not k.endswith("_s")}
-    if isinstance(value, list):
-        return [without_times(v) for v in value]
-    return value
 
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory):
     d = tmp_path_factory.mktemp("workflow")
-    scene = (REPO / "scenes" / "synth_tiny_slide.toml").read_text()
+    scene = TINY_SCENE.read_text()
     # The second session: the box launched faster and turning.
     other = scene.replace("v = [0.6, 0.0, 0.0]", "v = [0.8, 0.1, 0.0]").replace("omega = [0.0, 0.0, 0.0]", "omega = [0.0, 0.0, 2.0]")
     assert other != scene
     (d / "two.toml").write_text(other)
-    pganeus = pganeus_bin()
-    run([pganeus, "synth", "--scene", REPO / "scenes" / "synth_tiny_slide.toml", "--out", d / "data" / "one"])
+    pganeus = str(cli_binary())
+    run([pganeus, "synth", "--scene", TINY_SCENE, "--out", d / "data" / "one"])
     # Session two is raw: photos and videos of a printed ChArUco board through a distorting lens, imported by
     # the workflow (its captures at 64 px wide), its masks computed.
     run([pganeus, "synth", "--scene", d / "two.toml", "--out", d / "data" / "two", "--raw", "charuco",
@@ -200,8 +107,8 @@ def test_the_outputs_are_the_commands_run_by_hand(sessions):
          "--frames", s["frames"], "--out", hand / "fits" / "slide", "--force"])
     run([pganeus, "eval", hand / "fits" / "slide", "--truth", data / "truth.json", "--video", "slide"])
     run([pganeus, "report", hand])
-    by_hand = contents(hand, [str(hand)])
-    by_workflow = contents(d / "results" / "one", [str(d / "results" / "one"), "results/one"])
+    by_hand = contents(hand, roots=[str(hand)], skip=RECORDS)
+    by_workflow = contents(d / "results" / "one", roots=[str(d / "results" / "one"), "results/one"], skip=RECORDS)
     assert sorted(by_hand) == sorted(by_workflow)
     for name in by_hand:
         assert by_hand[name] == by_workflow[name], f"{name} differs between the workflow and the commands"

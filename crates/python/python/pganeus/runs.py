@@ -17,6 +17,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Optional
 
@@ -137,9 +138,9 @@ class FitRun(Run):
         "pga_tracked": "pga_tracked.json",
     }
 
-    @property
+    @cached_property
     def trajectory(self) -> dict:
-        """``trajectory.json`` as written (docs/formats.md)."""
+        """``trajectory.json`` as written (docs/formats.md), read once."""
         return _read_json(self.path / "trajectory.json")
 
     @property
@@ -286,9 +287,9 @@ class DemoRun(Run):
         """``demo.json``: each stage's command and time."""
         return _read_json(self.path / "demo.json")
 
-    @property
+    @cached_property
     def truth(self) -> dict:
-        """The synthetic dataset's ``truth.json``."""
+        """The synthetic dataset's ``truth.json``, read once."""
         return _read_json(self.path / "data" / "truth.json")
 
     @property
@@ -362,9 +363,9 @@ def world_from_fit(path: "str | os.PathLike[str]") -> World:
     if pairs:
         names = world.param_names
         params = world.params
+        order = world.bodies
         for p in pairs:
             a, b = p["bodies"]
-            order = [x["name"] for x in t["bodies"]]
             if order.index(a) > order.index(b):
                 a, b = b, a
             params[names.index(f"{a}-{b}.restitution")] = p["restitution"]
