@@ -7,6 +7,7 @@ dry run."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -137,6 +138,89 @@ def test_a_changed_setting_reruns_that_session_alone(sessions):
     outputs = [l.split(":", 1)[1] for l in detail.splitlines() if l.strip().startswith("output:")]
     assert any("results/two/scene.sdf" in o for o in outputs), detail
     assert all("results/two/" in o and "results/one/" not in o for o in outputs), outputs
+
+
+def planned_rules(d: Path, configfile: Path, printed: list[str] | None = None) -> list[tuple[str, str]]:
+    """Each job a dry run plans: its rule and its first output (and the whole plan into `printed`)."""
+    out = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", configfile, "--directory", d,
+               "-n", "-p"]).stdout
+    if printed is not None:
+        printed.append(out)
+    jobs, rule = [], None
+    for line in out.splitlines():
+        if line.startswith("rule "):
+            rule = line.split()[1].rstrip(":")
+        elif line.strip().startswith("output:") and rule:
+            jobs.append((rule, line.split(":", 1)[1].split(",")[0].strip()))
+            rule = None
+    return jobs
+
+
+def test_a_sessions_own_settings_file_reruns_that_session_alone(sessions):
+    d = sessions["dir"]
+    own = d / "data" / "two" / "raw" / "pganeus.yaml"
+    try:
+        # The session's folder holds its settings: a changed value reruns what it reaches, in that session only.
+        own.write_text("bake_res: 48\n")
+        jobs = planned_rules(d, d / "config.yaml")
+        assert {r for r, _ in jobs} == {"bake", "fit", "eval", "report"}, jobs
+        assert all("results/two/" in o for _, o in jobs), jobs
+        # Touching the file without changing a value reruns nothing (Snakemake compares the settings).
+        own.write_text("bake_res: 64  # as the defaults say\n")
+        out = snakemake(d, "--cores", "2", "-n")
+        assert "Nothing to be done" in out.stdout + out.stderr, out.stdout
+        # A fit settings file named relative to the session's file; editing that file reruns the fits using it.
+        fit_settings = own.parent / "fit.toml"
+        fit_settings.write_text((d / "small_fit.toml").read_text())
+        own.write_text("fit_config: fit.toml\n")
+        jobs = planned_rules(d, d / "config.yaml")
+        assert {r for r, _ in jobs} == {"fit", "eval", "report"} and all("results/two/" in o for _, o in jobs), jobs
+        # A typo is refused by name, not ignored.
+        own.write_text("bake_resolution: 48\n")
+        out = subprocess.run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "config.yaml",
+                              "--directory", d, "-n"], capture_output=True, text=True)
+        assert out.returncode != 0
+        assert "pganeus.yaml: unknown setting(s) bake_resolution" in out.stdout + out.stderr, out.stdout + out.stderr
+    finally:
+        own.unlink(missing_ok=True)
+        (own.parent / "fit.toml").unlink(missing_ok=True)
+
+
+def test_an_edited_fit_settings_file_reruns_the_fits(sessions):
+    d = sessions["dir"]
+    fit_settings = d / "small_fit.toml"
+    before, stamp = fit_settings.read_text(), fit_settings.stat()
+    try:
+        fit_settings.write_text(before + "\n# edited\n")
+        jobs = planned_rules(d, d / "config.yaml")
+        assert {r for r, _ in jobs} == {"fit", "eval", "report"}, jobs
+        assert {o.split("/")[1] for _, o in jobs} == {"one", "two"}, jobs
+    finally:
+        # As it was, its time too: the tests after this one expect nothing to do.
+        fit_settings.write_text(before)
+        os.utime(fit_settings, ns=(stamp.st_atime_ns, stamp.st_mtime_ns))
+
+
+def test_a_raw_video_of_several_bodies_is_left_to_the_fit_to_split(sessions):
+    # Only the folders' names matter to the plan: a raw session of two objects and one video showing both.
+    d = sessions["dir"]
+    raw = d / "data" / "pair_raw"
+    for folder in ("background", "cup_a", "cup_b", "box_a", "box_b", "push"):
+        (raw / folder).mkdir(parents=True, exist_ok=True)
+        (raw / folder / "000.png").write_bytes(b"")
+    (raw / "board.toml").write_text("")
+    config = json.loads((d / "config.yaml").read_text())
+    config["sessions"]["pair"] = {"raw": str(raw)}
+    (d / "pair.yaml").write_text(json.dumps(config))
+    printed: list[str] = []
+    jobs = planned_rules(d, d / "pair.yaml", printed)
+    assert all("results/pair/" in o for _, o in jobs), jobs
+    rules = [r for r, _ in jobs]
+    # `masks` tells whatever moves from the scene: with two bodies that is neither's mask, so no masks job.
+    assert sorted(rules) == sorted(["import_session", "train_scene", "bake", "fit", "report", "merge", "merge"]
+                                   + ["train_object"] * 4), jobs
+    fit = next(line for line in printed[0].splitlines() if " fit " in line and "--object" in line)
+    assert "--object box=" in fit and "--object cup=" in fit, fit
 
 
 def test_the_workflow_lints_clean_and_the_slurm_profile_plans(sessions):
