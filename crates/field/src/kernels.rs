@@ -312,10 +312,33 @@ fn activate_portable(act: crate::Activation, x: &mut [f32], deriv: &mut [f32]) {
     }
 }
 
-/// Copy `bias` into every row of `rows` (row length = `bias.len()`).
-pub fn fill_rows(rows: &mut [f32], bias: &[f32]) {
-    for r in rows.chunks_exact_mut(bias.len()) {
-        r.copy_from_slice(bias);
+/// `bias` added to every row of `x` (row length = `bias.len()`), then [`activate`]: one pass over the layer's
+/// outputs after a product that did not read them (`beta = 0`). Copying the bias into every row before the
+/// product was a call of `memcpy` per row, 3 % of a pose fit's time.
+pub fn bias_activate(act: crate::Activation, bias: &[f32], x: &mut [f32], deriv: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        unsafe { bias_activate_avx2(act, bias, x, deriv) };
+        return;
+    }
+    bias_activate_portable(act, bias, x, deriv);
+}
+
+/// [`bias_activate`] compiled for AVX2, bit for bit the portable build (as [`activate_avx2`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn bias_activate_avx2(act: crate::Activation, bias: &[f32], x: &mut [f32], deriv: &mut [f32]) {
+    bias_activate_portable(act, bias, x, deriv);
+}
+
+#[inline(always)]
+fn bias_activate_portable(act: crate::Activation, bias: &[f32], x: &mut [f32], deriv: &mut [f32]) {
+    for (row, d) in x.chunks_exact_mut(bias.len()).zip(deriv.chunks_exact_mut(bias.len())) {
+        for (v, b) in row.iter_mut().zip(bias) {
+            *v += b;
+        }
+        activate_portable(act, row, d);
     }
 }
 
@@ -852,6 +875,30 @@ mod tests {
             for i in 0..z.len() {
                 assert_eq!(v[i].to_bits(), pv[i].to_bits(), "{act:?} value at z = {}", z[i]);
                 assert_eq!(d[i].to_bits(), pd[i].to_bits(), "{act:?} derivative at z = {}", z[i]);
+            }
+        }
+    }
+
+    /// The bias added in the activation's pass gives the bits of the bias added first: every build, every
+    /// activation (the product before it adds nothing where the bias was copied in before).
+    #[test]
+    fn the_bias_added_with_the_activation_is_the_bias_added_before_it() {
+        let bias: Vec<f32> = (0..64).map(|j| (j as f32 - 30.0) * 7e-3).collect();
+        let z: Vec<f32> = (0..64 * 301).map(|i| ((i * 7919) % 4001) as f32 * 1e-3 - 2.0).collect();
+        for act in [
+            Activation::Softplus { beta: 100.0 },
+            Activation::Sigmoid,
+            Activation::Relu,
+            Activation::None,
+        ] {
+            let (mut v, mut d) = (z.clone(), vec![0.0f32; z.len()]);
+            bias_activate(act, &bias, &mut v, &mut d);
+            let mut pv: Vec<f32> = z.iter().enumerate().map(|(i, x)| bias[i % 64] + x).collect();
+            let mut pd = vec![0.0f32; z.len()];
+            activate_portable(act, &mut pv, &mut pd);
+            for i in 0..z.len() {
+                assert_eq!(v[i].to_bits(), pv[i].to_bits(), "{act:?} value {i}");
+                assert_eq!(d[i].to_bits(), pd[i].to_bits(), "{act:?} derivative {i}");
             }
         }
     }

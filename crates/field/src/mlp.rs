@@ -304,12 +304,11 @@ impl Mlp {
             } else {
                 &mut o[..r * ly.n_out]
             };
-            kernels::fill_rows(a_out, &params[ly.b..ly.b + ly.n_out]);
             let w = &params[ly.w..ly.w + ly.n_in * ly.n_out];
             kernels::gemm(
-                r, ly.n_in, ly.n_out, 1.0, a_in, ly.n_in, 1, w, 1, ly.n_in, 1.0, a_out, ly.n_out, 1,
+                r, ly.n_in, ly.n_out, 1.0, a_in, ly.n_in, 1, w, 1, ly.n_in, 0.0, a_out, ly.n_out, 1,
             );
-            kernels::activate(ly.act, a_out, &mut g[..r * ly.n_out]);
+            kernels::bias_activate(ly.act, &params[ly.b..ly.b + ly.n_out], a_out, &mut g[..r * ly.n_out]);
         }
     }
 

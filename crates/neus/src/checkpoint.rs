@@ -59,7 +59,7 @@ fn field_entries(
         "occupancy".into(),
         Tensor {
             shape: vec![occ.res, occ.res, occ.res],
-            data: TensorData::U8(occ.cells.clone()),
+            data: TensorData::U8(occ.cells().to_vec()),
         },
     );
     let mut metadata = BTreeMap::new();
@@ -189,7 +189,7 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
     }
     let res = config.occupancy_res;
     let occupancy = match st.tensors.get("occupancy").map(|t| &t.data) {
-        Some(TensorData::U8(c)) if c.len() == res * res * res => OccupancyGrid { res, cells: c.clone() },
+        Some(TensorData::U8(c)) if c.len() == res * res * res => OccupancyGrid::from_cells(res, c.clone()),
         _ => return Err(invalid(path, format!("tensor \"occupancy\" must be {res}³ U8 values"))),
     };
     let centre: [f64; 3] = serde_json::from_str(meta(st, path, "centre")?)

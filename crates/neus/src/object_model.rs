@@ -30,6 +30,9 @@ pub struct ObjectModel {
     pub other: Option<ObjectField>,
     /// The closed mesh, body frame.
     pub mesh: TriMesh,
+    /// `mesh`'s bounding box (`mesh.bounds()`), kept beside it: the pose fit asks for it at every step, and a
+    /// merged mesh has some 200,000 vertices (6 % of a fit's time went to recomputing it).
+    pub mesh_bounds: ([f64; 3], [f64; 3]),
     /// Volume (m³) of the closed mesh.
     pub volume: f64,
     /// The reference capture's name (its folder's) and where the body frame sat in it.
@@ -200,6 +203,7 @@ impl ObjectModel {
         let b_from_body = Pose::from_translation(com);
         let a_from_body = a_to_b.inverse().compose(&b_from_body);
         let mesh = to_body(&merged, com);
+        let mesh_bounds = mesh.bounds();
         let primary = ObjectField {
             field: load_field(&checkpoint_in(&b))?,
             capture_from_body: b_from_body,
@@ -215,6 +219,7 @@ impl ObjectModel {
             primary,
             other: Some(other),
             mesh,
+            mesh_bounds,
             volume: props.0,
         })
     }
@@ -227,11 +232,13 @@ impl ObjectModel {
         let zero = zero_level_cached(&ckpt, digest(&bytes), &field, res);
         let (volume, com) = closed_volume(run, &zero)?;
         let capture_from_body = Pose::from_translation(com);
+        let mesh = to_body(&zero, com);
         Ok(Self {
             source: run.to_path_buf(),
             reference_capture: capture_name(&field),
             reference_pose: capture_from_body,
-            mesh: to_body(&zero, com),
+            mesh_bounds: mesh.bounds(),
+            mesh,
             volume,
             primary: ObjectField {
                 field,

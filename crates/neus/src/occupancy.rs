@@ -2,21 +2,38 @@
 //! unit cube marks cells whose SDF is within reach of the surface; samples
 //! are taken only there. Refreshed from the field during training.
 
+use std::sync::OnceLock;
+
 /// Occupancy of `res³` cells covering [-1, 1]³.
 #[derive(Clone, Debug)]
 pub struct OccupancyGrid {
     pub res: usize,
     /// 1 = may hold surface.
-    pub cells: Vec<u8>,
+    cells: Vec<u8>,
+    /// [`Self::bounding_sphere`], computed on first use and dropped by every change of the cells: a posed
+    /// object's layer asks for it at every step of a pose fit, and a scan of 128³ cells was 1 % of a fit.
+    bound: OnceLock<Option<([f32; 3], f32)>>,
 }
 
 impl OccupancyGrid {
     /// Everything occupied (the field is unknown).
     pub fn full(res: usize) -> Self {
+        Self::from_cells(res, vec![1; res * res * res])
+    }
+
+    /// The grid of `cells` (`res³` of them, x fastest; non-zero = may hold surface).
+    pub fn from_cells(res: usize, cells: Vec<u8>) -> Self {
+        assert_eq!(cells.len(), res * res * res, "OccupancyGrid::from_cells: {res}³ cells");
         Self {
             res,
-            cells: vec![1; res * res * res],
+            cells,
+            bound: OnceLock::new(),
         }
+    }
+
+    /// The cells, x fastest (non-zero = may hold surface).
+    pub fn cells(&self) -> &[u8] {
+        &self.cells
     }
 
     pub fn cell_size(&self) -> f32 {
@@ -54,10 +71,15 @@ impl OccupancyGrid {
         for (&i, &s) in indices.iter().zip(sdf) {
             self.cells[i] = u8::from(s.abs() <= band);
         }
+        self.bound = OnceLock::new();
     }
 
     /// A sphere (unit coordinates) holding every occupied cell whole, `None` when none is occupied.
     pub fn bounding_sphere(&self) -> Option<([f32; 3], f32)> {
+        *self.bound.get_or_init(|| self.scan_bounding_sphere())
+    }
+
+    fn scan_bounding_sphere(&self) -> Option<([f32; 3], f32)> {
         let r = self.res;
         let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
         for (idx, _) in self.cells.iter().enumerate().filter(|(_, &c)| c != 0) {

@@ -743,7 +743,7 @@ impl NeusTrainer {
 
     /// Re-evaluate the quarter `part` (0–3) of the occupancy cells.
     fn refresh_occupancy_part(&mut self, part: usize) {
-        let cells = self.occupancy.cells.len();
+        let cells = self.occupancy.cells().len();
         let idx: Vec<usize> = (part..cells).step_by(4).collect();
         let pts: Vec<f32> = idx.iter().flat_map(|&i| self.occupancy.centre(i)).collect();
         let sdf = self.field.sdf_values(&pts, self.config.active_levels(self.step));

@@ -326,12 +326,11 @@ fn a_posed_object_renders_as_its_field_from_the_inversely_moved_camera() {
 
 /// Cells whose centres lie within `radius` of the unit frame's origin.
 fn ball_occupancy(res: usize, radius: f32) -> OccupancyGrid {
-    let mut g = OccupancyGrid::full(res);
-    for i in 0..g.cells.len() {
-        let c = g.centre(i);
-        g.cells[i] = u8::from(c.iter().map(|v| v * v).sum::<f32>() <= radius * radius);
-    }
-    g
+    let full = OccupancyGrid::full(res);
+    let cells = (0..res * res * res)
+        .map(|i| u8::from(full.centre(i).iter().map(|v| v * v).sum::<f32>() <= radius * radius))
+        .collect();
+    OccupancyGrid::from_cells(res, cells)
 }
 
 /// The object half sunk into a sharp board (a trained scene's surface is a few millimetres thick), seen

@@ -208,9 +208,9 @@ fn round_trip(name: &str, mut cfg: TrainConfig) {
         (None, None) => {}
         _ => panic!("the background field did not survive the checkpoint"),
     }
-    assert_eq!(resumed.occupancy.cells, straight.occupancy.cells);
+    assert_eq!(resumed.occupancy.cells(), straight.occupancy.cells());
     assert!(
-        straight.occupancy.cells.contains(&0),
+        straight.occupancy.cells().contains(&0),
         "the grid should have been refreshed (some cells empty)"
     );
     // A truncated checkpoint is an error, not a panic.

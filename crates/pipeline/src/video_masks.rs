@@ -143,7 +143,7 @@ pub fn body_look(object: &neus::ObjectModel, camera: &geom::Camera<f64>) -> reco
     } else {
         0.3
     };
-    let (lo, hi) = object.mesh.bounds();
+    let (lo, hi) = object.mesh_bounds;
     let reach = (0..3).map(|i| lo[i].abs().max(hi[i].abs())).fold(0.0, f64::max);
     let at = axis.at(s) + Vec3::new(0.0, 0.0, reach);
     let quarter = std::f64::consts::FRAC_PI_2;

@@ -535,6 +535,7 @@ mod tests {
             },
             other: None,
             mesh: cuboid([0.04; 3]),
+            mesh_bounds: cuboid([0.04; 3]).bounds(),
             volume: 1e-4,
             reference_capture: "ball".into(),
             reference_pose: Pose::identity(),

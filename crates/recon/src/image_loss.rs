@@ -391,7 +391,7 @@ impl<'a> PreparedFrame<'a> {
         let cam = &self.frame.camera;
         let (w, h) = (cam.width as f64, cam.height as f64);
         let mut b: Option<[f64; 4]> = self.mask_box.map(|b| b.map(|v| v as f64));
-        let corners = box_corners(object.mesh.bounds());
+        let corners = box_corners(object.mesh_bounds);
         for (pose, c) in shutter_ends(pose, self.motion.as_ref(), self.frame.shutter)
             .iter()
             .flat_map(|p| corners.iter().map(move |&c| (p, c)))
@@ -449,13 +449,7 @@ impl<'a> PreparedFrame<'a> {
         let cam = &self.frame.camera;
         let w = cam.width as usize;
         // The fitted body is object 0; the others follow it, drawn from the cache.
-        let subs = shutter_poses(
-            pose,
-            self.motion.as_ref(),
-            self.frame.shutter,
-            cam,
-            object.mesh.bounds(),
-        );
+        let subs = shutter_poses(pose, self.motion.as_ref(), self.frame.shutter, cam, object.mesh_bounds);
         let layers: Vec<[Layer; 1]> = subs
             .iter()
             .map(|s| [body_layer(object, &s.pose, 0, cam, weights)])

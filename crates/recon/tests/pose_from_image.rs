@@ -131,6 +131,7 @@ fn a_body_half_hidden_by_another_is_found_with_the_other_drawn() {
         },
         other: None,
         mesh: bounds_mesh(0.03),
+        mesh_bounds: bounds_mesh(0.03).bounds(),
         volume: 1e-4,
         reference_capture: "ball_b".into(),
         reference_pose: Pose::identity(),

@@ -50,6 +50,7 @@ pub fn ball_model() -> ObjectModel {
             capture_from_body: Pose::from_translation(Vec3::new(0.0, 0.0, 0.03)),
         },
         other: None,
+        mesh_bounds: geom::bounding_box(v.iter().copied()),
         mesh: TriMesh::new(v, vec![[0, 1, 2]]),
         volume: 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3),
         reference_capture: "toy_b".into(),

@@ -40,6 +40,7 @@ pub fn toy() -> ObjectModel {
         },
         other: None,
         mesh: bounds_mesh(0.04),
+        mesh_bounds: bounds_mesh(0.04).bounds(),
         volume: 1e-4,
         reference_capture: "toy_b".into(),
         reference_pose: Pose::identity(),
