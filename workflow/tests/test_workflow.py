@@ -169,7 +169,8 @@ def test_a_sessions_own_settings_file_reruns_that_session_alone(sessions):
         own.write_text("bake_res: 64  # as the defaults say\n")
         out = snakemake(d, "--cores", "2", "-n")
         assert "Nothing to be done" in out.stdout + out.stderr, out.stdout
-        # A fit settings file named relative to the session's file; editing that file reruns the fits using it.
+        # A fit settings file named relative to the session's file (found there: a wrong path would be a missing
+        # input): the session's fits, evals and report are planned again, with the new settings.
         fit_settings = own.parent / "fit.toml"
         fit_settings.write_text((d / "small_fit.toml").read_text())
         own.write_text("fit_config: fit.toml\n")
@@ -184,6 +185,17 @@ def test_a_sessions_own_settings_file_reruns_that_session_alone(sessions):
     finally:
         own.unlink(missing_ok=True)
         (own.parent / "fit.toml").unlink(missing_ok=True)
+
+
+def test_a_session_without_its_folder_is_refused_by_name(sessions):
+    d = sessions["dir"]
+    config = json.loads((d / "config.yaml").read_text())
+    config["sessions"]["lost"] = {"settings": str(d / "nowhere.yaml")}
+    (d / "lost.yaml").write_text(json.dumps(config))
+    out = subprocess.run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", d / "lost.yaml",
+                          "--directory", d, "-n"], capture_output=True, text=True)
+    assert out.returncode != 0
+    assert "session lost: give its folder as `data:`" in out.stdout + out.stderr, out.stdout + out.stderr
 
 
 def test_an_edited_fit_settings_file_reruns_the_fits(sessions):

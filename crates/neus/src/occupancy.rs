@@ -181,3 +181,25 @@ pub fn sample_ray(
         seen += 1;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kept bounding sphere follows the cells: an update that empties the grid but one cell shrinks it.
+    #[test]
+    fn the_kept_bounding_sphere_follows_an_update_of_the_cells() {
+        let mut g = OccupancyGrid::full(8);
+        let (_, whole) = g.bounding_sphere().expect("every cell is occupied");
+        assert!(whole > 1.7, "{whole}: the sphere around the whole cube");
+        let corner = 0;
+        let indices: Vec<usize> = (0..g.cells().len()).collect();
+        let sdf: Vec<f32> = indices.iter().map(|&i| if i == corner { 0.0 } else { 1.0 }).collect();
+        g.update(&indices, &sdf, 0.1);
+        let (centre, radius) = g.bounding_sphere().expect("one cell is occupied");
+        assert_eq!(centre, g.centre(corner));
+        assert!(radius < 0.25, "{radius}: the sphere around one cell of a quarter unit");
+        g.update(&[corner], &[1.0], 0.1);
+        assert_eq!(g.bounding_sphere(), None);
+    }
+}
