@@ -126,18 +126,11 @@ def test_a_changed_setting_reruns_that_session_alone(sessions):
     config["sessions"]["two"]["bake_res"] = 48
     changed = d / "changed.yaml"
     changed.write_text(json.dumps(config))
-    out = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", changed, "--directory", d,
-               "-n", "--quiet", "rules"])
-    text = out.stdout + out.stderr
-    rules = {line.split()[0] for line in text.splitlines() if line.strip() and line.split()[0] in
-             {"train_scene", "train_object", "merge", "bake", "fit", "eval", "report"}}
-    assert rules == {"bake", "fit", "eval", "report"}, text
+    jobs = planned_rules(d, changed)
+    assert {r for r, _ in jobs} == {"bake", "fit", "eval", "report"}, jobs
     # Which outputs: session two's alone.
-    detail = run([sys.executable, "-m", "snakemake", "-s", SNAKEFILE, "--configfile", changed, "--directory", d,
-                  "-n", "-p"]).stdout
-    outputs = [l.split(":", 1)[1] for l in detail.splitlines() if l.strip().startswith("output:")]
-    assert any("results/two/scene.sdf" in o for o in outputs), detail
-    assert all("results/two/" in o and "results/one/" not in o for o in outputs), outputs
+    assert any(o.endswith("results/two/scene.sdf") for _, o in jobs), jobs
+    assert all("results/two/" in o for _, o in jobs), jobs
 
 
 def planned_rules(d: Path, configfile: Path, printed: list[str] | None = None) -> list[tuple[str, str]]:
@@ -148,7 +141,7 @@ def planned_rules(d: Path, configfile: Path, printed: list[str] | None = None) -
         printed.append(out)
     jobs, rule = [], None
     for line in out.splitlines():
-        if line.startswith("rule "):
+        if line.startswith(("rule ", "localrule ")):  # a dry run prints "rule", a local run "localrule"
             rule = line.split()[1].rstrip(":")
         elif line.strip().startswith("output:") and rule:
             jobs.append((rule, line.split(":", 1)[1].split(",")[0].strip()))
