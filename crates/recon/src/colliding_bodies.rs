@@ -22,6 +22,7 @@
 use crate::fit_physics::{
     fit_multi_start_bodies, FitError, Observed, PhysicsFitConfig, StartContact, StartResult, StartsOn,
 };
+use crate::flight::{check_window, FlightCheck};
 use crate::poses_from_video::carried_on;
 use crate::resting_start::{resting_start, RestingStart};
 use crate::value_ranges::{contact_value_ranges, RangeScan, ValueRange};
@@ -118,6 +119,10 @@ pub struct CollidingFit {
     /// The world after the launches were fitted on the frames before the first collision (Fig. 8, middle);
     /// `None` when there was no such step.
     pub after_launch: Option<World>,
+    /// Whether the final world's launches explain the frames before the first collision as well as the
+    /// launches fitted to those frames alone ([`check_window`]); `None` where there is no such window of
+    /// [`crate::MIN_FLIGHT_FRAMES`] frames or more, and in a fit that held its launches.
+    pub window: Option<FlightCheck>,
 }
 
 /// How the schedule guesses and fits each body's launch.
@@ -142,6 +147,9 @@ pub struct ObservedBodies {
     pub depth_held: Vec<Vec<bool>>,
     /// Per body: at rest from the start ([`Self::settle_resting`]). Empty: none.
     pub resting: Vec<Option<RestingStart>>,
+    /// How precisely one image places a body across the line of sight, m (one standard deviation): a floor
+    /// under the noise the launch window's test measures ([`check_window`]). `None`: none.
+    pub precision: Option<f64>,
 }
 
 impl ObservedBodies {
@@ -182,6 +190,7 @@ impl ObservedBodies {
             eye: self.eye,
             depth_held: cut(&self.depth_held),
             resting: self.resting.clone(),
+            precision: self.precision,
         }
     }
 
@@ -261,6 +270,33 @@ pub fn fit_colliding_bodies(
     launch: LaunchSettings,
     on_start: &mut dyn FnMut(&str, usize, &StartResult),
 ) -> Result<CollidingFit, FitError> {
+    schedule(cfg, multi_start, world, observed, launch, None, on_start)
+}
+
+/// The schedule with every body's launch (initial pose, v0, ω0) held at `held`'s: the launches the frames
+/// before the first collision tell alone ([`CollidingFit::window`]), where the whole video's fit bent them
+/// to explain the collisions a little better. The launch step is skipped; the frames after the first
+/// collision, each pair and the final fit go on around the held launches.
+pub fn fit_colliding_bodies_holding_launch(
+    cfg: &PhysicsFitConfig,
+    multi_start: bool,
+    held: &World,
+    observed: ObservedBodies,
+    launch: LaunchSettings,
+    on_start: &mut dyn FnMut(&str, usize, &StartResult),
+) -> Result<CollidingFit, FitError> {
+    schedule(cfg, multi_start, held.clone(), observed, launch, Some(held), on_start)
+}
+
+fn schedule(
+    cfg: &PhysicsFitConfig,
+    multi_start: bool,
+    world: World,
+    observed: ObservedBodies,
+    launch: LaunchSettings,
+    held: Option<&World>,
+    on_start: &mut dyn FnMut(&str, usize, &StartResult),
+) -> Result<CollidingFit, FitError> {
     let launch_frames = launch.frames;
     let start_of = |w: &World, b: usize, pose: &Pose<f64>| launch_start(&w.bodies[b], &w.scene, pose, launch.in_plane);
     let poses = &observed.poses;
@@ -305,15 +341,41 @@ pub fn fit_colliding_bodies(
     world.config.frames = n;
     // A body the first frame shows on the scene launches along it; one at rest there does not launch.
     let starts = launch_starts(&world, &observed, launch.in_plane);
-    for (b, ps) in poses.iter().enumerate() {
-        let touching = clearance(&world.bodies[b], &world.scene, &ps[0]) < TOUCHING;
-        let launch = &ps[..(1 + launch_frames).min(free)];
-        let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
-        let (v, omega) = starts[b].allowed_launch(v, omega);
-        world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
+    match held {
+        Some(h) => world.initial.clone_from(&h.initial),
+        None => {
+            for (b, ps) in poses.iter().enumerate() {
+                let touching = clearance(&world.bodies[b], &world.scene, &ps[0]) < TOUCHING;
+                let launch = &ps[..(1 + launch_frames).min(free)];
+                let (v, omega) = launch_guess(launch, world.config.fps, world.config.gravity, touching);
+                let (v, omega) = starts[b].allowed_launch(v, omega);
+                world.initial[b] = BodyState::new(ps[0].t.to_array(), ps[0].q.to_array_re(), v, omega);
+            }
+        }
     }
     let guess = world.clone();
-    let observed_to = |upto: usize| observed_from_start(&observed, &starts, upto);
+    // A fit takes each body's initial pose from its first observation: with the launches held, the held one.
+    let observed_to = |upto: usize| {
+        let mut obs = observed_from_start(&observed, &starts, upto);
+        if let Some(h) = held {
+            for o in &mut obs {
+                if let Some(p) = o.poses.first_mut() {
+                    *p = h.initial[o.body].pose;
+                }
+            }
+        }
+        obs
+    };
+    // The settings of the steps that start from frame 0: the launches held, or as `cfg` fits them.
+    let from_start = |c: PhysicsFitConfig| match held {
+        Some(_) => PhysicsFitConfig {
+            fit_velocity: false,
+            fit_angular_velocity: false,
+            fit_initial_pose: false,
+            ..c
+        },
+        None => c,
+    };
     let grid: &[(f64, f64)] = if multi_start { &CONTACT_STARTS } else { &[] };
     let mut steps = Vec::new();
     let mut run = |label: String,
@@ -346,7 +408,7 @@ pub fn fit_colliding_bodies(
     if contacts.is_empty() {
         world = run(
             "no contact between bodies".into(),
-            cfg.clone(),
+            from_start(cfg.clone()),
             world,
             observed_to(n),
             StartsOn::Scene,
@@ -359,9 +421,10 @@ pub fn fit_colliding_bodies(
             steps,
             guess,
             after_launch: None,
+            window: None,
         });
     }
-    if free >= 3 {
+    if free >= 3 && held.is_none() {
         // No body has met another yet: no pair value matters.
         let label = format!("launch, frames 0-{}", free - 1);
         world = run(label, no_pairs.clone(), world, observed_to(free), StartsOn::Scene, grid)?.0;
@@ -401,32 +464,36 @@ pub fn fit_colliding_bodies(
         world.scene_contact = fitted.scene_contact;
     }
     // Each pair where its bodies meet, with the scene's values held: the pair's alone explain the exchange.
-    let held = PhysicsFitConfig {
+    let scene_held = from_start(PhysicsFitConfig {
         fit_restitution: false,
         fit_friction: false,
         ..cfg.clone()
-    };
+    });
     let mut loss = f64::INFINITY;
     for &(p, k) in &contacts {
         let pair_cfg = PhysicsFitConfig {
             initial_window: (k + 2).min(n),
-            ..held.clone()
+            ..scene_held.clone()
         };
-        (world, loss) = run(
+        (world, loss) = match run(
             format!("pair {p}"),
             pair_cfg,
-            world,
+            world.clone(),
             observed_to(n),
             StartsOn::Pair(p),
             grid,
-        )?;
+        ) {
+            // The launches held and the settings hold the pair's values: nothing to fit in this step.
+            Err(FitError::NothingToFit) if held.is_some() => (world, loss),
+            r => r?,
+        };
     }
     // Everything at once from there, kept if it explains the poses better (each fit restarts from the
     // observed first poses).
-    let polish = PhysicsFitConfig {
+    let polish = from_start(PhysicsFitConfig {
         initial_window: 0,
         ..cfg.clone()
-    };
+    });
     let (polished, polished_loss) = run(
         "all values".into(),
         polish,
@@ -438,12 +505,26 @@ pub fn fit_colliding_bodies(
     if polished_loss < loss {
         world = polished;
     }
+    // The final launches against the frames before the first collision, where no pair value matters. A body
+    // at rest there is left out: its observations there are its resting pose, which it holds (no error, no
+    // unknown), and counting them would shrink the noise the test measures.
+    let window = match held {
+        Some(_) => None,
+        None => {
+            let launched: Vec<Observed> = observed_to(n)
+                .into_iter()
+                .filter(|o| !matches!(o.start, StartContact::Rest { .. }))
+                .collect();
+            check_window(&no_pairs, &world, &launched, free, observed.precision)?
+        }
+    };
     Ok(CollidingFit {
         world,
         contacts,
         steps,
         guess,
         after_launch,
+        window,
     })
 }
 

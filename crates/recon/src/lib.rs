@@ -33,8 +33,8 @@ pub mod video_masks;
 
 pub use brightness_drift::brightness_drift;
 pub use colliding_bodies::{
-    colliding_value_ranges, first_contacts, fit_colliding_bodies, CollidingFit, LaunchSettings, ObservedBodies,
-    ScheduleStep,
+    colliding_value_ranges, first_contacts, fit_colliding_bodies, fit_colliding_bodies_holding_launch, CollidingFit,
+    LaunchSettings, ObservedBodies, ScheduleStep,
 };
 pub use contact_penalty::{contact_sides, ContactPenaltyConfig, ContactTerm};
 pub use first_pose_search::{search_first_pose, Candidate, FirstPoseSearchConfig};
@@ -42,7 +42,7 @@ pub use fit_physics::{
     fit_multi_start, fit_multi_start_bodies, ContactValue, FitError, FitStats, MultiStart, Observed, PhysicsFit,
     PhysicsFitConfig, PoseError, StartContact, StartResult, StartsOn, CONTACT_STARTS,
 };
-pub use flight::{check_flight, first_contact_frame, fit_holding_launch, FlightCheck, MIN_FLIGHT_FRAMES};
+pub use flight::{check_flight, check_window, first_contact_frame, fit_holding_launch, FlightCheck, MIN_FLIGHT_FRAMES};
 pub use horizon::{predictable_frames, Horizon, HORIZON_PX};
 pub use image_loss::{FrameError, FrameTarget, ImageLoss, ImageLossWeights, PreparedFrame};
 pub use image_precision::ImagePrecision;

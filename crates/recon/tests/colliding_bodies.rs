@@ -254,3 +254,105 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
     let v = Vec3::cst(w.initial[0].v.to_array());
     assert!((v - Vec3::new(1.3, 0.0, 0.0)).norm() < 0.05 * 1.3, "{msg}");
 }
+
+/// The launch window's test and the schedule that holds what it tells: on GA-like poses of the push, the
+/// true world's launches stand against the frames before the collision, a toy's launch 8 % fast misses them,
+/// and the schedule with the launches the window tells held keeps them exactly and finds the pair's values
+/// around them.
+#[test]
+fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
+    let truth = world([1.3, 0.0, 0.0], SCENE, PAIR);
+    let traj = truth.simulate(&truth.params());
+    let touch = traj.contacts.iter().position(|c| c.pairs[0]).unwrap();
+    let exact: Vec<Vec<Pose<f64>>> = (0..2)
+        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
+        .collect();
+    let camera = geom::Camera::look_at(
+        Vec3::new(0.0, -0.4, 0.35),
+        Vec3::new(0.0, 0.0, 0.02),
+        Vec3::new(0.0, 0.0, 1.0),
+        geom::Intrinsics::centred(200.0, 160, 120),
+        160,
+        120,
+    );
+    let eye = camera.center();
+    let mut observed = recon::ObservedBodies {
+        eye: Some(eye.to_array()),
+        ..recon::ObservedBodies::new(jittered(&exact, eye), vec![vec![1.0; 24]; 2])
+    };
+    let rests = observed.settle_resting(&truth, &camera).to_vec();
+    let rest = rests[1].expect("the block rests until struck");
+    let cfg = PhysicsFitConfig {
+        fit_initial_pose: true,
+        rotation_weight: 0.03,
+        ..PhysicsFitConfig::default()
+    };
+    // What the schedule's window fits: the launches and the board's values, no pair's.
+    let window_cfg = PhysicsFitConfig {
+        fit_pair_restitution: false,
+        fit_pair_friction: false,
+        ..cfg.clone()
+    };
+    // The launched toy alone, as the schedule tests it (the resting block holds its pose: nothing to test).
+    let obs = [recon::Observed {
+        eye: Some(eye.to_array()),
+        start: recon::video_fit::launch_start(&truth.bodies[0], &truth.scene, &observed.poses[0][0], true),
+        ..recon::Observed::new(0, observed.poses[0].clone(), Some(vec![1.0; 24]))
+    }];
+    let mut true_start = truth.clone();
+    true_start.initial[1].pose = rest.pose;
+    // One image's precision across the line of sight at the toy (a quarter pixel: 0.6 mm here).
+    let diameter = 2.0 * truth.bodies[0].bounding_radius;
+    let precision = recon::ImagePrecision::of(&camera, &exact[0][0], diameter).across;
+    let stands = recon::check_window(&window_cfg, &true_start, &obs, touch, Some(precision))
+        .unwrap()
+        .expect("a window of four frames");
+    assert!(
+        !stands.bent(),
+        "the true launch: χ² {:.1} against {:.1}",
+        stands.statistic,
+        stands.critical
+    );
+    // Without the floor, the window's own fit of 11 values to 24 errors says the true launch misses.
+    let unfloored = recon::check_window(&window_cfg, &true_start, &obs, touch, None)
+        .unwrap()
+        .unwrap();
+    assert!(unfloored.bent(), "χ² {:.1}", unfloored.statistic);
+    let mut fast = true_start.clone();
+    fast.initial[0].v = fast.initial[0].v * 1.08;
+    let check = recon::check_window(&window_cfg, &fast, &obs, touch, Some(precision))
+        .unwrap()
+        .unwrap();
+    assert!(
+        check.bent(),
+        "8 % fast: χ² {:.1} against {:.1}",
+        check.statistic,
+        check.critical
+    );
+    let window_v = Vec3::cst(check.flight_world.initial[0].v.to_array());
+    assert!(
+        (window_v - Vec3::new(1.3, 0.0, 0.0)).norm() < 0.03 * 1.3,
+        "the window's own launch {:?}",
+        window_v.to_array()
+    );
+    let held = recon::fit_colliding_bodies_holding_launch(
+        &cfg,
+        false,
+        &check.flight_world,
+        observed,
+        recon::LaunchSettings {
+            frames: 3,
+            in_plane: true,
+        },
+        &mut |_, _, _| {},
+    )
+    .unwrap();
+    let w = &held.world;
+    for b in 0..2 {
+        assert_eq!(w.initial[b], check.flight_world.initial[b], "body {b}'s launch held");
+    }
+    assert!(held.window.is_none(), "a held fit is not tested again");
+    let msg = format!("pair {:?}, scene {:?}", w.pair_contact[0], w.scene_contact[0]);
+    assert!((w.pair_contact[0].restitution - PAIR.restitution).abs() < 0.1, "{msg}");
+    assert!((w.pair_contact[0].friction - PAIR.friction).abs() < 0.1, "{msg}");
+}

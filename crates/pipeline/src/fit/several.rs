@@ -690,7 +690,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         &cfg,
         m.cfg.pga_multi_start,
         m.world.clone(),
-        observed,
+        observed.clone(),
         launch_settings(m),
         &mut |label, i, r| {
             rows.push(start_row(json!({"stage": "pga", "step": label}), i, r));
@@ -699,6 +699,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     )
     .context("PGA")?;
     pb.finish();
+    let fit = launches_from_window(m, log, &cfg, observed, fit, &mut rows)?;
     for &(p, k) in &fit.contacts {
         let (i, j) = pairs[p];
         tracing::info!("GA: {} and {} meet in frame {k}", m.bodies[i].name, m.bodies[j].name);
@@ -718,6 +719,87 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         steps: fit.steps,
         guess: Some(fit.guess),
         after_launch: fit.after_launch,
+    })
+}
+
+/// The schedule's fit, or the same schedule with the launches held at those the frames before the first
+/// collision tell alone, where the fit's launches miss those frames by more than their noise
+/// ([`recon::CollidingFit::window`]) and the held fit's simulation explains the video's images better (the
+/// one-body fit's flight test, [`super::single`]'s `launch_from_flight`: the test alone also flags launches
+/// the collisions did not bend, since GA's errors over a few frames are not independent).
+fn launches_from_window(
+    m: &Multi,
+    log: &mut Log,
+    cfg: &PhysicsFitConfig,
+    observed: recon::ObservedBodies,
+    fit: recon::CollidingFit,
+    rows: &mut Vec<Value>,
+) -> Result<recon::CollidingFit> {
+    let Some(window) = &fit.window else {
+        return Ok(fit);
+    };
+    let bent = window.bent();
+    tracing::info!(
+        "the launches against the {} frames before the first collision: χ² {:.1} against {:.1} at 1 %: {}",
+        window.frames,
+        window.statistic,
+        window.critical,
+        if bent {
+            "they miss them; the launches those frames tell, held, are tried"
+        } else {
+            "they stand"
+        }
+    );
+    let v0 = |w: &World| w.initial.iter().map(|s| s.v.to_array()).collect::<Vec<_>>();
+    log.write(json!({"stage": "pga_window", "frames": window.frames, "statistic": window.statistic,
+        "critical": window.critical, "bent": bent, "squares": window.joint_squares, "window_squares": window.flight_squares,
+        "dof": window.dof, "unknowns": window.unknowns, "v0": v0(&fit.world), "window_v0": v0(&window.flight_world)}))?;
+    if !bent {
+        return Ok(fit);
+    }
+    let per_step = if m.cfg.pga_multi_start {
+        1 + CONTACT_STARTS.len()
+    } else {
+        1
+    };
+    let pb = Task::start(
+        m.observer,
+        "PGA, launches held",
+        ((2 + m.world.pairs().len()) * per_step) as u64,
+    );
+    let held = recon::fit_colliding_bodies_holding_launch(
+        cfg,
+        m.cfg.pga_multi_start,
+        &window.flight_world,
+        observed,
+        launch_settings(m),
+        &mut |label, i, r| {
+            rows.push(start_row(json!({"stage": "pga_window", "step": label}), i, r));
+            pb.inc(1);
+        },
+    )
+    .context("PGA with the launches held")?;
+    pb.finish();
+    let total = |w: &World| -> Result<f64> {
+        Ok(simulated_losses(m, w)?
+            .iter()
+            .map(|b| recon::video_fit::total_loss(b))
+            .sum())
+    };
+    let (joint, kept) = (total(&fit.world)?, total(&held.world)?);
+    let keep_held = kept < joint;
+    tracing::info!(
+        "the launches held: image loss {kept:.4} against {joint:.4}: {}",
+        if keep_held { "kept" } else { "not kept" }
+    );
+    log.write(json!({"stage": "pga_window", "image_loss": kept, "image_loss_joint": joint, "kept": keep_held}))?;
+    Ok(if keep_held {
+        recon::CollidingFit {
+            window: fit.window,
+            ..held
+        }
+    } else {
+        fit
     })
 }
 
@@ -782,12 +864,21 @@ fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
         .map(|(rs, body)| ga_weights_of(rs, eye, body.bounding_radius))
         .collect();
     let pinned = m.cfg.ga.contact.pins_depth();
+    let camera = m.bodies[0].frames[0].camera;
+    // One image's precision across the line of sight, at the bodies' mean distance in the first frame.
+    let precision = poses
+        .iter()
+        .zip(&m.world.bodies)
+        .map(|(p, body)| recon::ImagePrecision::of(&camera, &p[0], 2.0 * body.bounding_radius).across)
+        .sum::<f64>()
+        / poses.len().max(1) as f64;
     let mut observed = recon::ObservedBodies {
-        eye: m.bodies[0].frames.first().map(|f| f.camera.center().to_array()),
+        eye: Some(camera.center().to_array()),
         depth_held: ga
             .iter()
             .map(|rs| rs.iter().map(|r| r.in_contact && pinned).collect())
             .collect(),
+        precision: Some(precision),
         ..recon::ObservedBodies::new(poses, weights)
     };
     observed.settle_resting(&m.world, &m.bodies[0].frames[0].camera);
