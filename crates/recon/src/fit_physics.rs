@@ -355,10 +355,24 @@ impl PhysicsFit {
         let mut contact_values = Vec::new();
         for (&b, &start) in bodies.iter().zip(&starts) {
             let o = world.body_param_offset(b);
-            if cfg.fit_initial_pose {
-                for k in 0..6 {
-                    unknowns.push_param(o + k, probe_scale(k), false);
+            match start {
+                // A body at rest stays on the face it rests on (its resting pose levelled and settled on the
+                // scene): it may slide along the scene and turn about its normal, as a resting body can be
+                // placed. Held entirely, the error of its resting pose went into the body that struck it (the
+                // three balls' rolling ball 12 mm off in frame 0); free, it traded a tilt against the frames
+                // after it was struck (the two-body video's block: 2.5°, dropped flat in the simulation's
+                // first frame).
+                StartContact::Rest { normal } if cfg.fit_initial_pose => {
+                    let at = world.initial[b].pose.t.to_array();
+                    unknowns.push_in_plane_at(o, normal, at, probe_scale(0));
+                    unknowns.push_along(o + 3, normal, probe_scale(3));
                 }
+                _ if cfg.fit_initial_pose => {
+                    for k in 0..6 {
+                        unknowns.push_param(o + k, probe_scale(k), false);
+                    }
+                }
+                _ => {}
             }
             unknowns.push_launch(o + 6, start, cfg.fit_velocity, cfg.fit_angular_velocity);
         }

@@ -22,6 +22,9 @@ pub(crate) struct Unknowns {
     list: Vec<Unknown>,
     /// Every parameter some value sets (the simulator's derivative columns), each once.
     columns: Vec<usize>,
+    /// What each column holds before the values are added (0 but for a position kept in a plane: its
+    /// part along the normal).
+    base: Vec<f64>,
 }
 
 impl Unknowns {
@@ -30,6 +33,7 @@ impl Unknowns {
             Some(c) => c,
             None => {
                 self.columns.push(param);
+                self.base.push(0.0);
                 self.columns.len() - 1
             }
         }
@@ -52,6 +56,20 @@ impl Unknowns {
         for axis in tangent_basis(normal) {
             let terms: Vec<(usize, f64)> = (0..3).map(|i| (first + i, axis[i])).collect();
             self.push(&terms, probe, false);
+        }
+    }
+
+    /// A position (parameters `first..first + 3`) that moves in the plane through `at` normal to `normal`
+    /// only: two values as [`Self::push_in_plane`], the part along the normal kept at `at`'s (a body resting
+    /// on a face slides along the scene, it does not sink into it).
+    pub fn push_in_plane_at(&mut self, first: usize, normal: [f64; 3], at: [f64; 3], probe: f64) {
+        self.push_in_plane(first, normal, probe);
+        let len = normal.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+        let n = normal.map(|v| v / len);
+        let height: f64 = (0..3).map(|i| n[i] * at[i]).sum();
+        for i in 0..3 {
+            let c = self.column(first + i);
+            self.base[c] = n[i] * height;
         }
     }
 
@@ -106,6 +124,11 @@ impl Unknowns {
                 out.push(&terms, u.probe, u.bounded);
             }
         }
+        for (c, &m) in out.columns.iter().enumerate() {
+            if let Some(k) = self.columns.iter().position(|&x| x == m) {
+                out.base[c] = self.base[k];
+            }
+        }
         out
     }
 
@@ -133,10 +156,10 @@ impl Unknowns {
     }
 
     /// Parameters `p` with the values `x` in place: every parameter a value sets is rewritten (a velocity
-    /// kept in a plane loses its normal part).
+    /// kept in a plane loses its normal part; a position kept in a plane keeps its base's).
     pub fn set(&self, p: &mut [f64], x: &[f64]) {
-        for &m in &self.columns {
-            p[m] = 0.0;
+        for (&m, &b) in self.columns.iter().zip(&self.base) {
+            p[m] = b;
         }
         for (u, v) in self.list.iter().zip(x) {
             for &(c, k) in &u.terms {
@@ -302,5 +325,41 @@ mod tests {
             assert!((dot(a, a) - 1.0).abs() < 1e-12 && (dot(b, b) - 1.0).abs() < 1e-12);
             assert!(dot(a, b).abs() < 1e-12 && dot(a, n).abs() < 1e-12 && dot(b, n).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_position_in_a_plane_moves_along_it_and_keeps_its_height() {
+        let normal = [0.0, 0.2, 1.0];
+        let at = [0.05, 0.02, 0.021];
+        let mut u = Unknowns::default();
+        u.push_in_plane_at(0, normal, at, 0.002);
+        u.push_along(3, normal, 0.02);
+        let mut p = vec![0.0; 12];
+        p[..3].copy_from_slice(&at);
+        let x = u.values(&p);
+        let mut q = p.clone();
+        u.set(&mut q, &x);
+        for i in 0..3 {
+            assert!((q[i] - at[i]).abs() < 1e-15, "read back and written: {:?}", &q[..3]);
+        }
+        // Moved by the values: along the plane only, its height along the normal kept.
+        let moved: Vec<f64> = x.iter().enumerate().map(|(i, v)| v + 0.01 * (i + 1) as f64).collect();
+        u.set(&mut q, &moved);
+        let len = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let height = |t: &[f64]| (0..3).map(|i| t[i] * normal[i] / len).sum::<f64>();
+        assert!((height(&q[..3]) - height(&at)).abs() < 1e-15);
+        assert!((0..3).map(|i| (q[i] - at[i]).powi(2)).sum::<f64>().sqrt() > 0.01);
+        // The turn about the normal only, and a value left out keeps the height too.
+        let turn = &q[3..6];
+        let cross = [
+            turn[1] * normal[2] - turn[2] * normal[1],
+            turn[2] * normal[0] - turn[0] * normal[2],
+            turn[0] * normal[1] - turn[1] * normal[0],
+        ];
+        assert!(cross.iter().all(|c| c.abs() < 1e-15), "{turn:?}");
+        let w = u.without(2);
+        let mut r = p.clone();
+        w.set(&mut r, &x[..2]);
+        assert!((height(&r[..3]) - height(&at)).abs() < 1e-15);
     }
 }

@@ -110,7 +110,7 @@ impl Default for VideoFitConfig {
 }
 
 /// Contact points within this of the lowest one (m) make the support a body rests on.
-const SUPPORT_BAND: f64 = 0.001;
+pub(crate) const SUPPORT_BAND: f64 = 0.001;
 /// A support whose narrower RMS half-width is at least this fraction of the body's bounding radius is a
 /// face; narrower, a point or an edge. A ball's cap within [`SUPPORT_BAND`] is `√(2 r · 1 mm) / 2` wide:
 /// 0.16 of a 2 cm ball's radius, 0.22 of a 1 cm one's; the tabletop toy's flat side, reconstructed and

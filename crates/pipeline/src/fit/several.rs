@@ -280,6 +280,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
         ranges: &ranges,
         rests: &rests,
         horizon: &horizon,
+        window: kept.window.as_ref(),
     };
     finish(&m, &kept.world, reported, &timings, &mut outcome)?;
     outcome.ga = Some(stand_ins);
@@ -634,6 +635,8 @@ struct PgaRound {
     steps: Vec<recon::ScheduleStep>,
     guess: Option<World>,
     after_launch: Option<World>,
+    /// The launch window's test and the launches it tells ([`launches_from_window`]'s record).
+    window: Option<Value>,
 }
 
 impl PgaRound {
@@ -656,11 +659,13 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     let path = m.out.join(file);
     if path.exists() {
         log.read_back("PGA", &path);
+        let extra = pganeus_io::read_trajectory(&path)?.extra;
         return Ok(PgaRound {
             world: world_from_file(m, &path)?,
-            steps: schedule_of(&pganeus_io::read_trajectory(&path)?.extra, &path),
+            steps: schedule_of(&extra, &path),
             guess: None,
             after_launch: None,
+            window: extra.get(WINDOW_KEY).cloned(),
         });
     }
     let cfg = pga_config(m);
@@ -699,7 +704,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     )
     .context("PGA")?;
     pb.finish();
-    let fit = launches_from_window(m, log, &cfg, observed, fit, &mut rows)?;
+    let (fit, window) = launches_from_window(m, log, &cfg, observed, fit, &mut rows)?;
     for &(p, k) in &fit.contacts {
         let (i, j) = pairs[p];
         tracing::info!("GA: {} and {} meet in frame {k}", m.bodies[i].name, m.bodies[j].name);
@@ -711,7 +716,11 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
     for s in &fit.steps {
         log.write(json!({"stage": "pga", "step": s.label, "winner": s.winner, "loss": s.loss}))?;
     }
-    write_simulation(m, &fit.world, &path, schedule_extra(&fit.steps)?)?;
+    let mut extra = schedule_extra(&fit.steps)?;
+    if let Some(w) = &window {
+        extra.insert(WINDOW_KEY.into(), w.clone());
+    }
+    write_simulation(m, &fit.world, &path, extra)?;
     // The world as the file holds it (the simulation's first state, its quaternion normalised to the last
     // bit), so that a resumed fit goes on from exactly the world this one does.
     Ok(PgaRound {
@@ -719,6 +728,7 @@ fn stage_pga(m: &Multi, log: &mut Log, ga: &[Vec<FramePose>], file: &str) -> Res
         steps: fit.steps,
         guess: Some(fit.guess),
         after_launch: fit.after_launch,
+        window,
     })
 }
 
@@ -734,11 +744,25 @@ fn launches_from_window(
     observed: recon::ObservedBodies,
     fit: recon::CollidingFit,
     rows: &mut Vec<Value>,
-) -> Result<recon::CollidingFit> {
+) -> Result<(recon::CollidingFit, Option<Value>)> {
     let Some(window) = &fit.window else {
-        return Ok(fit);
+        return Ok((fit, None));
     };
     let bent = window.bent();
+    // Per body: the launch the window tells (`null` for a body at rest, which has none to test).
+    let launches: Vec<Value> = window
+        .flight_world
+        .initial
+        .iter()
+        .zip(&observed.resting)
+        .map(|(s, rest)| match rest {
+            Some(_) => Value::Null,
+            None => json!({"v0": s.v.to_array(), "omega0": s.omega.to_array(),
+                "pose": {"t": s.pose.t.to_array(), "q": s.pose.q.to_array_re()}}),
+        })
+        .collect();
+    let mut record = json!({"frames": window.frames, "statistic": window.statistic, "critical": window.critical,
+        "bent": bent, "bodies": launches});
     tracing::info!(
         "the launches against the {} frames before the first collision: χ² {:.1} against {:.1} at 1 %: {}",
         window.frames,
@@ -755,7 +779,7 @@ fn launches_from_window(
         "critical": window.critical, "bent": bent, "squares": window.joint_squares, "window_squares": window.flight_squares,
         "dof": window.dof, "unknowns": window.unknowns, "v0": v0(&fit.world), "window_v0": v0(&window.flight_world)}))?;
     if !bent {
-        return Ok(fit);
+        return Ok((fit, Some(record)));
     }
     let per_step = if m.cfg.pga_multi_start {
         1 + CONTACT_STARTS.len()
@@ -793,15 +817,20 @@ fn launches_from_window(
         if keep_held { "kept" } else { "not kept" }
     );
     log.write(json!({"stage": "pga_window", "image_loss": kept, "image_loss_joint": joint, "kept": keep_held}))?;
-    Ok(if keep_held {
+    record["held_kept"] = json!(keep_held);
+    let fit = if keep_held {
         recon::CollidingFit {
             window: fit.window,
             ..held
         }
     } else {
         fit
-    })
+    };
+    Ok((fit, Some(record)))
 }
+
+/// The key of a PGA stage file that holds its launch window's test.
+const WINDOW_KEY: &str = "launch_window";
 
 /// The key of a PGA stage file that holds its schedule's steps (their starts widen the value ranges).
 const SCHEDULE_KEY: &str = "schedule";
@@ -974,6 +1003,7 @@ struct Reported<'a> {
     ranges: &'a [ValueRange],
     rests: &'a [Option<recon::RestingStart>],
     horizon: &'a recon::Horizon,
+    window: Option<&'a Value>,
 }
 
 /// The final trajectory of every body (simulated where it explains the video, GA's pose where it clearly
@@ -991,6 +1021,7 @@ fn finish(
         ranges,
         rests,
         horizon,
+        window,
     } = reported;
     let n = m.bodies[0].frames.len();
     let nb = m.bodies.len();
@@ -1094,6 +1125,15 @@ fn finish(
             let mut start = serde_json::to_value(rest.start())?;
             start["still_frames"] = json!(rest.frames);
             tb.extra.insert("start".into(), start);
+        }
+        // The launch the frames before the first collision tell, beside the kept one (`eval` scores both).
+        if let Some(w) = window.filter(|w| !w["bodies"][b].is_null()) {
+            let mut flight = w["bodies"][b].clone();
+            for key in ["frames", "bent", "statistic", "critical", "held_kept"] {
+                flight[key] = w[key].clone();
+            }
+            flight["before"] = json!("the first collision");
+            tb.extra.insert("flight".into(), flight);
         }
         tb.extra.insert("frames".into(), json!(rows[b]));
         let mut stages = Map::new();
