@@ -578,12 +578,12 @@ const HYPOTHESES_REFINED: usize = 8;
 /// pair lets wrong guesses pull. Of the two, the one under which more of A
 /// lands on B (of what it puts where B saw, B's board under it included:
 /// [`landing_share`]) wins. Without a given start, the [`HYPOTHESES_REFINED`] best
-/// distinct hypotheses of the automatic start are refined (a symmetric object has several good ones); of those that make about as much of A land on B
-/// (within 5 %) or fit as tightly (ICP residual within [`TIGHT_AS`] of the tightest), the one that moves most of A's hidden side (on its board)
-/// up into B's view wins: the second pose is there to show what the first hid.
-/// A box turned over about x or about y shows as much: with both parts'
-/// colours (`colour_gap`), of those within 5 % of the most shown, the one
-/// whose colours agree best with B's wins.
+/// distinct hypotheses of the automatic start are refined (a symmetric object has several good ones) and
+/// [`pick_alignment`] chooses: the second pose is there to show what the first hid, so those that show most
+/// of A's hidden side within the residual bar come first; of them, those that make about as much of A land
+/// on B (within 5 %) or fit as tightly (ICP residual within [`TIGHT_AS`] of the tightest), then the one that
+/// shows most; a box turned over about x or about y shows as much: with both parts' colours
+/// (`colour_gap`), of those within 5 % of the most shown, the one whose colours agree best with B's wins.
 fn align(
     pa: &[V],
     target: &IcpTarget,

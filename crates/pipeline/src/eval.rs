@@ -275,7 +275,8 @@ fn parameter_errors(fit: &Trajectory, video: &Trajectory, refs: &[BodyRef]) -> V
             let three = |k: &str| serde_json::from_value::<[f64; 3]>(f[k].clone()).ok();
             if let (Some(fv), Some(fw)) = (three("v0"), three("omega0")) {
                 let (v, dv, percent, omega_error) = launch(fv, fw);
-                e["flight"] = json!({"frames": f["frames"], "bent": f["bent"], "before": f["before"], "v0": v.to_array(),
+                e["flight"] = json!({"frames": f["frames"], "bent": f["bent"], "held_kept": f.get("held_kept"),
+                    "before": f["before"], "v0": v.to_array(),
                     "v0_error_m_s": dv, "v0_error_percent": percent, "omega0_error_rad_s": omega_error});
             }
         }
@@ -717,15 +718,11 @@ fn summary_lines(report: &Value) -> Vec<String> {
         ));
         if let Some(f) = p.get("flight") {
             lines.push(format!(
-                "{body}: the launch fitted to the flight alone ({} frames before {}; the kept launch {}): \
+                "{body}: the launch fitted to the flight alone ({} frames before {}; {}): \
                  v0 off by {} m/s ({} %), omega0 by {} rad/s",
                 f["frames"],
-                f["before"].as_str().unwrap_or("the first contact"),
-                if f["bent"].as_bool() == Some(true) {
-                    "misses it"
-                } else {
-                    "stands against it"
-                },
+                report::run_page::flight_before(f),
+                report::run_page::flight_verdict(f),
                 f["v0_error_m_s"],
                 f["v0_error_percent"],
                 f["omega0_error_rad_s"]

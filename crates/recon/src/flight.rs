@@ -34,7 +34,8 @@ const LEVEL_Z: f64 = 2.326;
 /// What the flight says of a fitted launch.
 #[derive(Clone, Debug)]
 pub struct FlightCheck {
-    /// Frames before the first contact in the fitted world's simulation (frame 0 counted).
+    /// The frames tested (frame 0 counted): before the first contact in the fitted world's simulation
+    /// ([`check_flight`]), or the window given ([`check_window`]).
     pub frames: usize,
     /// The weighed squared errors over the flight: of the fitted launch, and of the flight's own.
     pub joint_squares: f64,
@@ -127,7 +128,9 @@ pub fn check_flight(
 ///
 /// `precision`: the images' own precision on each error's component (m, one standard deviation; e.g. an
 /// edge's precision across the line of sight at the bodies' depth), a floor under the noise the window's
-/// own fit measures. A window of four frames leaves its fit of a dozen values a dozen degrees of freedom,
+/// own fit measures. It applies to the rotation's components as to the translation's: a fit weighs a turn
+/// in metres at the bodies' radius, where an edge's precision over the radius is the image's precision on
+/// the turn. A window of four frames leaves its fit of a dozen values a dozen degrees of freedom,
 /// and a model a little off the data (a body that starts half a millimetre over the board, launched along
 /// it) leaves errors that a fit of so many values absorbs better than noise: on poses jittered by a
 /// fifth of a millimetre, the true launch's statistic came out at twice the 1 % point without the floor.

@@ -114,8 +114,9 @@ impl Unknowns {
         &self.columns
     }
 
-    /// These values but the `i`-th: its parameters are left as they are (a contact value's parameters are its
-    /// own).
+    /// These values but the `i`-th, whose parameters are left as they are: for a value whose parameters no
+    /// other value sets, as a contact value's (a tangent of a vector kept in a plane shares its parameters
+    /// with the other tangent, and [`Self::set`] rewrites them).
     pub fn without(&self, i: usize) -> Unknowns {
         let mut out = Unknowns::default();
         for (j, u) in self.list.iter().enumerate() {
@@ -215,9 +216,9 @@ pub enum StartContact {
     /// sliding box's fit took a spin of 11 rad/s about such an axis and lost the slide).
     Face { normal: [f64; 3] },
     /// At rest on the scene from the start until something moves it ([`mod@crate::resting_start`]): no launch
-    /// (v0 = ω0 = 0), from its resting pose (refitted with the others' where a fit moves the initial poses:
-    /// held there, the error of its pose on a reconstructed scene went into the body that strikes it, 12 mm
-    /// at the three balls' first frame).
+    /// (v0 = ω0 = 0), from its resting pose (refitted with the others' where a fit moves the initial poses,
+    /// on its face only: along the scene and about its normal; held there, the error of its pose on a
+    /// reconstructed scene went into the body that strikes it, 12 mm at the three balls' first frame).
     Rest { normal: [f64; 3] },
 }
 

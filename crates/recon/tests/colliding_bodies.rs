@@ -189,6 +189,8 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
     let eye = camera.center();
     let mut observed = recon::ObservedBodies {
         eye: Some(eye.to_array()),
+        // One image's precision at the toy: the launch window's noise floor, as `fit` gives it.
+        precision: Some(recon::ImagePrecision::of(&camera, &exact[0][0], 2.0 * truth.bodies[0].bounding_radius).across),
         ..recon::ObservedBodies::new(jittered(&exact, eye), vec![vec![1.0; 24]; 2])
     };
     let rests = observed.settle_resting(&truth, &camera).to_vec();
@@ -253,6 +255,18 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
     }
     let v = Vec3::cst(w.initial[0].v.to_array());
     assert!((v - Vec3::new(1.3, 0.0, 0.0)).norm() < 0.05 * 1.3, "{msg}");
+    // The launch window: the frames before the collision, the toy's launch alone (its pose, v0 along the
+    // board, ω0 about its normal, the board's two values: 11; the resting block's three would make 14), and
+    // a launch within 5 % of the truth's stands against them.
+    let window = fit.window.as_ref().expect("four frames before the collision");
+    assert_eq!(window.frames, fit.contacts[0].1, "{msg}");
+    assert_eq!(window.unknowns, 11, "{msg}");
+    assert!(
+        !window.bent(),
+        "χ² {:.1} against {:.1}; {msg}",
+        window.statistic,
+        window.critical
+    );
 }
 
 /// The launch window's test and the schedule that holds what it tells: on GA-like poses of the push, the
@@ -313,11 +327,6 @@ fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
         stands.statistic,
         stands.critical
     );
-    // Without the floor, the window's own fit of 11 values to 24 errors says the true launch misses.
-    let unfloored = recon::check_window(&window_cfg, &true_start, &obs, touch, None)
-        .unwrap()
-        .unwrap();
-    assert!(unfloored.bent(), "χ² {:.1}", unfloored.statistic);
     let mut fast = true_start.clone();
     fast.initial[0].v = fast.initial[0].v * 1.08;
     let check = recon::check_window(&window_cfg, &fast, &obs, touch, Some(precision))
@@ -335,10 +344,19 @@ fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
         "the window's own launch {:?}",
         window_v.to_array()
     );
+    // The held schedule from the window's world with the contact values all at 0.5 and the grid of starts (as
+    // `fit` runs it): it must find the pair's.
+    let mut from = check.flight_world.clone();
+    let half = ContactParams {
+        restitution: 0.5,
+        friction: 0.5,
+    };
+    from.pair_contact = vec![half];
+    from.scene_contact = vec![half; 2];
     let held = recon::fit_colliding_bodies_holding_launch(
         &cfg,
-        false,
-        &check.flight_world,
+        true,
+        &from,
         observed,
         recon::LaunchSettings {
             frames: 3,
@@ -349,7 +367,7 @@ fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
     .unwrap();
     let w = &held.world;
     for b in 0..2 {
-        assert_eq!(w.initial[b], check.flight_world.initial[b], "body {b}'s launch held");
+        assert_eq!(w.initial[b], from.initial[b], "body {b}'s launch held");
     }
     assert!(held.window.is_none(), "a held fit is not tested again");
     let msg = format!("pair {:?}, scene {:?}", w.pair_contact[0], w.scene_contact[0]);

@@ -123,13 +123,14 @@ pub fn parameter_table(page: &mut Page, traj: &Trajectory, eval: Option<&Value>)
         if let Some(f) = b.extra.get("flight") {
             let three = |k: &str| serde_json::from_value::<[f64; 3]>(f[k].clone()).ok();
             if let (Some(v), Some(w)) = (three("v0"), three("omega0")) {
-                let verdict = if f["bent"].as_bool() == Some(true) {
-                    "the kept launch misses it"
-                } else {
-                    "the kept launch stands against it"
-                };
                 rows.push(vec![
-                    format!("{}: the flight alone ({} frames; {verdict})", b.name, f["frames"]),
+                    format!(
+                        "{}: the flight alone ({} frames before {}; {})",
+                        b.name,
+                        f["frames"],
+                        flight_before(f),
+                        flight_verdict(f)
+                    ),
                     format!("[{:.3}, {:.3}, {:.3}]", v[0], v[1], v[2]),
                     fmt(e.and_then(|e| f64_at(&e["flight"], "v0_error_percent")), 1),
                     format!("[{:.2}, {:.2}, {:.2}]", w[0], w[1], w[2]),
@@ -462,6 +463,22 @@ pub fn loss_charts(name: &str, lines: &[Value]) -> Vec<(String, Chart)> {
         (format!("{name}_loss_pa"), pa),
         (format!("{name}_loss_ga_pga"), ga),
     ]
+}
+
+/// What a `flight` entry of a trajectory was fitted before: the first collision (several bodies' launch
+/// window) or the first contact (one body's flight).
+pub fn flight_before(flight: &Value) -> &str {
+    flight["before"].as_str().unwrap_or("the first contact")
+}
+
+/// What the fit did with a `flight` entry's launch: the kept launch stands against it, misses it, or is it
+/// (the world with the flight's launch held was kept).
+pub fn flight_verdict(flight: &Value) -> &'static str {
+    match (flight["bent"].as_bool(), flight["held_kept"].as_bool()) {
+        (Some(true), Some(true)) => "its launch held and kept",
+        (Some(true), _) => "the kept launch misses it",
+        _ => "the kept launch stands against it",
+    }
 }
 
 #[cfg(test)]

@@ -801,9 +801,17 @@ fn launches_from_window(
             rows.push(start_row(json!({"stage": "pga_window", "step": label}), i, r));
             pb.inc(1);
         },
-    )
-    .context("PGA with the launches held")?;
+    );
     pb.finish();
+    // A check of the kept fit: where it cannot run, the kept fit stands.
+    let held = match held {
+        Ok(h) => h,
+        Err(e) => {
+            tracing::warn!("PGA with the launches held did not run ({e}): the launches fitted with the rest stand");
+            record["held_kept"] = json!(false);
+            return Ok((fit, Some(record)));
+        }
+    };
     let total = |w: &World| -> Result<f64> {
         Ok(simulated_losses(m, w)?
             .iter()
@@ -818,8 +826,13 @@ fn launches_from_window(
     );
     log.write(json!({"stage": "pga_window", "image_loss": kept, "image_loss_joint": joint, "kept": keep_held}))?;
     record["held_kept"] = json!(keep_held);
+    // Kept, the held fit takes the joint schedule's first worlds along (`pga_guess.json`: the launches
+    // guessed from GA's first frames; `pga_launch.json`: fitted to the frames before the collision) and its
+    // test.
     let fit = if keep_held {
         recon::CollidingFit {
+            guess: fit.guess,
+            after_launch: fit.after_launch,
             window: fit.window,
             ..held
         }
@@ -894,23 +907,25 @@ fn pga_observed(m: &Multi, ga: &[Vec<FramePose>]) -> recon::ObservedBodies {
         .collect();
     let pinned = m.cfg.ga.contact.pins_depth();
     let camera = m.bodies[0].frames[0].camera;
-    // One image's precision across the line of sight, at the bodies' mean distance in the first frame.
-    let precision = poses
-        .iter()
-        .zip(&m.world.bodies)
-        .map(|(p, body)| recon::ImagePrecision::of(&camera, &p[0], 2.0 * body.bounding_radius).across)
-        .sum::<f64>()
-        / poses.len().max(1) as f64;
     let mut observed = recon::ObservedBodies {
         eye: Some(camera.center().to_array()),
         depth_held: ga
             .iter()
             .map(|rs| rs.iter().map(|r| r.in_contact && pinned).collect())
             .collect(),
-        precision: Some(precision),
         ..recon::ObservedBodies::new(poses, weights)
     };
-    observed.settle_resting(&m.world, &m.bodies[0].frames[0].camera);
+    observed.settle_resting(&m.world, &camera);
+    // One image's precision across the line of sight, at the launched bodies' mean distance in the first
+    // frame (the launch window's test leaves the resting ones out).
+    let launched: Vec<f64> = (0..observed.poses.len())
+        .filter(|&b| observed.resting.get(b).copied().flatten().is_none())
+        .map(|b| {
+            let diameter = 2.0 * m.world.bodies[b].bounding_radius;
+            recon::ImagePrecision::of(&camera, &observed.poses[b][0], diameter).across
+        })
+        .collect();
+    observed.precision = (!launched.is_empty()).then(|| launched.iter().sum::<f64>() / launched.len() as f64);
     observed
 }
 
@@ -1130,7 +1145,9 @@ fn finish(
         if let Some(w) = window.filter(|w| !w["bodies"][b].is_null()) {
             let mut flight = w["bodies"][b].clone();
             for key in ["frames", "bent", "statistic", "critical", "held_kept"] {
-                flight[key] = w[key].clone();
+                if let Some(v) = w.get(key) {
+                    flight[key] = v.clone();
+                }
             }
             flight["before"] = json!("the first collision");
             tb.extra.insert("flight".into(), flight);
