@@ -176,7 +176,7 @@ fn a_report_embeds_everything_and_headless_chromium_shows_it_all() {
         "top view",
         "silhouette IoU per frame",
         "training: PSNR",
-        "toy: the flight alone (4 frames; the kept launch misses it)",
+        "toy: the flight alone (4 frames before the first contact; the kept launch misses it)",
     ] {
         assert!(html.contains(needle), "{needle}");
     }
