@@ -1,4 +1,20 @@
-//! Eigen-decomposition of small symmetric matrices.
+//! Eigen-decomposition of small symmetric matrices, and the covariance of a point cloud that is most often
+//! decomposed.
+
+use crate::{Mat3, Vec3};
+
+/// The centroid of `points` and their covariance about it (divided by their count; the zero matrix for
+/// none): the principal axes of a cloud, or the normal of the plane through it (the eigenvector of the
+/// smallest eigenvalue, [`symmetric_eigen`]).
+pub fn point_covariance(points: &[Vec3<f64>]) -> (Vec3<f64>, Mat3<f64>) {
+    let n = points.len().max(1) as f64;
+    let c = points.iter().fold(Vec3::zero(), |a, p| a + *p) * (1.0 / n);
+    let mut cov = Mat3::<f64>::zero();
+    for p in points {
+        cov = cov.add(&Mat3::outer(*p - c, *p - c));
+    }
+    (c, cov.scale(1.0 / n))
+}
 
 /// Eigen-decomposition of a symmetric N×N matrix (Jacobi rotations): values
 /// and vectors (as columns).

@@ -19,7 +19,7 @@ pub mod vec3;
 
 pub use camera::{Camera, CameraError, Intrinsics, Ray};
 pub use dual::Dual;
-pub use eigen::symmetric_eigen;
+pub use eigen::{point_covariance, symmetric_eigen};
 pub use pose::{left_jacobian, Pose};
 pub use quat::{rotation_distance, Quat};
 pub use real::Real;

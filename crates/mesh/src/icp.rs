@@ -259,13 +259,8 @@ fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
 
 /// Centroid and principal axes (columns, by decreasing variance, right-handed).
 fn principal_frame(points: &[V]) -> (V, Mat3<f64>) {
-    let n = points.len().max(1) as f64;
-    let c = points.iter().fold(V::zero(), |a, p| a + *p) * (1.0 / n);
-    let mut cov = Mat3::<f64>::zero();
-    for p in points {
-        cov = cov.add(&Mat3::outer(*p - c, *p - c));
-    }
-    let (vals, vecs) = symmetric_eigen(cov.scale(1.0 / n).m);
+    let (c, cov) = geom::point_covariance(points);
+    let (vals, vecs) = symmetric_eigen(cov.m);
     let vecs = Mat3::from_rows(vecs);
     let mut idx = [0, 1, 2];
     idx.sort_by(|&i, &j| vals[j].total_cmp(&vals[i]));

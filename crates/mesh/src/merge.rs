@@ -880,6 +880,20 @@ mod tests {
         );
     }
 
+    /// A colour judge that gives each hypothesis of `scored` (told by its turn) its measured gap.
+    fn colour_gaps<const N: usize>(
+        scored: &[(IcpResult, f64, f64)],
+        gaps: [f64; N],
+    ) -> impl Fn(&Pose<f64>) -> Option<f64> {
+        let turns: Vec<geom::Quat<f64>> = scored.iter().map(|s| s.0.transform.q).collect();
+        move |t: &Pose<f64>| {
+            turns
+                .iter()
+                .position(|q| geom::rotation_distance(*q, t.q) < 1e-6)
+                .map(|i| gaps[i])
+        }
+    }
+
     fn fit(q: [f64; 4], rms_mm: f64) -> IcpResult {
         IcpResult {
             transform: Pose::new(geom::Quat::cst(q).normalize_or_identity(), V::zero()),
@@ -902,13 +916,7 @@ mod tests {
             (fit([0.0, 0.0, 0.0, 1.0], 0.48), 0.848, 0.0),
         ];
         let gaps = [0.135, 0.080, 0.135, 0.168];
-        let by_turn = scored.clone();
-        let gap = move |t: &Pose<f64>| {
-            by_turn
-                .iter()
-                .position(|s| geom::rotation_distance(s.0.transform.q, t.q) < 1e-6)
-                .map(|i| gaps[i])
-        };
+        let gap = colour_gaps(&scored, gaps);
         let max_residual = MergeConfig::default().max_residual;
         let chosen = pick_alignment(scored.clone(), max_residual, Some(&gap));
         assert_eq!(chosen, scored[1].0, "the turn about x");
@@ -947,13 +955,7 @@ mod tests {
             h([s, 0.0, 0.0, -s], 0.79, 0.68, 0.531, 0.0),
         ];
         let gaps = [0.027, 0.216, 0.182, 0.073, 0.096, 0.114, 0.239, 0.241];
-        let by_turn = scored.clone();
-        let gap = move |t: &Pose<f64>| {
-            by_turn
-                .iter()
-                .position(|s| geom::rotation_distance(s.0.transform.q, t.q) < 1e-6)
-                .map(|i| gaps[i])
-        };
+        let gap = colour_gaps(&scored, gaps);
         let max_residual = MergeConfig::default().max_residual;
         let chosen = pick_alignment(scored.clone(), max_residual, Some(&gap));
         assert_eq!(chosen, scored[3].0, "the turn about x");

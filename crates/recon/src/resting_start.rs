@@ -6,9 +6,9 @@
 
 use crate::rest::{mean_pose, still_run, REST_FRAMES};
 use crate::unknowns::StartContact;
-use crate::video_fit::{settle_along_ray, start_contact, FACING_ANGLE, SUPPORT_BAND};
+use crate::video_fit::{facing_points, settle_along_ray, start_contact};
 use geom::{Camera, Pose, Quat, Vec3};
-use sim::sdf::{Sdf, Shape};
+use sim::sdf::Shape;
 use sim::RigidBody;
 
 /// A body at rest from frame 0.
@@ -71,34 +71,14 @@ const FACE_CONE: f64 = 30.0 * std::f64::consts::PI / 180.0;
 fn level_on_face(body: &RigidBody, pose: &Pose<f64>, n: Vec3<f64>) -> Pose<f64> {
     let n = n.normalize_or(Vec3::new(0.0, 0.0, 1.0));
     let placed: Vec<Vec3<f64>> = body.contact_points.iter().map(|p| pose.transform_point(*p)).collect();
-    let lowest = placed.iter().map(|p| p.dot(n)).fold(f64::INFINITY, f64::min);
-    let reach = lowest + SUPPORT_BAND + FACING_ANGLE.tan() * 2.0 * body.bounding_radius;
-    let face: Vec<Vec3<f64>> = body
-        .contact_points
-        .iter()
-        .zip(&placed)
-        .filter(|&(_, at)| at.dot(n) <= reach)
-        .filter(|&(p, _)| {
-            let outward = pose.q.rotate(body.sdf.distance_grad_local(*p).1);
-            outward.norm() > 0.0 && outward.dot(n) <= -FACE_CONE.cos() * outward.norm()
-        })
-        .map(|(_, at)| *at)
-        .collect();
+    // Heights along the normal: the face's plane is what is sought, the scene's distance is not needed.
+    let heights: Vec<f64> = placed.iter().map(|p| p.dot(n)).collect();
+    let face = facing_points(body, pose, n, &placed, &heights, FACE_CONE);
     if face.len() < 3 {
         return *pose;
     }
-    let count = face.len() as f64;
-    let mean = face.iter().fold(Vec3::new(0.0, 0.0, 0.0), |s, p| s + *p) * (1.0 / count);
-    let mut cov = [[0.0; 3]; 3];
-    for p in &face {
-        let d = (*p - mean).to_array();
-        for i in 0..3 {
-            for j in 0..3 {
-                cov[i][j] += d[i] * d[j] / count;
-            }
-        }
-    }
-    let (values, vectors) = geom::symmetric_eigen(cov);
+    let (_, cov) = geom::point_covariance(&face);
+    let (values, vectors) = geom::symmetric_eigen(cov.m);
     let mut order = [0, 1, 2];
     order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
     // A line of points (an edge) spans no plane.
@@ -123,6 +103,25 @@ mod tests {
     use sim::sdf::{Cuboid, Plane};
     use sim::{ContactSampling, MassSpec};
 
+    fn board() -> Shape {
+        Shape::Plane(Plane {
+            normal: [0.0, 0.0, 1.0],
+            offset: 0.0,
+        })
+    }
+
+    /// The two-body video's camera at its small size, looking at the block.
+    fn camera() -> Camera<f64> {
+        Camera::look_at(
+            Vec3::new(0.0, -0.35, 0.3),
+            Vec3::new(0.05, 0.02, 0.02),
+            Vec3::new(0.0, 0.0, 1.0),
+            geom::Intrinsics::centred(200.0, 160, 120),
+            160,
+            120,
+        )
+    }
+
     fn block() -> RigidBody {
         RigidBody::from_shape(
             "block",
@@ -137,19 +136,9 @@ mod tests {
 
     #[test]
     fn a_still_block_rests_flat_on_the_board_at_its_mean_pose_and_a_moving_one_does_not() {
-        let board = Shape::Plane(Plane {
-            normal: [0.0, 0.0, 1.0],
-            offset: 0.0,
-        });
+        let board = board();
         let body = block();
-        let camera = Camera::look_at(
-            Vec3::new(0.0, -0.35, 0.3),
-            Vec3::new(0.05, 0.02, 0.02),
-            Vec3::new(0.0, 0.0, 1.0),
-            geom::Intrinsics::centred(200.0, 160, 120),
-            160,
-            120,
-        );
+        let camera = camera();
         let eye = camera.center();
         let yaw = 0.5;
         // GA's poses of a block at rest: tilted 1.2° about x, 2 mm too far along the line of sight (sunk into
@@ -205,12 +194,9 @@ mod tests {
             96,
         )
         .unwrap();
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = geom::SplitMix64::new(7);
         for v in &mut mesh.vertices {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let bump = ((state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * 3e-4;
+            let bump = rng.range(-3e-4, 3e-4);
             // The underside's inner vertices only: the mesh stays closed.
             if v[2] < -0.0199 && v[0].abs() < 0.0249 && v[1].abs() < 0.0249 {
                 v[2] += bump;
@@ -228,19 +214,9 @@ mod tests {
 
     #[test]
     fn a_bumpy_underside_is_levelled_by_its_plane_not_by_its_normals() {
-        let board = Shape::Plane(Plane {
-            normal: [0.0, 0.0, 1.0],
-            offset: 0.0,
-        });
+        let board = board();
         let body = bumpy_block();
-        let camera = Camera::look_at(
-            Vec3::new(0.0, -0.35, 0.3),
-            Vec3::new(0.05, 0.02, 0.02),
-            Vec3::new(0.0, 0.0, 1.0),
-            geom::Intrinsics::centred(200.0, 160, 120),
-            160,
-            120,
-        );
+        let camera = camera();
         // GA's poses: tilted 1.5° about x and 1° about y, still for 5 frames.
         let q = Quat::exp(Vec3::new(0.0, 0.0, 0.5)) * Quat::exp(Vec3::new(0.026, 0.017, 0.0));
         let poses = vec![Pose::new(q, Vec3::new(0.05, 0.02, 0.021)); 5];

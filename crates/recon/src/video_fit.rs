@@ -110,7 +110,7 @@ impl Default for VideoFitConfig {
 }
 
 /// Contact points within this of the lowest one (m) make the support a body rests on.
-pub(crate) const SUPPORT_BAND: f64 = 0.001;
+const SUPPORT_BAND: f64 = 0.001;
 /// A support whose narrower RMS half-width is at least this fraction of the body's bounding radius is a
 /// face; narrower, a point or an edge. A ball's cap within [`SUPPORT_BAND`] is `√(2 r · 1 mm) / 2` wide:
 /// 0.16 of a 2 cm ball's radius, 0.22 of a 1 cm one's; the tabletop toy's flat side, reconstructed and
@@ -190,18 +190,9 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
     let width = narrower_half_width(&support, a, b) / body.bounding_radius;
     // A pose fitted to one image is a degree or two off: a body sliding on its face then touches along its
     // lower edge only. What it lies on is the part of its surface that faces the scene, near it.
-    let band = lowest + SUPPORT_BAND + FACING_ANGLE.tan() * 2.0 * body.bounding_radius;
-    let facing: Vec<Vec3<f64>> = body
-        .contact_points
-        .iter()
-        .zip(&placed)
-        .filter(|&(_, &(_, d, _))| d < band)
-        .filter_map(|(p, &(at, _, _))| {
-            let outward = pose.q.rotate(body.sdf.distance_grad_local(*p).1);
-            let faces = outward.norm() > 0.0 && outward.dot(n) <= -FACING_ANGLE.cos() * outward.norm();
-            faces.then_some(at)
-        })
-        .collect();
+    let heights: Vec<f64> = placed.iter().map(|&(_, d, _)| d).collect();
+    let points: Vec<Vec3<f64>> = placed.iter().map(|&(at, _, _)| at).collect();
+    let facing = facing_points(body, pose, n, &points, &heights, FACING_ANGLE);
     let facing_width = narrower_half_width(&facing, a, b) / body.bounding_radius;
     tracing::debug!(
         "start contact: {} support points, narrower RMS half-width {width:.3} of the radius; {} facing the \
@@ -214,6 +205,31 @@ pub fn start_contact(body: &RigidBody, scene: &Shape, pose: &Pose<f64>) -> Start
     } else {
         StartContact::Touching { normal }
     }
+}
+
+/// The body's contact points (`placed` at `pose`, each `heights` above the scene) near the scene and facing
+/// it: within [`SUPPORT_BAND`] and a face's reach tilted by [`FACING_ANGLE`] of the lowest, their outward
+/// normals within `cone` of the scene's normal `n` turned around. What a body lying on a face lies on.
+pub(crate) fn facing_points(
+    body: &RigidBody,
+    pose: &Pose<f64>,
+    n: Vec3<f64>,
+    placed: &[Vec3<f64>],
+    heights: &[f64],
+    cone: f64,
+) -> Vec<Vec3<f64>> {
+    let lowest = heights.iter().copied().fold(f64::INFINITY, f64::min);
+    let band = lowest + SUPPORT_BAND + FACING_ANGLE.tan() * 2.0 * body.bounding_radius;
+    body.contact_points
+        .iter()
+        .zip(placed.iter().zip(heights))
+        .filter(|&(_, (_, &h))| h < band)
+        .filter_map(|(p, (&at, _))| {
+            let outward = pose.q.rotate(body.sdf.distance_grad_local(*p).1);
+            let faces = outward.norm() > 0.0 && outward.dot(n) <= -cone.cos() * outward.norm();
+            faces.then_some(at)
+        })
+        .collect()
 }
 
 /// A rough guess raised along +z until no contact point is inside the scene (a guess from markers may sink

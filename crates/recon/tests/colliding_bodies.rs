@@ -22,6 +22,11 @@ const PAIR: ContactParams = ContactParams {
     restitution: 0.7,
     friction: 0.15,
 };
+/// Where the fits start: every contact value at 0.5.
+const HALF: ContactParams = ContactParams {
+    restitution: 0.5,
+    friction: 0.5,
+};
 
 fn world(toy_v: [f64; 3], scene: ContactParams, pair: ContactParams) -> World {
     let ground = Shape::Plane(Plane {
@@ -79,11 +84,7 @@ fn finds_the_collision_and_the_values_of_both_contacts() {
     let moved = (poses[1][23].t - poses[1][0].t).norm();
     assert!(moved > 0.02, "the block must be knocked on ({moved} m)");
 
-    let half = ContactParams {
-        restitution: 0.5,
-        friction: 0.5,
-    };
-    let start = world([0.65, 0.0, 0.0], half, half);
+    let start = world([0.65, 0.0, 0.0], HALF, HALF);
     let weights = vec![vec![1.0; 24]; 2];
     let t0 = std::time::Instant::now();
     let fit = fit_colliding_bodies(
@@ -167,17 +168,26 @@ fn jittered(poses: &[Vec<Pose<f64>>], eye: Vec3<f64>) -> Vec<Vec<Pose<f64>>> {
         .collect()
 }
 
-#[test]
-#[ignore = "slow: the collision schedule on jittered poses with a block at rest until struck, ~40 s"]
-fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
-    let (scene, pair) = (SCENE, PAIR);
-    let truth = world([1.3, 0.0, 0.0], scene, pair);
+/// The push seen as GA sees it: the truth's world and motion, the frame of the collision, the exact poses,
+/// and the jittered poses observed from the two-body video's camera at its small size (160 × 120, 0.5 m
+/// off) with one image's precision at the toy (the launch window's noise floor, as `fit` gives it), the
+/// bodies at rest settled.
+struct Push {
+    truth: World,
+    touch: usize,
+    exact: Vec<Vec<Pose<f64>>>,
+    eye: Vec3<f64>,
+    observed: recon::ObservedBodies,
+    rests: Vec<Option<recon::RestingStart>>,
+}
+
+fn push() -> Push {
+    let truth = world([1.3, 0.0, 0.0], SCENE, PAIR);
     let traj = truth.simulate(&truth.params());
     let touch = traj.contacts.iter().position(|c| c.pairs[0]).unwrap();
     let exact: Vec<Vec<Pose<f64>>> = (0..2)
         .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
         .collect();
-    // The two-body video's camera at its small size: 160 × 120, 0.5 m off.
     let camera = geom::Camera::look_at(
         Vec3::new(0.0, -0.4, 0.35),
         Vec3::new(0.0, 0.0, 0.02),
@@ -187,13 +197,33 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
         120,
     );
     let eye = camera.center();
+    let diameter = 2.0 * truth.bodies[0].bounding_radius;
     let mut observed = recon::ObservedBodies {
         eye: Some(eye.to_array()),
-        // One image's precision at the toy: the launch window's noise floor, as `fit` gives it.
-        precision: Some(recon::ImagePrecision::of(&camera, &exact[0][0], 2.0 * truth.bodies[0].bounding_radius).across),
+        precision: Some(recon::ImagePrecision::of(&camera, &exact[0][0], diameter).across),
         ..recon::ObservedBodies::new(jittered(&exact, eye), vec![vec![1.0; 24]; 2])
     };
     let rests = observed.settle_resting(&truth, &camera).to_vec();
+    Push {
+        truth,
+        touch,
+        exact,
+        eye,
+        observed,
+        rests,
+    }
+}
+
+#[test]
+#[ignore = "slow: the collision schedule on jittered poses with a block at rest until struck, ~40 s"]
+fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
+    let Push {
+        touch,
+        exact,
+        observed,
+        rests,
+        ..
+    } = push();
     assert!(rests[0].is_none(), "the toy slides from the start: {:?}", rests[0]);
     let rest = rests[1].expect("the block rests until struck");
     assert!(
@@ -201,11 +231,7 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
         "still frames {} (struck in frame {touch})",
         rest.frames
     );
-    let half = ContactParams {
-        restitution: 0.5,
-        friction: 0.5,
-    };
-    let start = world([0.65, 0.0, 0.0], half, half);
+    let start = world([0.65, 0.0, 0.0], HALF, HALF);
     let fit = fit_colliding_bodies(
         &PhysicsFitConfig {
             fit_initial_pose: true,
@@ -275,26 +301,14 @@ fn a_block_at_rest_until_struck_starts_at_rest_on_the_board() {
 /// around them.
 #[test]
 fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
-    let truth = world([1.3, 0.0, 0.0], SCENE, PAIR);
-    let traj = truth.simulate(&truth.params());
-    let touch = traj.contacts.iter().position(|c| c.pairs[0]).unwrap();
-    let exact: Vec<Vec<Pose<f64>>> = (0..2)
-        .map(|b| traj.frames.iter().map(|f| f[b].pose).collect())
-        .collect();
-    let camera = geom::Camera::look_at(
-        Vec3::new(0.0, -0.4, 0.35),
-        Vec3::new(0.0, 0.0, 0.02),
-        Vec3::new(0.0, 0.0, 1.0),
-        geom::Intrinsics::centred(200.0, 160, 120),
-        160,
-        120,
-    );
-    let eye = camera.center();
-    let mut observed = recon::ObservedBodies {
-        eye: Some(eye.to_array()),
-        ..recon::ObservedBodies::new(jittered(&exact, eye), vec![vec![1.0; 24]; 2])
-    };
-    let rests = observed.settle_resting(&truth, &camera).to_vec();
+    let Push {
+        truth,
+        touch,
+        observed,
+        rests,
+        eye,
+        ..
+    } = push();
     let rest = rests[1].expect("the block rests until struck");
     let cfg = PhysicsFitConfig {
         fit_initial_pose: true,
@@ -316,8 +330,7 @@ fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
     let mut true_start = truth.clone();
     true_start.initial[1].pose = rest.pose;
     // One image's precision across the line of sight at the toy (a quarter pixel: 0.6 mm here).
-    let diameter = 2.0 * truth.bodies[0].bounding_radius;
-    let precision = recon::ImagePrecision::of(&camera, &exact[0][0], diameter).across;
+    let precision = observed.precision.expect("the push's floor");
     let stands = recon::check_window(&window_cfg, &true_start, &obs, touch, Some(precision))
         .unwrap()
         .expect("a window of four frames");
@@ -347,12 +360,8 @@ fn a_launch_the_frames_before_the_collision_refute_is_caught_and_can_be_held() {
     // The held schedule from the window's world with the contact values all at 0.5 and the grid of starts (as
     // `fit` runs it): it must find the pair's.
     let mut from = check.flight_world.clone();
-    let half = ContactParams {
-        restitution: 0.5,
-        friction: 0.5,
-    };
-    from.pair_contact = vec![half];
-    from.scene_contact = vec![half; 2];
+    from.pair_contact = vec![HALF];
+    from.scene_contact = vec![HALF; 2];
     let held = recon::fit_colliding_bodies_holding_launch(
         &cfg,
         true,
