@@ -35,7 +35,7 @@ use std::time::Instant;
   pganeus demo --preset raw")
 )]
 pub struct DemoArgs {
-    /// Short training and a light fit on the first 12 frames: the whole chain in about 5 minutes (a smoke
+    /// Short training and a light fit on the first 8 frames: the whole chain in about 3 minutes (a smoke
     /// run; its figures are far from the method's).
     #[cfg_attr(feature = "clap", arg(long, conflicts_with = "scale"))]
     pub quick: bool,
@@ -104,22 +104,22 @@ pub(crate) struct Plan {
 
 pub(crate) const QUICK: Plan = Plan {
     scale: ScaleArg::Small,
-    scene_steps: 250,
-    object_steps: 250,
+    scene_steps: 120,
+    object_steps: 120,
     bake_res: 192,
-    frames: Some(12),
+    frames: Some(8),
     fit_config: Some(QUICK_FIT),
     scene_config: Some(
         "# demo --quick: half the rays per step, coarser stereo points\nbatch_rays = 1024\n\n[stereo]\nstride = 2\nhypotheses = 64\n",
     ),
-    merge_field_res: Some(128),
+    merge_field_res: Some(96),
     expected: Expected {
         synth: 8.0,
         synth_raw: 92.0,
         import: 8.0,
-        scene: 35.0,
-        object: 20.0,
-        merge: 12.0,
+        scene: 32.0,
+        object: 17.0,
+        merge: 17.0,
         bake: 3.0,
         fit_per_body: 40.0,
         eval: 2.0,
@@ -173,26 +173,26 @@ const QUICK_FIT: &str = r#"# demo --quick: fewer steps and pixels in every stage
 rounds = 1
 pga_multi_start = false
 [first_pose]
-iterations = 60
+iterations = 40
 rays_per_step = 256
 [pa]
-iterations = 40
+iterations = 25
 rays_per_frame = 128
 window_steps = 10
 [ga]
 hypotheses = false
 [ga.pose]
-iterations = 18
+iterations = 12
 rays_per_step = 256
 [pga]
-iterations = 20
+iterations = 15
 [auto_init]
-screened = 3
+screened = 2
 screen_iterations = 10
-refined = 2
-twin_iterations = 20
+refined = 1
+twin_iterations = 10
 [auto_init.refine]
-iterations = 70
+iterations = 40
 rays_per_step = 256
 "#;
 

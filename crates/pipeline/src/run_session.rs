@@ -30,7 +30,7 @@ pub struct RunArgs {
     /// A truth (truth.json, as `synth` writes it): each fit is scored against it.
     #[cfg_attr(feature = "clap", arg(long))]
     pub truth: Option<PathBuf>,
-    /// Short training and a light fit on the first 12 frames (a smoke run, as `demo --quick`).
+    /// Short training and a light fit on the first 8 frames (a smoke run, as `demo --quick`).
     #[cfg_attr(feature = "clap", arg(long))]
     pub quick: bool,
     /// Redo every stage, even those that finished.
