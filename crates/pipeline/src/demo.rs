@@ -70,7 +70,8 @@ pub struct DemoArgs {
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
 /// of 2026-11-27 grown by GA's 80 steps a frame and shrunk by its still frames since, the large tabletop of
-/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` in CI, the raw preset's
+/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` alone
+/// with the test build's binary on 2026-12-07, the raw preset's
 /// synth and import of 2026-12-06. A fit is per body in the video.
 pub(crate) struct Expected {
     synth: f64,
