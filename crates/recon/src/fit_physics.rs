@@ -726,6 +726,26 @@ impl PhysicsFit {
         &self.contact_values
     }
 
+    /// Whether a contact of the fitted simulation over the whole sequence uses a value: an impulse of an
+    /// observed body against the scene (of that body, for a value of one body), or between the pair.
+    pub(crate) fn values_in_contact(&self) -> impl Fn(ContactValue) -> bool {
+        let contacts = self.fitted_world().simulate(&self.params).contacts;
+        let bodies = self.bodies.clone();
+        move |value| {
+            contacts.iter().any(|c| match value {
+                ContactValue::SceneRestitution(None) | ContactValue::SceneFriction(None) => {
+                    bodies.iter().any(|&b| c.scene.get(b).copied().unwrap_or(false))
+                }
+                ContactValue::SceneRestitution(Some(b)) | ContactValue::SceneFriction(Some(b)) => {
+                    c.scene.get(b).copied().unwrap_or(false)
+                }
+                ContactValue::PairRestitution(p) | ContactValue::PairFriction(p) => {
+                    c.pairs.get(p).copied().unwrap_or(false)
+                }
+            })
+        }
+    }
+
     /// This fit's values but the `u`-th, refitted for at most `iterations` steps over the whole sequence from
     /// the values `x`, with the `u`-th held at `v`: the loss it ends at and every value (the `u`-th `v`).
     pub(crate) fn refit_holding(&self, u: usize, v: f64, x: &[f64], iterations: usize) -> (f64, Vec<f64>) {

@@ -82,7 +82,20 @@ impl PhysicsFit {
         let grid: Vec<f64> = (0..steps)
             .map(|j| lo + (hi - lo) * j as f64 / (steps - 1) as f64)
             .collect();
-        let values = self.contact_values();
+        // A value no contact of the fitted simulation uses cannot move its motion: its profile is flat (every
+        // refit only polishes the others) and its range is its bounds, said without walking it (in a
+        // three-ball fit, half the values are pairs that never touch).
+        let used = self.values_in_contact();
+        let (values, unused): (Vec<_>, Vec<_>) = self
+            .contact_values()
+            .iter()
+            .copied()
+            .partition(|&(_, value)| used(value));
+        for (_, value) in &unused {
+            tracing::info!(
+                "value ranges: {value:?} is used by no contact of the fitted simulation: its range is its bounds"
+            );
+        }
         let total: usize = values
             .iter()
             .map(|&(u, _)| grid.iter().filter(|&&v| v != x0[u]).count())
@@ -110,8 +123,8 @@ impl PhysicsFit {
                 [down, up]
             })
             .collect();
-        // The bar is twice the best loss seen: the fitted one's, or a profile's where its refit of the others
-        // found better (the values handed in are not this objective's optimum: a world kept from a fit with
+        // The bar is twice the best loss seen: the fitted one's, or a profile's (of a value in use) where its
+        // refit of the others found better (the values handed in are not this objective's optimum: a world kept from a fit with
         // other settings or observations; the test hands in a launch 20 % slow).
         let best = profiles
             .iter()
@@ -123,7 +136,7 @@ impl PhysicsFit {
             tracing::debug!("value ranges: the fitted loss {fitted_loss:.5}, a profile's {best:.5}: the bar from it");
         }
         let tolerance = RANGE_LOSS_RATIO * best;
-        values
+        let mut ranges: Vec<ValueRange> = values
             .iter()
             .zip(&profiles)
             .map(|(&(u, value), [down, up])| {
@@ -148,7 +161,17 @@ impl PhysicsFit {
                     hi: edge(up).unwrap_or(hi),
                 }
             })
-            .collect()
+            .collect();
+        ranges.extend(unused.iter().map(|&(u, value)| ValueRange {
+            value,
+            fitted: x0[u],
+            lo,
+            hi,
+        }));
+        // In the order of the fit's values, as before the unused ones were set apart.
+        let order = |r: &ValueRange| self.contact_values().iter().position(|(_, v)| *v == r.value);
+        ranges.sort_by_key(order);
+        ranges
     }
 }
 

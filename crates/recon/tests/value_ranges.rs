@@ -186,3 +186,59 @@ fn a_world_handed_in_is_simulated_from_its_own_initial_orientation() {
         check.joint_squares
     );
 }
+
+/// Two boxes thrown 30 cm apart never touch: no contact of the simulation uses their pair's values, so
+/// their ranges are the bounds, said without a refit (the progress counts only the scene values' refits),
+/// and the scene's values are still profiled.
+#[test]
+fn a_pair_that_never_touches_has_its_bounds_without_a_refit() {
+    let mut world = dropped_box([0.6, 0.0, 0.0]);
+    let second = world.bodies[0].clone();
+    let c = world.scene_contact[0];
+    world.add_body(
+        second,
+        BodyState::new([0.0, 0.3, 0.10], [1.0, 0.0, 0.0, 0.0], [-0.4, 0.0, 0.0], [0.0; 3]),
+        c,
+        c,
+    );
+    world.validate().unwrap();
+    let trajectory = world.simulate(&world.params());
+    assert!(
+        trajectory.contacts.iter().all(|c| c.pairs.iter().all(|&p| !p)),
+        "the boxes touch"
+    );
+    let observed: Vec<Observed> = (0..2)
+        .map(|b| Observed::new(b, trajectory.frames.iter().map(|f| f[b].pose).collect(), None))
+        .collect();
+    let cfg = PhysicsFitConfig {
+        rotation_weight: 0.03,
+        ..PhysicsFitConfig::default()
+    };
+    let scan = RangeScan {
+        steps: 5,
+        iterations: 2,
+    };
+    let most = std::sync::atomic::AtomicUsize::new(0);
+    let ranges = recon::contact_value_ranges(&cfg, world, observed, scan, &|_, total| {
+        most.fetch_max(total, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(ranges.len(), 4, "{ranges:?}");
+    let (lo, hi) = (cfg.bound_margin, 1.0 - cfg.bound_margin);
+    for r in &ranges {
+        match r.value {
+            ContactValue::PairRestitution(0) | ContactValue::PairFriction(0) => {
+                assert_eq!((r.lo, r.hi), (lo, hi), "{ranges:?}")
+            }
+            _ => assert!(
+                r.contains(r.fitted) && r.hi - r.lo < hi - lo,
+                "the scene's value unbounded: {ranges:?}"
+            ),
+        }
+    }
+    let refits = most.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(
+        (1..=2 * scan.steps).contains(&refits),
+        "{refits} refits for two values of five grid values"
+    );
+}
