@@ -161,7 +161,19 @@ pub fn reported_poses<E>(
             let (s, g) = (&simulated_losses[k], &ga[k]);
             let drawn_elsewhere =
                 g.fitted && s.pixels > 0 && s.loss > g.image.loss && apart_px[k] > SIMULATION_MISSES_BY_PX;
-            simulation_misses(s, g, floor) || drawn_elsewhere
+            let misses = simulation_misses(s, g, floor);
+            if g.fitted {
+                tracing::debug!(
+                    "frame {k}: simulated loss {:.5} IoU {:.3}, GA's {:.5} IoU {:.3}, floor {floor:.5}, apart {:.2} px{}",
+                    s.loss,
+                    s.iou(),
+                    g.image.loss,
+                    g.image.iou(),
+                    apart_px[k],
+                    if misses { ": missed (image)" } else if drawn_elsewhere { ": missed (drawn elsewhere)" } else { "" }
+                );
+            }
+            misses || drawn_elsewhere
         })
         .collect();
     let mut poses = simulated.to_vec();
