@@ -69,6 +69,13 @@ pub struct VideoFitConfig {
     /// ([`crate::seen_space`]): a reconstructed scene's fillet at a wall's foot otherwise kicks the simulated
     /// body up where the images show it pressed into the corner. Default true.
     pub carve_scene: bool,
+    /// With several bodies: where the first PGA round's fitted motion does not converge in its step size
+    /// over the video ([`crate::horizon`]: twice the substeps draw a body elsewhere), the second round
+    /// (GA from that simulation, then PGA) simulates at twice the substeps, and the images choose between
+    /// the rounds as ever. A motion fitted at too coarse a step is tuned to that step's own collisions (the
+    /// project's push at 10 substeps a frame: twice them drew the toy 14.4 px away, four times 20 px), where
+    /// the same fit at twice the substeps explains the images twice as well. Default true.
+    pub finer_step_round: bool,
 }
 
 impl Default for VideoFitConfig {
@@ -105,6 +112,7 @@ impl Default for VideoFitConfig {
             ranges: RangeScan::default(),
             rounds: 1,
             carve_scene: true,
+            finer_step_round: true,
         }
     }
 }

@@ -238,6 +238,7 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     carve_seen_space(&mut m, &mut log, &tracked)?;
     let first_round = stage_pga(&m, &mut log, &tracked, "pga_tracked.json")?;
     time("pga_tracked", t);
+    finer_step_for_second_round(&mut m, &mut log, &first_round.world)?;
     // GA again from that simulation (the one-body fit's GA from PA), then PGA on its poses; the round whose
     // simulation explains the images better is kept.
     let t = Instant::now();
@@ -287,6 +288,31 @@ pub(super) fn run(p: Prepared, ctx: &RunContext) -> Result<FitOutcome> {
     outcome.ranges = ranges;
     outcome.world = Some(kept.world);
     Ok(with_read_back(outcome, &log))
+}
+
+/// Twice the substeps for the second round where the first round's fitted motion does not converge in its
+/// step size over the video (`finer_step_round`). Decided from the first round's world alone, so a resumed
+/// fit decides the same.
+fn finer_step_for_second_round(m: &mut Multi, log: &mut Log, first: &World) -> Result<()> {
+    if !m.cfg.finer_step_round {
+        return Ok(());
+    }
+    let horizon = recon::predictable_frames(first, &m.bodies[0].frames[0].camera);
+    let n = horizon.spread_px.len();
+    if horizon.frames >= n {
+        return Ok(());
+    }
+    let substeps = 2 * first.config.substeps.max(1);
+    tracing::info!(
+        "the first round's motion converges in its step size over frames 0-{} of {n} only (twice the substeps \
+         draw it {:.1} px away): the second round simulates at {substeps} substeps a frame",
+        horizon.frames.saturating_sub(1),
+        horizon.spread_px.iter().copied().fold(0.0, f64::max)
+    );
+    log.write(json!({"stage": "pga", "first_round_predictable_frames": horizon.frames,
+        "second_round_substeps": substeps}))?;
+    m.world.config.substeps = substeps;
+    Ok(())
 }
 
 /// The scene less the space GA (`ga`, per body) saw every body in, for the PGA round after it
@@ -986,6 +1012,15 @@ fn value_ranges(
 fn world_from_file(m: &Multi, path: &Path) -> Result<World> {
     let t = pganeus_io::read_trajectory(path)?;
     let mut w = m.world.clone();
+    // Simulated at the step it was fitted at (`finer_step_round`).
+    if let Some(substeps) = t
+        .extra
+        .get("sim")
+        .and_then(|s| s.get("substeps"))
+        .and_then(Value::as_u64)
+    {
+        w.config.substeps = substeps as usize;
+    }
     for (b, body) in m.bodies.iter().enumerate() {
         let e = t
             .bodies
