@@ -24,6 +24,13 @@ pub struct Horizon {
     pub spread_px: Vec<f64>,
 }
 
+impl Horizon {
+    /// Whether the simulation stops converging before the last frame.
+    pub fn ends_early(&self) -> bool {
+        self.frames < self.spread_px.len()
+    }
+}
+
 /// Where the simulation of `world` (its frame count and substeps) stops converging in its step size, seen
 /// by `camera` ([`HORIZON_PX`]).
 pub fn predictable_frames(world: &World, camera: &Camera<f64>) -> Horizon {

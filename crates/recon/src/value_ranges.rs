@@ -68,6 +68,10 @@ impl Default for RangeScan {
 /// observations' own noise.
 pub const RANGE_LOSS_RATIO: f64 = 2.0;
 
+/// A value's profile: `(value, loss)` walked from the fitted value down to the lower bound, then up to the
+/// upper one.
+type Profile = [Vec<(f64, f64)>; 2];
+
 impl PhysicsFit {
     /// The range of each fitted contact value (the module's docs).
     /// `progress` hears each refit: (refits done, refits in all).
@@ -86,26 +90,26 @@ impl PhysicsFit {
         // refit only polishes the others) and its range is its bounds, said without walking it (in a
         // three-ball fit, half the values are pairs that never touch).
         let used = self.values_in_contact();
-        let (values, unused): (Vec<_>, Vec<_>) = self
-            .contact_values()
-            .iter()
-            .copied()
-            .partition(|&(_, value)| used(value));
-        for (_, value) in &unused {
+        let values = self.contact_values();
+        for (_, value) in values.iter().filter(|(_, value)| !used(*value)) {
             tracing::info!(
                 "value ranges: {value:?} is used by no contact of the fitted simulation: its range is its bounds"
             );
         }
         let total: usize = values
             .iter()
+            .filter(|(_, value)| used(*value))
             .map(|&(u, _)| grid.iter().filter(|&&v| v != x0[u]).count())
             .sum();
         let done = std::sync::atomic::AtomicUsize::new(0);
-        // Each value's profile: outward from the fitted value to each bound, each grid value refitted from
-        // the last, (value, loss) in the order walked.
-        let profiles: Vec<[Vec<(f64, f64)>; 2]> = values
+        // Each value's profile (none for a value no contact uses): outward from the fitted value to each
+        // bound, each grid value refitted from the last, (value, loss) in the order walked.
+        let profiles: Vec<Option<Profile>> = values
             .par_iter()
-            .map(|&(u, _)| {
+            .map(|&(u, value)| {
+                if !used(value) {
+                    return None;
+                }
                 let walk = |path: Vec<f64>| {
                     let mut x = x0.clone();
                     path.into_iter()
@@ -120,14 +124,15 @@ impl PhysicsFit {
                 let above: Vec<f64> = grid.iter().copied().filter(|&v| v > x0[u]).collect();
                 let below: Vec<f64> = grid.iter().rev().copied().filter(|&v| v < x0[u]).collect();
                 let (down, up) = rayon::join(|| walk(below), || walk(above));
-                [down, up]
+                Some([down, up])
             })
             .collect();
         // The bar is twice the best loss seen: the fitted one's, or a profile's (of a value in use) where its
-        // refit of the others found better (the values handed in are not this objective's optimum: a world kept from a fit with
-        // other settings or observations; the test hands in a launch 20 % slow).
+        // refit of the others found better (the values handed in are not this objective's optimum: a world
+        // kept from a fit with other settings or observations; the test hands in a launch 20 % slow).
         let best = profiles
             .iter()
+            .flatten()
             .flatten()
             .flatten()
             .map(|&(_, loss)| loss)
@@ -136,12 +141,12 @@ impl PhysicsFit {
             tracing::debug!("value ranges: the fitted loss {fitted_loss:.5}, a profile's {best:.5}: the bar from it");
         }
         let tolerance = RANGE_LOSS_RATIO * best;
-        let mut ranges: Vec<ValueRange> = values
+        values
             .iter()
             .zip(&profiles)
-            .map(|(&(u, value), [down, up])| {
+            .map(|(&(u, value), profile)| {
                 // The edge is past the farthest value within the bar (a rugged loss may rise and fall again on
-                // the way), interpolated toward the next one walked.
+                // the way), interpolated toward the next one walked; a value no contact uses spans its bounds.
                 let edge = |path: &[(f64, f64)]| {
                     let mut inside = (x0[u], best);
                     let mut outside = None;
@@ -154,24 +159,17 @@ impl PhysicsFit {
                     }
                     outside.map(|(v, loss)| inside.0 + (tolerance - inside.1) / (loss - inside.1) * (v - inside.0))
                 };
+                let (down, up) = profile
+                    .as_ref()
+                    .map_or((None, None), |[down, up]| (edge(down), edge(up)));
                 ValueRange {
                     value,
                     fitted: x0[u],
-                    lo: edge(down).unwrap_or(lo),
-                    hi: edge(up).unwrap_or(hi),
+                    lo: down.unwrap_or(lo),
+                    hi: up.unwrap_or(hi),
                 }
             })
-            .collect();
-        ranges.extend(unused.iter().map(|&(u, value)| ValueRange {
-            value,
-            fitted: x0[u],
-            lo,
-            hi,
-        }));
-        // In the order of the fit's values, as before the unused ones were set apart.
-        let order = |r: &ValueRange| self.contact_values().iter().position(|(_, v)| *v == r.value);
-        ranges.sort_by_key(order);
-        ranges
+            .collect()
     }
 }
 

@@ -72,9 +72,10 @@ pub struct VideoFitConfig {
     /// With several bodies: where the first PGA round's fitted motion does not converge in its step size
     /// over the video ([`crate::horizon`]: twice the substeps draw a body elsewhere), the second round's PGA
     /// (on GA's poses from the first round's simulation, at its own step) simulates at twice the substeps,
-    /// and the images choose between the rounds as ever. A motion fitted at too coarse a step is tuned to that step's own collisions (the
-    /// project's push at 10 substeps a frame: twice them drew the toy 14.4 px away, four times 20 px), where
-    /// the same fit at twice the substeps explains the images twice as well. Default true.
+    /// and the images choose between the rounds as ever. A motion fitted at too coarse a step is tuned to
+    /// that step's own collisions (the project's push at 10 substeps a frame: twice them drew the toy
+    /// 14.4 px away, four times 20 px); the push's second round at 20 lowered the kept image loss from 4.09
+    /// to 3.24. Default true.
     pub finer_step_round: bool,
 }
 

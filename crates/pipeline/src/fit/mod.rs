@@ -366,7 +366,7 @@ fn is_auto(init: &Path) -> bool {
 fn horizon_of(world: &World, camera: &Camera<f64>, log: &mut Log) -> Result<recon::Horizon> {
     let h = recon::predictable_frames(world, camera);
     let n = h.spread_px.len();
-    if h.frames < n {
+    if h.ends_early() {
         tracing::info!(
             "the fitted motion converges in its step size over frames 0-{} of {n} only (twice the substeps draw \
              it {:.1} px away by the end): the frames after cannot tell the physics, whatever made them; the \

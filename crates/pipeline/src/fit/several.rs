@@ -298,10 +298,10 @@ fn finer_step_for_second_round(m: &mut Multi, log: &mut Log, first: &World) -> R
         return Ok(());
     }
     let horizon = recon::predictable_frames(first, &m.bodies[0].frames[0].camera);
-    let n = horizon.spread_px.len();
-    if horizon.frames >= n {
+    if !horizon.ends_early() {
         return Ok(());
     }
+    let n = horizon.spread_px.len();
     let substeps = 2 * first.config.substeps.max(1);
     tracing::info!(
         "the first round's motion converges in its step size over frames 0-{} of {n} only (twice the substeps \
