@@ -186,6 +186,48 @@ fn main() {
                 );
             });
             record("mlp 34-64-64-3 relu fwd+bwd (+d_input)", threads, ms);
+
+            // The activation alone, over a hidden layer's outputs (N rows of 64).
+            let z = uniform(&mut SplitMix64::new(3), N * 64, -0.05, 0.05);
+            let (mut x, mut d) = (z.clone(), vec![0.0f32; N * 64]);
+            let ms = time_ms(REPS, |timed| {
+                if timed {
+                    field::kernels::activate(Activation::Softplus { beta: 100.0 }, &mut x, &mut d);
+                } else {
+                    x.copy_from_slice(&z);
+                }
+            });
+            record("softplus β=100 over N × 64 (one thread's loop)", threads, ms);
+
+            // The products alone, as the MLP calls them on one chunk of 512 rows (N / 512 chunks, one after
+            // another): a layer 64 wide from 35 inputs forward, its input gradient and its weight gradient.
+            let rows = 512;
+            let a: Vec<f32> = uniform(&mut SplitMix64::new(1), rows * 64, -1.0, 1.0);
+            let b: Vec<f32> = uniform(&mut SplitMix64::new(2), rows * 64, -1.0, 1.0);
+            let mut c = vec![0.0f32; rows * 64];
+            for (name, m, k, n, transposed) in [
+                ("product 512×35 · 35×64 (forward)", rows, 35, 64, false),
+                ("product 512×64 · 64×35 (input gradient)", rows, 64, 35, false),
+                ("product (512×64)ᵀ · 512×35 (weight gradient)", 64, rows, 35, true),
+            ] {
+                let (rsa, csa) = if transposed { (1, m) } else { (k, 1) };
+                let ms = time_ms(REPS, |_| {
+                    for _ in 0..N / rows {
+                        field::small_gemm::gemm_rows(m, k, n, &a, rsa, csa, &b, n, &mut c, n);
+                    }
+                });
+                record(name, threads, ms);
+                let ms = time_ms(REPS, |_| {
+                    for _ in 0..N / rows {
+                        field::kernels::gemm(m, k, n, 1.0, &a, rsa, csa, &b, n, 1, 0.0, &mut c, n, 1);
+                    }
+                });
+                record(
+                    Box::leak(format!("{name}, matrixmultiply").into_boxed_str()),
+                    threads,
+                    ms,
+                );
+            }
         });
     }
     println!();

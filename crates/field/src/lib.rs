@@ -21,6 +21,7 @@ mod hash_grid;
 pub mod kernels;
 mod mlp;
 mod sh;
+pub mod small_gemm;
 
 pub use activation::Activation;
 pub use adam::{Adam, AdamConfig};

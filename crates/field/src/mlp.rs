@@ -3,6 +3,7 @@
 //! and the parameter gradient is reduced over chunks in a fixed order so that the thread count does not change it.
 
 use crate::kernels;
+use crate::small_gemm::gemm_rows;
 use crate::{Activation, GradMode};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -278,6 +279,20 @@ impl Mlp {
         assert_eq!(params.len(), self.param_count, "Mlp::forward: params length");
         assert_eq!(input.len(), n * self.input_dim(), "Mlp::forward: input length");
         scratch.resize(self, n);
+        // Each layer's W transposed (n_in × n_out, at W's offset), so that the product reads it row by row.
+        scratch.weights_t.resize(self.param_count, 0.0);
+        for ly in &self.layers {
+            let (w, wt) = (
+                &params[ly.w..][..ly.n_in * ly.n_out],
+                &mut scratch.weights_t[ly.w..][..ly.n_in * ly.n_out],
+            );
+            for o in 0..ly.n_out {
+                for i in 0..ly.n_in {
+                    wt[i * ly.n_out + o] = w[o * ly.n_in + i];
+                }
+            }
+        }
+        let wt = &scratch.weights_t;
         let lay = &scratch.layout;
         let nc = n.div_ceil(lay.rows);
         let d_in = self.input_dim();
@@ -286,12 +301,12 @@ impl Mlp {
             .par_chunks_mut(lay.stride)
             .zip(scratch.out[..n * d_out].par_chunks_mut(lay.rows * d_out))
             .zip(input.par_chunks(lay.rows * d_in))
-            .for_each(|((st, o), inp)| self.forward_chunk(params, lay, st, o, inp));
+            .for_each(|((st, o), inp)| self.forward_chunk(params, wt, lay, st, o, inp));
         scratch.forward_done = true;
         &scratch.out[..n * d_out]
     }
 
-    fn forward_chunk(&self, params: &[f32], lay: &ChunkLayout, st: &mut [f32], o: &mut [f32], inp: &[f32]) {
+    fn forward_chunk(&self, params: &[f32], wt: &[f32], lay: &ChunkLayout, st: &mut [f32], o: &mut [f32], inp: &[f32]) {
         let r = inp.len() / self.input_dim();
         st[..inp.len()].copy_from_slice(inp);
         let nl = self.layers.len();
@@ -304,10 +319,8 @@ impl Mlp {
             } else {
                 &mut o[..r * ly.n_out]
             };
-            let w = &params[ly.w..ly.w + ly.n_in * ly.n_out];
-            kernels::gemm(
-                r, ly.n_in, ly.n_out, 1.0, a_in, ly.n_in, 1, w, 1, ly.n_in, 0.0, a_out, ly.n_out, 1,
-            );
+            let w_t = &wt[ly.w..ly.w + ly.n_in * ly.n_out];
+            gemm_rows(r, ly.n_in, ly.n_out, a_in, ly.n_in, 1, w_t, ly.n_out, a_out, ly.n_out);
             kernels::bias_activate(ly.act, &params[ly.b..ly.b + ly.n_out], a_out, &mut g[..r * ly.n_out]);
         }
     }
@@ -402,24 +415,18 @@ impl Mlp {
             if want_params {
                 let a_in = &acts[lay.a_off[l]..][..r * ly.n_in];
                 let dw = &mut part[ly.w..ly.w + ly.n_in * ly.n_out];
-                kernels::gemm(
-                    ly.n_out, r, ly.n_in, 1.0, delta, 1, ly.n_out, a_in, ly.n_in, 1, 0.0, dw, ly.n_in, 1,
-                );
+                gemm_rows(ly.n_out, r, ly.n_in, delta, 1, ly.n_out, a_in, ly.n_in, dw, ly.n_in);
                 kernels::column_sums(delta, &mut part[ly.b..ly.b + ly.n_out]);
             }
             if l > 0 {
                 let prev = &mut nxt[..r * ly.n_in];
-                kernels::gemm(
-                    r, ly.n_out, ly.n_in, 1.0, delta, ly.n_out, 1, w, ly.n_in, 1, 0.0, prev, ly.n_in, 1,
-                );
+                gemm_rows(r, ly.n_out, ly.n_in, delta, ly.n_out, 1, w, ly.n_in, prev, ly.n_in);
                 if self.layers[l - 1].act != Activation::None {
                     kernels::mul_assign(prev, &acts[lay.g_off[l - 1]..][..r * ly.n_in]);
                 }
                 std::mem::swap(&mut cur, &mut nxt);
             } else if let Some(di) = d_input.take() {
-                kernels::gemm(
-                    r, ly.n_out, ly.n_in, 1.0, delta, ly.n_out, 1, w, ly.n_in, 1, 0.0, di, ly.n_in, 1,
-                );
+                gemm_rows(r, ly.n_out, ly.n_in, delta, ly.n_out, 1, w, ly.n_in, di, ly.n_in);
             }
         }
     }
@@ -471,6 +478,8 @@ pub struct MlpScratch {
     layout: ChunkLayout,
     storage: Vec<f32>,
     out: Vec<f32>,
+    /// The last `forward`'s weights, each layer's W transposed at its offset.
+    weights_t: Vec<f32>,
     forward_done: bool,
 }
 
