@@ -932,20 +932,35 @@ mod tests {
     fn the_bias_added_with_the_activation_is_the_bias_added_before_it() {
         let bias: Vec<f32> = (0..64).map(|j| (j as f32 - 30.0) * 7e-3).collect();
         let z: Vec<f32> = (0..64 * 301).map(|i| ((i * 7919) % 4001) as f32 * 1e-3 - 2.0).collect();
+        type Build = fn(Activation, &[f32], &mut [f32], &mut [f32]);
+        let mut builds: Vec<(&str, Build)> = vec![("dispatched", bias_activate), ("portable", bias_activate_portable)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                builds.push(("avx2", |a, b, x, d| unsafe { bias_activate_avx2(a, b, x, d) }));
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F.
+                builds.push(("avx512", |a, b, x, d| unsafe { bias_activate_avx512(a, b, x, d) }));
+            }
+        }
         for act in [
             Activation::Softplus { beta: 100.0 },
             Activation::Sigmoid,
             Activation::Relu,
             Activation::None,
         ] {
-            let (mut v, mut d) = (z.clone(), vec![0.0f32; z.len()]);
-            bias_activate(act, &bias, &mut v, &mut d);
             let mut pv: Vec<f32> = z.iter().enumerate().map(|(i, x)| bias[i % 64] + x).collect();
             let mut pd = vec![0.0f32; z.len()];
             activate_portable(act, &mut pv, &mut pd);
-            for i in 0..z.len() {
-                assert_eq!(v[i].to_bits(), pv[i].to_bits(), "{act:?} value {i}");
-                assert_eq!(d[i].to_bits(), pd[i].to_bits(), "{act:?} derivative {i}");
+            for (name, build) in &builds {
+                let (mut v, mut d) = (z.clone(), vec![0.0f32; z.len()]);
+                build(act, &bias, &mut v, &mut d);
+                for i in 0..z.len() {
+                    assert_eq!(v[i].to_bits(), pv[i].to_bits(), "{name} {act:?} value {i}");
+                    assert_eq!(d[i].to_bits(), pd[i].to_bits(), "{name} {act:?} derivative {i}");
+                }
             }
         }
     }

@@ -1,5 +1,5 @@
 //! Fully connected networks as NeuS uses them (SDF network with geometric initialisation, colour network), on
-//! batches of rows: each layer of a row chunk is one sgemm (`matrixmultiply`), chunks run in parallel with rayon,
+//! batches of rows: each layer of a row chunk is one product ([`crate::small_gemm`]), chunks run in parallel with rayon,
 //! and the parameter gradient is reduced over chunks in a fixed order so that the thread count does not change it.
 
 use crate::kernels;
@@ -273,7 +273,7 @@ impl Mlp {
     }
 
     /// Forward `input` (n×in, row-major) through the network; returns the n×out output held by `scratch`.
-    /// Rows are cut into fixed chunks (the size depends only on `n`), each chunk one sgemm per layer, chunks in
+    /// Rows are cut into fixed chunks (the size depends only on `n`), each chunk one product per layer, chunks in
     /// parallel. `scratch` keeps what `backward` needs, and reallocates only when `n` grows.
     pub fn forward<'s>(&self, params: &[f32], input: &[f32], n: usize, scratch: &'s mut MlpScratch) -> &'s [f32] {
         assert_eq!(params.len(), self.param_count, "Mlp::forward: params length");
@@ -504,7 +504,7 @@ impl MlpScratch {
 
     /// Floats held (storage and output), to check that reuse does not grow it.
     pub fn capacity_floats(&self) -> usize {
-        self.storage.capacity() + self.out.capacity()
+        self.storage.capacity() + self.out.capacity() + self.weights_t.capacity()
     }
 
     /// Lay the scratch out for `n` rows of `mlp`. Allocates only when more room is needed than ever before.

@@ -28,15 +28,23 @@ pub fn gemm_rows(
     if m == 0 || n == 0 {
         return;
     }
-    assert!((m - 1) * ldc + n <= c.len(), "gemm_rows: C too short");
+    // Checked arithmetic: the field crate builds without overflow checks, and a wrapped bound would pass.
+    let end =
+        |rows: usize, stride: usize, last: usize| (rows - 1).checked_mul(stride).and_then(|x| x.checked_add(last));
+    assert!(
+        ldb >= n && ldc >= n,
+        "gemm_rows: rows of B and C overlap (ldb {ldb}, ldc {ldc}, n {n})"
+    );
+    assert!(end(m, ldc, n).is_some_and(|e| e <= c.len()), "gemm_rows: C too short");
     if k == 0 {
         for i in 0..m {
             c[i * ldc..i * ldc + n].fill(0.0);
         }
         return;
     }
-    assert!((m - 1) * rsa + (k - 1) * csa < a.len(), "gemm_rows: A too short");
-    assert!((k - 1) * ldb + n <= b.len(), "gemm_rows: B too short");
+    let a_end = end(m, rsa, 0).and_then(|x| (k - 1).checked_mul(csa).and_then(|y| x.checked_add(y)));
+    assert!(a_end.is_some_and(|e| e < a.len()), "gemm_rows: A too short");
+    assert!(end(k, ldb, n).is_some_and(|e| e <= b.len()), "gemm_rows: B too short");
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU has AVX-512F (checked just above); the asserts keep every element read or written
