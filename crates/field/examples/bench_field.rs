@@ -75,14 +75,14 @@ fn main() {
         grid.param_count()
     );
     println!("{:<46} {:>10} {:>10}", "figure", "1 thread", "2 threads");
-    let mut rows: Vec<(&str, [f64; 2])> = Vec::new();
-    let mut record = |name: &'static str, threads: usize, ms: f64| {
+    let mut rows: Vec<(String, [f64; 2])> = Vec::new();
+    let mut record = |name: &str, threads: usize, ms: f64| {
         if let Some(r) = rows.iter_mut().find(|r| r.0 == name) {
             r.1[threads - 1] = ms;
         } else {
             let mut v = [0.0; 2];
             v[threads - 1] = ms;
-            rows.push((name, v));
+            rows.push((name.to_string(), v));
         }
         println!("{{\"bench\":\"{name}\",\"threads\":{threads},\"n\":{N},\"ms\":{ms:.3}}}");
     };
@@ -201,32 +201,28 @@ fn main() {
 
             // The products alone, as the MLP calls them on one chunk of 512 rows (N / 512 chunks, one after
             // another): a layer 64 wide from 35 inputs forward, its input gradient and its weight gradient.
-            let rows = 512;
-            let a: Vec<f32> = uniform(&mut SplitMix64::new(1), rows * 64, -1.0, 1.0);
-            let b: Vec<f32> = uniform(&mut SplitMix64::new(2), rows * 64, -1.0, 1.0);
-            let mut c = vec![0.0f32; rows * 64];
+            let chunk = 512;
+            let a: Vec<f32> = uniform(&mut SplitMix64::new(1), chunk * 64, -1.0, 1.0);
+            let b: Vec<f32> = uniform(&mut SplitMix64::new(2), chunk * 64, -1.0, 1.0);
+            let mut c = vec![0.0f32; chunk * 64];
             for (name, m, k, n, transposed) in [
-                ("product 512×35 · 35×64 (forward)", rows, 35, 64, false),
-                ("product 512×64 · 64×35 (input gradient)", rows, 64, 35, false),
-                ("product (512×64)ᵀ · 512×35 (weight gradient)", 64, rows, 35, true),
+                ("product 512×35 · 35×64 (forward)", chunk, 35, 64, false),
+                ("product 512×64 · 64×35 (input gradient)", chunk, 64, 35, false),
+                ("product (512×64)ᵀ · 512×35 (weight gradient)", 64, chunk, 35, true),
             ] {
                 let (rsa, csa) = if transposed { (1, m) } else { (k, 1) };
                 let ms = time_ms(REPS, |_| {
-                    for _ in 0..N / rows {
+                    for _ in 0..N / chunk {
                         field::small_gemm::gemm_rows(m, k, n, &a, rsa, csa, &b, n, &mut c, n);
                     }
                 });
                 record(name, threads, ms);
                 let ms = time_ms(REPS, |_| {
-                    for _ in 0..N / rows {
+                    for _ in 0..N / chunk {
                         field::kernels::gemm(m, k, n, 1.0, &a, rsa, csa, &b, n, 1, 0.0, &mut c, n, 1);
                     }
                 });
-                record(
-                    Box::leak(format!("{name}, matrixmultiply").into_boxed_str()),
-                    threads,
-                    ms,
-                );
+                record(&format!("{name}, matrixmultiply"), threads, ms);
             }
         });
     }
