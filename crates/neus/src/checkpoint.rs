@@ -3,6 +3,7 @@
 //! architecture, the step, the random state and the unit-sphere frame, so a
 //! checkpoint loads without its config file and training resumes exactly.
 
+use crate::baked_geometry::BakedGeometry;
 use crate::config::TrainConfig;
 use crate::dataset::Dataset;
 use crate::neus_field::NeusField;
@@ -34,6 +35,17 @@ pub struct LoadedField {
     pub radius: f64,
     /// The capture it was trained on.
     pub capture: PathBuf,
+    /// Its geometry baked for rendering once it no longer trains ([`LoadedField::bake`]); the composer and
+    /// renderer read it in place of the hash grid and SDF MLP when present.
+    pub baked: Option<BakedGeometry>,
+}
+
+impl LoadedField {
+    /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid (see
+    /// [`crate::baked_geometry`]); `sub = 0` drops a bake.
+    pub fn bake(&mut self, sub: usize) {
+        self.baked = (sub > 0).then(|| BakedGeometry::bake(&self.field, &self.occupancy, sub));
+    }
 }
 
 fn f32_tensor(v: &[f32]) -> Tensor {
@@ -202,6 +214,7 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
         config,
         field,
         occupancy,
+        baked: None,
     })
 }
 

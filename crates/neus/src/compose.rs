@@ -405,6 +405,7 @@ impl Composer {
             st.inv_s = f.inv_s();
             st.eval.forward(
                 f,
+                layer.field.baked.as_ref(),
                 &st.origins,
                 &st.dirs,
                 &st.all_offsets,
@@ -636,6 +637,7 @@ impl Composer {
             st.d_dir.resize(m, [0.0; 3]);
             st.eval.backward_inputs(
                 &layer.field.field,
+                layer.field.baked.as_ref(),
                 &st.d_sdf,
                 &st.d_cos,
                 &st.d_rgb,

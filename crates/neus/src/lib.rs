@@ -11,6 +11,7 @@
 
 pub mod appearance;
 pub mod background_field;
+pub mod baked_geometry;
 pub mod checkpoint;
 pub mod compose;
 pub mod config;

@@ -158,6 +158,25 @@ fn capture_name(field: &LoadedField) -> String {
 }
 
 impl ObjectModel {
+    /// Bake each field's geometry `sub` lattice steps a cell of its occupancy grid for the renders that
+    /// follow ([`LoadedField::bake`]; 0 drops a bake): the object no longer trains.
+    pub fn bake(&mut self, sub: usize) {
+        let t = std::time::Instant::now();
+        for f in std::iter::once(&mut self.primary).chain(self.other.as_mut()) {
+            f.field.bake(sub);
+            if let Some(b) = &f.field.baked {
+                tracing::info!(
+                    "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
+                    self.source.display(),
+                    1e3 * b.step() as f64 * f.field.radius,
+                    b.bricks(),
+                    b.bytes() as f64 / 1e6,
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+
     /// Load a `merge` output folder (`transform.json`, `merged.ply`) or a `train` run folder.
     pub fn load(path: &Path) -> Result<Self, ObjectError> {
         Self::load_with_mesh_res(path, RUN_MESH_RES)

@@ -10,6 +10,7 @@
 //! ray's samples). Forward and backward run over all
 //! rounds' samples as one list in ray order.
 
+use crate::baked_geometry::BakedGeometry;
 use crate::field_pass::{FieldPass, InputGrads, PassSettings, SampleGrads};
 use crate::neus_field::NeusField;
 use crate::volume::section_alpha;
@@ -56,11 +57,13 @@ struct Round {
 
 impl RayRounds {
     /// Evaluate `field` at the samples `t[offsets[i]..offsets[i + 1]]` (with section lengths `dt`) of rays
-    /// `(origins[i], dirs[i])`, dropping a ray once its transmittance is below `stop` (0: never, one round).
+    /// `(origins[i], dirs[i])`, dropping a ray once its transmittance is below `stop` (0: never, one round);
+    /// its geometry from `baked` when given ([`FieldPass::forward_with`]).
     #[allow(clippy::too_many_arguments)]
     pub fn forward(
         &mut self,
         field: &NeusField,
+        baked: Option<&BakedGeometry>,
         origins: &[[f32; 3]],
         dirs: &[[f32; 3]],
         offsets: &[usize],
@@ -107,7 +110,7 @@ impl RayRounds {
             }
             round
                 .pass
-                .forward(field, &round.origins, &round.dirs, &round.offsets, &round.t, set);
+                .forward_with(field, baked, &round.origins, &round.dirs, &round.offsets, &round.t, set);
             let p = &round.pass;
             for (j, &i) in round.rays.iter().enumerate() {
                 let first = offsets[i] + self.taken[i];
@@ -163,9 +166,11 @@ impl RayRounds {
 
     /// From the gradients of each evaluated sample's SDF, cosine and colour (ray order, as
     /// [`Self::forward`] left them) to each sample's point and direction (unit frame; overwritten).
+    #[allow(clippy::too_many_arguments)]
     pub fn backward_inputs(
         &mut self,
         field: &NeusField,
+        baked: Option<&BakedGeometry>,
         d_sdf: &[f32],
         d_cos: &[f32],
         d_rgb: &[[f32; 3]],
@@ -194,8 +199,9 @@ impl RayRounds {
             }
             round.d_point.resize(m, [0.0; 3]);
             round.d_dir.resize(m, [0.0; 3]);
-            round.pass.backward(
+            round.pass.backward_with(
                 field,
+                baked,
                 SampleGrads {
                     sdf: &round.d_sdf,
                     cos: &round.d_cos,

@@ -116,6 +116,7 @@ pub fn render_rays(
     }
     sc.eval.forward(
         field,
+        None,
         origins,
         dirs,
         &sc.offsets,

@@ -47,5 +47,6 @@ pub fn untrained_field(init: FieldInit, centre: Vec3<f64>, radius: f64, seed: u6
         centre,
         radius,
         capture: PathBuf::from("toy_b"),
+        baked: None,
     }
 }

@@ -240,6 +240,54 @@ fn pose_gradients_match_central_differences() {
 }
 
 #[test]
+fn pose_gradients_of_a_baked_object_match_central_differences() {
+    // The object's geometry baked (neus::baked_geometry): the fit's path, three lattice steps a cell of its
+    // occupancy (every cell: no occupancy border moves samples as the pose moves).
+    let mut r = rig();
+    r.object.bake(3);
+    let cam = camera(Vec3::new(0.2, -0.12, 0.12), Vec3::new(0.02, 0.0, 0.03), 24, 18);
+    let pose = Pose::new(Quat::exp(Vec3::new(0.2, 0.1, -0.4)), Vec3::new(0.02, 0.01, 0.01));
+    check_pose_gradients(&r, &r.object, &r.capture_from_body, &cam, pose, true);
+}
+
+#[test]
+fn a_baked_object_renders_as_its_network() {
+    let mut r = rig();
+    r.object.occupancy = ball_occupancy(16, 0.6);
+    let pose = Pose::new(Quat::exp(Vec3::new(0.3, -0.5, 1.2)), Vec3::new(0.1, -0.05, 0.04));
+    let cam = camera(pose.t + Vec3::new(0.11, 0.04, 0.07), pose.t, 40, 30);
+    let render = |object: &LoadedField| {
+        let layer = Layer::object(object, &r.capture_from_body, &pose, 0);
+        render_composed(&[layer], 1, Behind::Colour([0.0; 3]), &cam, &mut Composer::default())
+    };
+    let network = render(&r.object);
+    r.object.bake(4);
+    let baked = render(&r.object);
+    let (mut worst, mut sq) = (0.0f32, 0.0f64);
+    for (a, b) in baked.rgb.iter().zip(&network.rgb) {
+        for k in 0..3 {
+            worst = worst.max((a[k] - b[k]).abs());
+            sq += ((a[k] - b[k]) as f64).powi(2);
+        }
+    }
+    let psnr = -10.0 * (sq / (3 * baked.rgb.len()) as f64).log10();
+    let opacity = baked
+        .object_opacity
+        .iter()
+        .zip(&network.object_opacity)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    let covered = network.object_opacity.iter().filter(|&&a| a > 0.5).count();
+    assert!(covered > 100, "the object covers {covered} pixels");
+    // The untrained field's finest hash levels add detail far under a lattice step; the sphere itself is
+    // smooth at it.
+    assert!(
+        psnr > 40.0 && worst < 0.05 && opacity < 0.05,
+        "PSNR {psnr:.1} dB, worst colour {worst}, opacity {opacity}"
+    );
+}
+
+#[test]
 fn pose_gradients_match_central_differences_inside_the_silhouette() {
     // The camera close to a sharper object, which fills the view: no ray grazes its surface, so depth
     // has no kink within the differences' window.

@@ -32,15 +32,18 @@ pub fn parse_objects(list: &[String]) -> Result<Vec<(String, PathBuf)>> {
     Ok(out)
 }
 
-/// Each named body's object, every distinct folder loaded once (errors name the body).
-pub fn load_objects(named: &[(String, PathBuf)]) -> Result<Vec<(String, Arc<ObjectModel>)>> {
+/// Each named body's object, every distinct folder loaded once (errors name the body), its geometry baked
+/// `bake` lattice steps a cell of its occupancy grid (0: not baked; [`ObjectModel::bake`]).
+pub fn load_objects(named: &[(String, PathBuf)], bake: usize) -> Result<Vec<(String, Arc<ObjectModel>)>> {
     let mut loaded: Vec<(PathBuf, Arc<ObjectModel>)> = Vec::new();
     let mut out = Vec::with_capacity(named.len());
     for (name, dir) in named {
         let model = match loaded.iter().find(|(d, _)| d == dir) {
             Some((_, m)) => m.clone(),
             None => {
-                let m = Arc::new(ObjectModel::load(dir).with_context(|| format!("--object {name}"))?);
+                let mut m = ObjectModel::load(dir).with_context(|| format!("--object {name}"))?;
+                m.bake(bake);
+                let m = Arc::new(m);
                 loaded.push((dir.clone(), m.clone()));
                 m
             }

@@ -156,7 +156,7 @@ pub fn run(job: TrajectoryJob<'_>, observer: &dyn Observer) -> Result<()> {
         fail!(Stage, "give at least one --object NAME=DIR");
     }
     let named = parse_objects(job.objects)?;
-    let objects = load_objects(&named)?;
+    let objects = load_objects(&named, 0)?;
     for ((name, dir), (_, model)) in named.iter().zip(&objects) {
         tracing::info!(
             "object {name}: {} ({}; body frame at the centre of mass in {})",

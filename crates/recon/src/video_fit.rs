@@ -77,6 +77,11 @@ pub struct VideoFitConfig {
     /// 14.4 px away, four times 20 px); the push's second round at 20 lowered the kept image loss from 4.09
     /// to 3.24. Default true.
     pub finer_step_round: bool,
+    /// The objects' geometry baked this many lattice steps a cell of their occupancy grids before the fit
+    /// (`neus::baked_geometry`: the SDF and the colour MLP's features read by trilinear interpolation in
+    /// place of the hash grid and SDF MLP at every sample and its three finite-difference neighbours); 0: the
+    /// network at every sample.
+    pub bake_object: usize,
 }
 
 impl Default for VideoFitConfig {
@@ -114,6 +119,7 @@ impl Default for VideoFitConfig {
             rounds: 1,
             carve_scene: true,
             finer_step_round: true,
+            bake_object: 4,
         }
     }
 }

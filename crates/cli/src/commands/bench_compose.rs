@@ -45,6 +45,10 @@ pub struct BenchComposeArgs {
     /// Only the window around the object (skip the whole-frame figures).
     #[arg(long)]
     pub window_only: bool,
+    /// Bake the object's geometry this many lattice steps a cell of its occupancy grid (0: the network),
+    /// and print how far its renders are from the network's.
+    #[arg(long, default_value_t = 0)]
+    pub bake: usize,
 }
 
 /// A figure's rays: case, path, origins, directions and the pre-rendered scene behind them (fast path).
@@ -98,7 +102,7 @@ fn time_rays(
 }
 
 pub fn run(a: BenchComposeArgs) -> Result<()> {
-    let objects = load_objects(&parse_objects(std::slice::from_ref(&a.object))?)?;
+    let objects = load_objects(&parse_objects(std::slice::from_ref(&a.object))?, a.bake)?;
     let name = objects[0].0.as_str();
     let (_, _, motion) = read_motion(&a.trajectory, a.video.as_deref(), &objects)?;
     let body = motion
@@ -150,6 +154,20 @@ pub fn run(a: BenchComposeArgs) -> Result<()> {
             "seconds": prerender_s, "rays_per_s": pre.len() as f64 / prerender_s})
     );
     let win_behind: Vec<ComposedRay> = win_px.iter().map(|&p| pre[p].clone()).collect();
+    if a.bake > 0 {
+        let network = load_objects(&parse_objects(std::slice::from_ref(&a.object))?, 0)?;
+        let net_routed = network[0].1.route(pose, &cam);
+        let net = Layer::object(&net_routed.field, &net_routed.capture_from_body, pose, 0);
+        let moved = geom::Pose::new(
+            geom::Quat::exp(Vec3::new(0.0, 0.0, 1f64.to_radians())) * pose.q,
+            pose.t + Vec3::new(0.001, 0.0, 0.0),
+        );
+        let moved_net = Layer::object(&net_routed.field, &net_routed.capture_from_body, &moved, 0);
+        println!(
+            "{}",
+            baked_against_network(&object(), &net, &moved_net, &win_behind, &win_o, &win_d)
+        );
+    }
     let reference = [Layer::scene(&scene), object()];
     let fast = [object()];
     let mut cases: Vec<Case<'_>> = vec![
@@ -178,4 +196,60 @@ pub fn run(a: BenchComposeArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// How far the baked object's window is from the network's: colour (PSNR over the window, worst channel),
+/// opacity, and the pose gradient of an image loss (the squared difference from the network's render at a
+/// pose 1 mm and 1° away, as a fit's step sees it), relative to the network's (translation and rotation).
+fn baked_against_network(
+    baked: &Layer<'_>,
+    net: &Layer<'_>,
+    moved_net: &Layer<'_>,
+    behind: &[ComposedRay],
+    o: &[Vec3<f64>],
+    d: &[Vec3<f64>],
+) -> serde_json::Value {
+    let forward = |layer: &Layer<'_>, c: &mut Composer| {
+        c.forward(std::slice::from_ref(layer), 1, Behind::Scene(behind), o, d);
+    };
+    let mut c = Composer::default();
+    forward(moved_net, &mut c);
+    let target: Vec<[f32; 3]> = c.out.iter().map(|r| r.rgb).collect();
+    let render = |layer: &Layer<'_>| {
+        let mut c = Composer::default();
+        forward(layer, &mut c);
+        let grads: Vec<RayGradient> = c
+            .out
+            .iter()
+            .zip(&target)
+            .map(|(r, t)| RayGradient {
+                rgb: std::array::from_fn(|k| 2.0 * (r.rgb[k] - t[k])),
+                depth: 0.0,
+                object_opacity: vec![0.0],
+            })
+            .collect();
+        let grad = c.backward(std::slice::from_ref(layer), &grads)[0];
+        (c.out.clone(), c.object_opacity.clone(), grad)
+    };
+    let (bo, bop, bg) = render(baked);
+    let (no, nop, ng) = render(net);
+    let mut sq = 0.0f64;
+    let mut worst = 0.0f32;
+    for (b, n) in bo.iter().zip(&no) {
+        for k in 0..3 {
+            let e = b.rgb[k] - n.rgb[k];
+            sq += (e * e) as f64;
+            worst = worst.max(e.abs());
+        }
+    }
+    let mse = sq / (3 * bo.len()) as f64;
+    let opacity = bop.iter().zip(&nop).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let rel = |r: std::ops::Range<usize>| {
+        let diff: f64 = r.clone().map(|k| (bg[k] - ng[k]).powi(2)).sum::<f64>().sqrt();
+        diff / r.map(|k| ng[k].powi(2)).sum::<f64>().sqrt().max(1e-12)
+    };
+    serde_json::json!({"bench": "compose", "case": "baked against the network", "rays": o.len(),
+        "psnr_db": -10.0 * mse.max(1e-12).log10(), "worst_colour": worst, "worst_opacity": opacity,
+        "translation_gradient_rel": rel(0..3), "rotation_gradient_rel": rel(3..6),
+        "gradient_baked": bg, "gradient_network": ng})
 }

@@ -81,7 +81,7 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let mut fps_of_capture = None;
     let mut videos = Vec::new();
     let capture = pganeus_io::open_capture(&a.video)?;
-    let loaded = load_objects(objects)?;
+    let loaded = load_objects(objects, cfg.bake_object)?;
     let (scene_field, grid) = load_scene(a)?;
     let guesses: Vec<Option<Pose<f64>>> = if is_auto(&a.init) {
         vec![None; loaded.len()]

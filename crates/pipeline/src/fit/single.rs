@@ -100,7 +100,8 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let (mut frames, fps_of_capture) = read_video(&a.video, &capture, &name, true, a.frames, computed.as_deref())?;
     let fps = video_fps(a, fps_of_capture)?;
     let shutter = set_shutter(a, &mut frames, fps)?;
-    let object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;
+    let mut object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;
+    object.bake(cfg.bake_object);
     let guess = if is_auto(&a.init) {
         None
     } else {

@@ -1,0 +1,476 @@
+//! A frozen field's geometry baked onto a lattice, as SNeRG and instant-ngp's
+//! baking do: its SDF and the features the colour MLP reads, sampled `sub`
+//! times finer than the occupancy grid in the occupied cells and their
+//! neighbours (bricks of `(sub + 1)³` points, one per cell), then read back by
+//! trilinear interpolation. A posed object in a fit is evaluated at four
+//! points a sample (the sample and its three finite-difference neighbours),
+//! forward and back to the points; the hash grid and the SDF MLP there were
+//! about half of a fit's time (profile notebook), where a lookup reads eight
+//! lattice points. Only for fields that no longer train: nothing flows back
+//! to the network's parameters.
+
+use crate::neus_field::NeusField;
+use crate::occupancy::OccupancyGrid;
+use field::MlpScratch;
+use rayon::prelude::*;
+
+/// Cell index where a cell has no brick.
+const NONE: u32 = u32::MAX;
+/// Samples a parallel task looks up.
+const CHUNK: usize = 1024;
+
+/// The baked SDF and features of one field (unit coordinates, as the field's).
+pub struct BakedGeometry {
+    res: usize,
+    sub: usize,
+    feature_dim: usize,
+    /// `res³` entries (x fastest): the cell's brick, or [`NONE`].
+    brick_of_cell: Vec<u32>,
+    /// Per brick, `(sub + 1)³` SDF values (x fastest).
+    sdf: Vec<f32>,
+    /// Per brick and lattice point, `feature_dim` features.
+    features: Vec<f32>,
+    /// The SDF given where no brick is: a cell's width, empty space (no sample of the occupancy's marching
+    /// nor its finite-difference neighbours a lattice step or less away land there).
+    outside: f32,
+}
+
+/// Where a point falls: its brick's first lattice point, the lower corner's offset in the brick, the
+/// weights along x, y, z.
+#[derive(Clone, Copy)]
+struct Lookup {
+    brick: usize,
+    corner: usize,
+    w: [f32; 3],
+}
+
+impl BakedGeometry {
+    /// Bake `field` (all levels) in `occupancy`'s occupied cells and the cells one step past them along +x,
+    /// +y and +z, `sub` lattice steps a cell: a sample lies in an occupied cell (the march keeps no other), and
+    /// its finite-difference neighbours less than a cell from it along +x, +y, +z.
+    pub fn bake(field: &NeusField, occupancy: &OccupancyGrid, sub: usize) -> Self {
+        assert!(sub >= 1, "BakedGeometry::bake: at least one step a cell");
+        let res = occupancy.res;
+        let cells = occupancy.cells();
+        let mut brick_of_cell = vec![NONE; res * res * res];
+        let mut bricks: Vec<[usize; 3]> = Vec::new();
+        for k in 0..res {
+            for j in 0..res {
+                for i in 0..res {
+                    let at = |a: usize, b: usize, c: usize| cells[(c * res + b) * res + a] != 0;
+                    let needed = at(i, j, k)
+                        || (i > 0 && at(i - 1, j, k))
+                        || (j > 0 && at(i, j - 1, k))
+                        || (k > 0 && at(i, j, k - 1));
+                    if needed {
+                        brick_of_cell[(k * res + j) * res + i] = bricks.len() as u32;
+                        bricks.push([i, j, k]);
+                    }
+                }
+            }
+        }
+        let side = sub + 1;
+        let per = side * side * side;
+        let h = 2.0 / (res * sub) as f32;
+        let mut points = Vec::with_capacity(bricks.len() * per * 3);
+        for b in &bricks {
+            for z in 0..side {
+                for y in 0..side {
+                    for x in 0..side {
+                        let lattice = [b[0] * sub + x, b[1] * sub + y, b[2] * sub + z];
+                        points.extend(lattice.map(|l| -1.0 + l as f32 * h));
+                    }
+                }
+            }
+        }
+        let width = 1 + field.config.feature_dim;
+        let levels = field.config.grid.levels;
+        let n = points.len() / 3;
+        let mut sdf = vec![0.0f32; n];
+        let mut features = vec![0.0f32; n * field.config.feature_dim];
+        const BAKE_CHUNK: usize = 16384;
+        points
+            .par_chunks(BAKE_CHUNK * 3)
+            .zip(sdf.par_chunks_mut(BAKE_CHUNK))
+            .zip(features.par_chunks_mut(BAKE_CHUNK * field.config.feature_dim))
+            .for_each(|((p, s), f)| {
+                let (mut unit01, mut enc, mut input) = (Vec::new(), Vec::new(), Vec::new());
+                let mut scratch = MlpScratch::default();
+                let out = field.sdf_forward(p, levels, &mut unit01, &mut enc, &mut input, &mut scratch);
+                for (r, row) in out.chunks_exact(width).enumerate() {
+                    s[r] = row[0];
+                    f[r * (width - 1)..(r + 1) * (width - 1)].copy_from_slice(&row[1..]);
+                }
+            });
+        Self {
+            res,
+            sub,
+            feature_dim: field.config.feature_dim,
+            brick_of_cell,
+            sdf,
+            features,
+            outside: occupancy.cell_size(),
+        }
+    }
+
+    /// Bricks baked.
+    pub fn bricks(&self) -> usize {
+        self.sdf.len() / (self.sub + 1).pow(3)
+    }
+
+    /// Memory the lattice holds, bytes.
+    pub fn bytes(&self) -> usize {
+        4 * (self.sdf.len() + self.features.len() + self.brick_of_cell.len())
+    }
+
+    /// The occupancy grid's cell, unit coordinates: a brick's width.
+    pub fn cell(&self) -> f32 {
+        2.0 / self.res as f32
+    }
+
+    /// The lattice's step, unit coordinates.
+    pub fn step(&self) -> f32 {
+        2.0 / (self.res * self.sub) as f32
+    }
+
+    /// Output row width: the SDF, then the features (as the SDF MLP's).
+    pub fn width(&self) -> usize {
+        1 + self.feature_dim
+    }
+
+    #[inline]
+    fn locate(&self, p: &[f32]) -> Option<Lookup> {
+        let r = self.res as f32;
+        let side = self.sub + 1;
+        let mut cell = [0usize; 3];
+        let mut voxel = [0usize; 3];
+        let mut w = [0.0f32; 3];
+        for k in 0..3 {
+            let g = (p[k] + 1.0) * 0.5 * r;
+            // In [0, r) the cast truncates as `floor` would (see `OccupancyGrid::occupied`).
+            if !(0.0..r).contains(&g) {
+                return None;
+            }
+            let c = (g as usize).min(self.res - 1);
+            let f = (g - c as f32) * self.sub as f32;
+            let v = (f.max(0.0) as usize).min(self.sub - 1);
+            cell[k] = c;
+            voxel[k] = v;
+            w[k] = (f - v as f32).clamp(0.0, 1.0);
+        }
+        let brick = self.brick_of_cell[(cell[2] * self.res + cell[1]) * self.res + cell[0]];
+        (brick != NONE).then(|| Lookup {
+            brick: brick as usize * side * side * side,
+            corner: (voxel[2] * side + voxel[1]) * side + voxel[0],
+            w,
+        })
+    }
+
+    /// The eight lattice points around a lookup (x fastest) and their weights.
+    #[inline]
+    fn corners(&self, l: &Lookup) -> ([usize; 8], [f32; 8]) {
+        let side = self.sub + 1;
+        let (dy, dz) = (side, side * side);
+        let base = l.brick + l.corner;
+        let idx = [
+            base,
+            base + 1,
+            base + dy,
+            base + dy + 1,
+            base + dz,
+            base + dz + 1,
+            base + dz + dy,
+            base + dz + dy + 1,
+        ];
+        let [x, y, z] = l.w;
+        let wt = [
+            (1.0 - x) * (1.0 - y) * (1.0 - z),
+            x * (1.0 - y) * (1.0 - z),
+            (1.0 - x) * y * (1.0 - z),
+            x * y * (1.0 - z),
+            (1.0 - x) * (1.0 - y) * z,
+            x * (1.0 - y) * z,
+            (1.0 - x) * y * z,
+            x * y * z,
+        ];
+        (idx, wt)
+    }
+
+    /// The weights' derivatives along x, y, z (per lattice step).
+    #[inline]
+    fn corner_slopes(w: [f32; 3]) -> [[f32; 8]; 3] {
+        let [x, y, z] = w;
+        let (ox, oy, oz) = (1.0 - x, 1.0 - y, 1.0 - z);
+        [
+            [-oy * oz, oy * oz, -y * oz, y * oz, -oy * z, oy * z, -y * z, y * z],
+            [-ox * oz, -x * oz, ox * oz, x * oz, -ox * z, -x * z, ox * z, x * z],
+            [-ox * oy, -x * oy, -ox * y, -x * y, ox * oy, x * oy, ox * y, x * y],
+        ]
+    }
+
+    /// A finite-difference pass's outputs at `points` (four blocks of `m` points, as
+    /// [`crate::field_pass::FieldPass`] lays them out): rows of [`Self::width`] into `out`, the features only in
+    /// the first block (the neighbours' are read for their SDF alone; theirs are zero).
+    pub fn forward_fd(&self, points: &[f32], m: usize, out: &mut Vec<f32>) {
+        let width = self.width();
+        let fdim = self.feature_dim;
+        assert_eq!(
+            points.len(),
+            4 * m * 3,
+            "BakedGeometry::forward_fd: four blocks of m points"
+        );
+        out.clear();
+        out.resize(4 * m * width, 0.0);
+        out.par_chunks_mut(CHUNK * width)
+            .zip(points.par_chunks(CHUNK * 3))
+            .enumerate()
+            .for_each(|(c, (rows, pts))| {
+                let first = c * CHUNK;
+                for (r, (row, p)) in rows.chunks_exact_mut(width).zip(pts.chunks_exact(3)).enumerate() {
+                    let with_features = first + r < m;
+                    let Some(l) = self.locate(p) else {
+                        row[0] = self.outside;
+                        continue;
+                    };
+                    let (idx, wt) = self.corners(&l);
+                    row[0] = (0..8).map(|i| wt[i] * self.sdf[idx[i]]).sum();
+                    if with_features {
+                        for i in 0..8 {
+                            let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
+                            for (o, v) in row[1..].iter_mut().zip(f) {
+                                *o += wt[i] * v;
+                            }
+                        }
+                    }
+                }
+            });
+    }
+
+    /// Backward of [`Self::forward_fd`] to the points: `d_points` (4m × 3, overwritten) from the rows'
+    /// gradients `d_out` (4m × width).
+    pub fn backward_fd_points(&self, points: &[f32], m: usize, d_out: &[f32], d_points: &mut [f32]) {
+        let width = self.width();
+        let fdim = self.feature_dim;
+        assert_eq!(d_out.len(), 4 * m * width, "BakedGeometry::backward_fd_points: 4m rows");
+        assert_eq!(
+            d_points.len(),
+            4 * m * 3,
+            "BakedGeometry::backward_fd_points: 4m points"
+        );
+        // Unit coordinates to lattice steps.
+        let scale = 0.5 * (self.res * self.sub) as f32;
+        d_points
+            .par_chunks_mut(CHUNK * 3)
+            .zip(points.par_chunks(CHUNK * 3))
+            .zip(d_out.par_chunks(CHUNK * width))
+            .enumerate()
+            .for_each(|(c, ((dp, pts), drows))| {
+                let first = c * CHUNK;
+                for (r, ((g, p), d)) in dp
+                    .chunks_exact_mut(3)
+                    .zip(pts.chunks_exact(3))
+                    .zip(drows.chunks_exact(width))
+                    .enumerate()
+                {
+                    g.fill(0.0);
+                    let Some(l) = self.locate(p) else { continue };
+                    let (idx, _) = self.corners(&l);
+                    let slopes = Self::corner_slopes(l.w);
+                    // d(out)/d(corner value) · the corner's value, summed over the outputs read.
+                    let mut dv = [0.0f32; 8];
+                    for i in 0..8 {
+                        dv[i] = d[0] * self.sdf[idx[i]];
+                    }
+                    if first + r < m {
+                        for i in 0..8 {
+                            let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
+                            dv[i] += d[1..].iter().zip(f).map(|(a, b)| a * b).sum::<f32>();
+                        }
+                    }
+                    for k in 0..3 {
+                        g[k] = scale * (0..8).map(|i| slopes[k][i] * dv[i]).sum::<f32>();
+                    }
+                }
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::neus_field::FieldConfig;
+
+    /// A field whose occupancy holds a shell around its zero level (as a trained object's does).
+    fn field_and_shell() -> (NeusField, OccupancyGrid) {
+        let field = NeusField::new(&FieldConfig::default(), 3, 0.0);
+        let res = 16;
+        let mut occ = OccupancyGrid::full(res);
+        let idx: Vec<usize> = (0..res * res * res).collect();
+        let centres: Vec<f32> = idx.iter().flat_map(|&i| occ.centre(i)).collect();
+        let sdf = field.sdf_values(&centres, field.config.grid.levels);
+        occ.update(&idx, &sdf, 2.0 * occ.cell_size());
+        (field, occ)
+    }
+
+    /// Points inside the shell's cells, four blocks as a finite-difference pass makes them.
+    fn fd_points(occ: &OccupancyGrid, m: usize, eps: f32) -> Vec<f32> {
+        let occupied: Vec<usize> = (0..occ.cells().len()).filter(|&i| occ.cells()[i] != 0).collect();
+        assert!(occupied.len() > 20, "a shell: {} cells", occupied.len());
+        let h = occ.cell_size();
+        let mut base = Vec::new();
+        for s in 0..m {
+            let c = occ.centre(occupied[(s * 7919) % occupied.len()]);
+            let jitter = [0.37, -0.21, 0.11].map(|j: f32| j * h * ((s % 5) as f32 - 2.0) / 2.0);
+            base.push([c[0] + jitter[0], c[1] + jitter[1], c[2] + jitter[2]]);
+        }
+        let mut pts = Vec::with_capacity(4 * m * 3);
+        for b in 0..4 {
+            for p in &base {
+                let mut q = *p;
+                if b > 0 {
+                    q[b - 1] += eps;
+                }
+                pts.extend_from_slice(&q);
+            }
+        }
+        pts
+    }
+
+    /// At lattice points the bake gives the network's values; between them, the trilinear mix of them.
+    #[test]
+    fn the_lattice_holds_the_networks_values_and_interpolates_between() {
+        let (field, occ) = field_and_shell();
+        let baked = BakedGeometry::bake(&field, &occ, 4);
+        let m = 64;
+        // Lattice points: a whole multiple of the lattice step.
+        let h = baked.step();
+        let pts = fd_points(&occ, m, h);
+        let snapped: Vec<f32> = pts.iter().map(|v| ((v + 1.0) / h).round() * h - 1.0).collect();
+        let mut out = Vec::new();
+        baked.forward_fd(&snapped, m, &mut out);
+        let width = baked.width();
+        let (mut u, mut e, mut i) = (vec![], vec![], vec![]);
+        let mut sc = MlpScratch::default();
+        let net = field
+            .sdf_forward(&snapped, field.config.grid.levels, &mut u, &mut e, &mut i, &mut sc)
+            .to_vec();
+        for r in 0..4 * m {
+            assert!((out[r * width] - net[r * width]).abs() < 1e-5, "row {r}: SDF");
+            if r < m {
+                for f in 1..width {
+                    assert!(
+                        (out[r * width + f] - net[r * width + f]).abs() < 1e-5,
+                        "row {r}: feature {f}"
+                    );
+                }
+            } else {
+                assert!(out[r * width + 1..(r + 1) * width].iter().all(|&v| v == 0.0));
+            }
+        }
+        // Halfway between two lattice points along x: their mean.
+        let mid: Vec<f32> = snapped
+            .chunks_exact(3)
+            .flat_map(|p| [p[0] + 0.5 * h, p[1], p[2]])
+            .collect();
+        let ends: Vec<f32> = snapped.chunks_exact(3).flat_map(|p| [p[0] + h, p[1], p[2]]).collect();
+        let (mut om, mut oe) = (Vec::new(), Vec::new());
+        baked.forward_fd(&mid, m, &mut om);
+        baked.forward_fd(&ends, m, &mut oe);
+        for r in 0..4 * m {
+            let want = 0.5 * (out[r * width] + oe[r * width]);
+            assert!(
+                (om[r * width] - want).abs() < 1e-5,
+                "row {r}: {} against {want}",
+                om[r * width]
+            );
+        }
+    }
+
+    /// The baked SDF stays near the network's between lattice points (the field is smooth at the lattice's
+    /// scale).
+    #[test]
+    fn the_baked_sdf_is_near_the_networks_between_lattice_points() {
+        let (field, occ) = field_and_shell();
+        let baked = BakedGeometry::bake(&field, &occ, 4);
+        let m = 200;
+        let pts = fd_points(&occ, m, 1e-3);
+        let mut out = Vec::new();
+        baked.forward_fd(&pts, m, &mut out);
+        let net = field.sdf_values(&pts, field.config.grid.levels);
+        let worst = (0..4 * m)
+            .map(|r| (out[r * baked.width()] - net[r]).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 0.02 * occ.cell_size().max(0.05), "worst SDF difference {worst}");
+    }
+
+    /// The points' gradient matches central differences of a weighted sum of the outputs.
+    #[test]
+    fn point_gradients_match_central_differences() {
+        let (field, occ) = field_and_shell();
+        let baked = BakedGeometry::bake(&field, &occ, 3);
+        let m = 40;
+        let pts = fd_points(&occ, m, 1e-3);
+        let width = baked.width();
+        let weights: Vec<f32> = (0..4 * m * width)
+            .map(|i| {
+                let row = i / width;
+                if row >= m && i % width != 0 {
+                    0.0
+                } else {
+                    ((i * 37 % 11) as f32 - 5.0) / 5.0
+                }
+            })
+            .collect();
+        let loss = |p: &[f32]| {
+            let mut o = Vec::new();
+            baked.forward_fd(p, m, &mut o);
+            o.iter()
+                .zip(&weights)
+                .map(|(a, b)| (*a as f64) * (*b as f64))
+                .sum::<f64>()
+        };
+        let mut grad = vec![0.0f32; 4 * m * 3];
+        baked.backward_fd_points(&pts, m, &weights, &mut grad);
+        // A step well inside a lattice cell (the interpolant is piecewise smooth), for points not on a face.
+        let h = 1e-4f32;
+        let mut checked = 0;
+        for (j, &g) in grad.iter().enumerate() {
+            let frac = ((pts[j] + 1.0) / baked.step()).fract();
+            if !(0.05..0.95).contains(&frac) {
+                continue;
+            }
+            let (mut up, mut down) = (pts.clone(), pts.clone());
+            up[j] += h;
+            down[j] -= h;
+            let fd = (loss(&up) - loss(&down)) / (2.0 * h as f64);
+            let tol = 2e-2 * fd.abs().max(1.0);
+            assert!((g as f64 - fd).abs() < tol, "coordinate {j}: {g} against {fd}");
+            checked += 1;
+        }
+        assert!(checked > 300, "only {checked} coordinates checked");
+    }
+
+    /// Outside every brick: the empty-space SDF, no features, no gradient.
+    #[test]
+    fn outside_the_bricks_is_empty_space() {
+        let field = NeusField::new(&FieldConfig::default(), 3, 0.0);
+        let mut cells = vec![0u8; 8 * 8 * 8];
+        cells[0] = 1;
+        let occ = OccupancyGrid::from_cells(8, cells);
+        let baked = BakedGeometry::bake(&field, &occ, 2);
+        assert_eq!(
+            baked.bricks(),
+            4,
+            "the corner cell and the cells after it along x, y and z"
+        );
+        let far = [0.9f32, 0.9, 0.9];
+        let pts: Vec<f32> = (0..4).flat_map(|_| far).collect();
+        let mut out = Vec::new();
+        baked.forward_fd(&pts, 1, &mut out);
+        assert_eq!(out[0], occ.cell_size());
+        assert!(out[1..baked.width()].iter().all(|&v| v == 0.0));
+        let mut g = vec![1.0f32; 12];
+        baked.backward_fd_points(&pts, 1, &vec![1.0; 4 * baked.width()], &mut g);
+        assert!(g.iter().all(|&v| v == 0.0));
+    }
+}
