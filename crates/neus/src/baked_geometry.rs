@@ -30,6 +30,12 @@ pub struct BakedGeometry {
     sdf: Vec<f32>,
     /// Per brick and lattice point, `feature_dim` features.
     features: Vec<f32>,
+    /// Per brick and lattice point, half the SDF's second difference along x, y and z (`h² ∂²s/∂x_k² / 2`).
+    /// Trilinear interpolation of a surface curving at radius `R` misses it by up to `h² / 8R` — outward
+    /// for a convex one: the demo's toy rendered 0.07 % less opaque at four steps a cell, which a fit reads
+    /// as the body 0.2 mm nearer the camera. The lookup takes `Σ_k w_k (1 − w_k)` times these (interpolated)
+    /// off, exact for a quadratic SDF and equal to the plain interpolation at lattice points and on faces.
+    curvature: Vec<[f32; 3]>,
     /// The SDF given where no brick is: a cell's width, empty space (no sample of the occupancy's marching
     /// nor its finite-difference neighbours a lattice step or less away land there).
     outside: f32,
@@ -102,6 +108,7 @@ impl BakedGeometry {
                     f[r * (width - 1)..(r + 1) * (width - 1)].copy_from_slice(&row[1..]);
                 }
             });
+        let curvature = half_second_differences(&sdf, sub);
         Self {
             res,
             sub,
@@ -109,6 +116,7 @@ impl BakedGeometry {
             brick_of_cell,
             sdf,
             features,
+            curvature,
             outside: occupancy.cell_size(),
         }
     }
@@ -120,7 +128,7 @@ impl BakedGeometry {
 
     /// Memory the lattice holds, bytes.
     pub fn bytes(&self) -> usize {
-        4 * (self.sdf.len() + self.features.len() + self.brick_of_cell.len())
+        4 * (self.sdf.len() + self.features.len() + 3 * self.curvature.len() + self.brick_of_cell.len())
     }
 
     /// The occupancy grid's cell, unit coordinates: a brick's width.
@@ -208,6 +216,18 @@ impl BakedGeometry {
         ]
     }
 
+    /// The SDF at a lookup: the corners' trilinear mix less the interpolated curvature at the point's weights.
+    #[inline]
+    fn sdf_at(&self, l: &Lookup, idx: &[usize; 8], wt: &[f32; 8]) -> f32 {
+        let q = l.w.map(|w| w * (1.0 - w));
+        (0..8)
+            .map(|i| {
+                let k = &self.curvature[idx[i]];
+                wt[i] * (self.sdf[idx[i]] - q[0] * k[0] - q[1] * k[1] - q[2] * k[2])
+            })
+            .sum()
+    }
+
     /// A finite-difference pass's outputs at `points` (four blocks of `m` points, as
     /// [`crate::field_pass::FieldPass`] lays them out): rows of [`Self::width`] into `out`, the features only in
     /// the first block (the neighbours' are read for their SDF alone; theirs are zero).
@@ -233,7 +253,7 @@ impl BakedGeometry {
                         continue;
                     };
                     let (idx, wt) = self.corners(&l);
-                    row[0] = (0..8).map(|i| wt[i] * self.sdf[idx[i]]).sum();
+                    row[0] = self.sdf_at(&l, &idx, &wt);
                     if with_features {
                         for i in 0..8 {
                             let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
@@ -274,12 +294,17 @@ impl BakedGeometry {
                 {
                     g.fill(0.0);
                     let Some(l) = self.locate(p) else { continue };
-                    let (idx, _) = self.corners(&l);
+                    let (idx, wt) = self.corners(&l);
                     let slopes = Self::corner_slopes(l.w);
-                    // d(out)/d(corner value) · the corner's value, summed over the outputs read.
+                    // The curvature's weights w_k (1 − w_k), and its interpolated values.
+                    let q = l.w.map(|w| w * (1.0 - w));
+                    let c: [f32; 3] = std::array::from_fn(|k| (0..8).map(|i| wt[i] * self.curvature[idx[i]][k]).sum());
+                    // d(out)/d(corner value) · the corner's value, summed over the outputs read (the SDF's
+                    // corner value with its curvature taken off at the point's weights).
                     let mut dv = [0.0f32; 8];
                     for i in 0..8 {
-                        dv[i] = d[0] * self.sdf[idx[i]];
+                        let k = &self.curvature[idx[i]];
+                        dv[i] = d[0] * (self.sdf[idx[i]] - q[0] * k[0] - q[1] * k[1] - q[2] * k[2]);
                     }
                     if first + r < m {
                         for i in 0..8 {
@@ -288,11 +313,42 @@ impl BakedGeometry {
                         }
                     }
                     for k in 0..3 {
-                        g[k] = scale * (0..8).map(|i| slopes[k][i] * dv[i]).sum::<f32>();
+                        let own = -d[0] * (1.0 - 2.0 * l.w[k]) * c[k];
+                        g[k] = scale * ((0..8).map(|i| slopes[k][i] * dv[i]).sum::<f32>() + own);
                     }
                 }
             });
     }
+}
+
+/// Half the second difference of `sdf` along x, y, z at every lattice point of every brick (`sub` steps a
+/// side): central inside a brick, at a brick's faces the one a step inward (a brick's points are all it
+/// has); zero with a single step.
+fn half_second_differences(sdf: &[f32], sub: usize) -> Vec<[f32; 3]> {
+    let side = sub + 1;
+    let per = side * side * side;
+    let stride = [1, side, side * side];
+    let mut out = vec![[0.0f32; 3]; sdf.len()];
+    if sub < 2 {
+        return out;
+    }
+    for (brick, vals) in sdf.chunks_exact(per).enumerate() {
+        for z in 0..side {
+            for y in 0..side {
+                for x in 0..side {
+                    let at = [x, y, z];
+                    let here = (z * side + y) * side + x;
+                    for k in 0..3 {
+                        // The centre of the three points: this one unless it is on a face.
+                        let centre = here - stride[k] * at[k] + stride[k] * at[k].clamp(1, sub - 1);
+                        let d2 = vals[centre - stride[k]] - 2.0 * vals[centre] + vals[centre + stride[k]];
+                        out[brick * per + here][k] = 0.5 * d2;
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -336,9 +392,9 @@ mod tests {
         pts
     }
 
-    /// At lattice points the bake gives the network's values; between them, the trilinear mix of them.
+    /// At lattice points the bake gives the network's values (the SDF at its neighbours too).
     #[test]
-    fn the_lattice_holds_the_networks_values_and_interpolates_between() {
+    fn the_lattice_holds_the_networks_values() {
         let (field, occ) = field_and_shell();
         let baked = BakedGeometry::bake(&field, &occ, 4);
         let m = 64;
@@ -367,23 +423,58 @@ mod tests {
                 assert!(out[r * width + 1..(r + 1) * width].iter().all(|&v| v == 0.0));
             }
         }
-        // Halfway between two lattice points along x: their mean.
-        let mid: Vec<f32> = snapped
-            .chunks_exact(3)
-            .flat_map(|p| [p[0] + 0.5 * h, p[1], p[2]])
-            .collect();
-        let ends: Vec<f32> = snapped.chunks_exact(3).flat_map(|p| [p[0] + h, p[1], p[2]]).collect();
-        let (mut om, mut oe) = (Vec::new(), Vec::new());
-        baked.forward_fd(&mid, m, &mut om);
-        baked.forward_fd(&ends, m, &mut oe);
-        for r in 0..4 * m {
-            let want = 0.5 * (out[r * width] + oe[r * width]);
-            assert!(
-                (om[r * width] - want).abs() < 1e-5,
-                "row {r}: {} against {want}",
-                om[r * width]
-            );
+    }
+
+    /// For a quadratic SDF the lookup is exact between lattice points too (the curvature's correction), and
+    /// the plain trilinear mix is not.
+    #[test]
+    fn a_quadratic_sdf_is_interpolated_exactly() {
+        let (res, sub) = (2usize, 4usize);
+        let f = |p: [f32; 3]| {
+            3.0 * (p[0] + 0.6) * (p[0] + 0.6) + 2.0 * (p[1] + 0.7) * (p[1] + 0.7) - (p[2] + 0.4) * (p[2] + 0.4)
+                + 0.5 * p[0] * p[1]
+                - 0.2
+        };
+        let side = sub + 1;
+        let h = 2.0 / (res * sub) as f32;
+        let mut sdf = Vec::new();
+        for z in 0..side {
+            for y in 0..side {
+                for x in 0..side {
+                    sdf.push(f([x, y, z].map(|l| -1.0 + l as f32 * h)));
+                }
+            }
         }
+        let mut brick_of_cell = vec![NONE; res * res * res];
+        brick_of_cell[0] = 0;
+        let baked = BakedGeometry {
+            res,
+            sub,
+            feature_dim: 0,
+            brick_of_cell,
+            curvature: half_second_differences(&sdf, sub),
+            sdf,
+            features: Vec::new(),
+            outside: 1.0,
+        };
+        let m = 50;
+        let mut pts = Vec::new();
+        for s in 0..4 * m {
+            let t = s as f32 * 0.618_034;
+            pts.extend([t.fract(), (t * 1.7).fract(), (t * 2.3).fract()].map(|u| -1.0 + 0.999 * u));
+        }
+        let mut out = Vec::new();
+        baked.forward_fd(&pts, m, &mut out);
+        let mut plain_worst = 0.0f32;
+        for (r, p) in pts.chunks_exact(3).enumerate() {
+            let want = f([p[0], p[1], p[2]]);
+            assert!((out[r] - want).abs() < 2e-5, "point {r}: {} against {want}", out[r]);
+            let l = baked.locate(p).expect("inside the brick");
+            let (idx, wt) = baked.corners(&l);
+            let plain: f32 = (0..8).map(|i| wt[i] * baked.sdf[idx[i]]).sum();
+            plain_worst = plain_worst.max((plain - want).abs());
+        }
+        assert!(plain_worst > 1e-3, "the plain mix misses the curvature: {plain_worst}");
     }
 
     /// The baked SDF stays near the network's between lattice points (the field is smooth at the lattice's

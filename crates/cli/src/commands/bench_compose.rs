@@ -251,5 +251,6 @@ fn baked_against_network(
     serde_json::json!({"bench": "compose", "case": "baked against the network", "rays": o.len(),
         "psnr_db": -10.0 * mse.max(1e-12).log10(), "worst_colour": worst, "worst_opacity": opacity,
         "translation_gradient_rel": rel(0..3), "rotation_gradient_rel": rel(3..6),
+        "opacity_sum_baked": bop.iter().sum::<f32>(), "opacity_sum_network": nop.iter().sum::<f32>(),
         "gradient_baked": bg, "gradient_network": ng})
 }
