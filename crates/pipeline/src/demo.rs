@@ -57,7 +57,7 @@ pub struct DemoArgs {
     /// default) or Rapier, an engine the project did not write (then motion is compared, not parameters).
     #[cfg_attr(feature = "clap", arg(long, value_enum))]
     pub physics: Option<PhysicsArg>,
-    /// small: 160×120, 30 frames (about 13 minutes for the tabletop); large: 320×240, 48 frames, longer
+    /// small: 160×120, 30 frames (about 10 minutes for the tabletop); large: 320×240, 48 frames, longer
     /// training (about an hour).
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value = "small"))]
     pub scale: ScaleArg,
@@ -69,10 +69,10 @@ pub struct DemoArgs {
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
-/// of 2026-11-27 grown by GA's 80 steps a frame and shrunk by its still frames since, the large tabletop of
-/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps), `--quick` alone
-/// with the test build's binary on 2026-12-07, the raw preset's
-/// synth and import of 2026-12-06. A fit is per body in the video.
+/// of 2026-12-07 with the object baked for the fit, the large tabletop of 2026-11-27 (/tmp runs of `synth
+/// --scale large`, training 1500 steps) with its fits of 2026-12-07 (baked), `--quick` alone with the test
+/// build's binary on 2026-12-07, the raw preset's synth and import of 2026-12-06. A fit is per body in the
+/// video.
 pub(crate) struct Expected {
     synth: f64,
     /// synth with the raw footage (`--preset raw`), and its import.
@@ -137,15 +137,15 @@ pub(crate) const FULL: Plan = Plan {
     scene_config: None,
     merge_field_res: None,
     expected: Expected {
-        synth: 10.0,
+        synth: 8.0,
         synth_raw: 92.0,
         import: 8.0,
-        scene: 275.0,
-        object: 55.0,
-        merge: 15.0,
-        bake: 5.0,
-        fit_per_body: 200.0,
-        eval: 3.0,
+        scene: 300.0,
+        object: 66.0,
+        merge: 21.0,
+        bake: 3.0,
+        fit_per_body: 70.0,
+        eval: 2.0,
     },
 };
 
@@ -163,7 +163,7 @@ const LARGE: Plan = Plan {
         object: 460.0,
         merge: 55.0,
         bake: 10.0,
-        fit_per_body: 550.0,
+        fit_per_body: 160.0,
         eval: 5.0,
     },
     ..FULL
