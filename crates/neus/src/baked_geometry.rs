@@ -34,7 +34,8 @@ pub struct BakedGeometry {
     /// Trilinear interpolation of a surface curving at radius `R` misses it by up to `h² / 8R` — outward
     /// for a convex one: the demo's toy rendered 0.07 % less opaque at four steps a cell, which a fit reads
     /// as the body 0.2 mm nearer the camera. The lookup takes `Σ_k w_k (1 − w_k)` times these (interpolated)
-    /// off, exact for a quadratic SDF and equal to the plain interpolation at lattice points and on faces.
+    /// off: exact for a quadratic SDF, the lattice points' own values at lattice points, continuous across
+    /// the lattice cells' faces (a face's points are the same in the bricks either side).
     curvature: Vec<[f32; 3]>,
     /// The SDF given where no brick is: a cell's width, empty space (no sample of the occupancy's marching
     /// nor its finite-difference neighbours a lattice step or less away land there).
@@ -98,7 +99,7 @@ impl BakedGeometry {
         points
             .par_chunks(BAKE_CHUNK * 3)
             .zip(sdf.par_chunks_mut(BAKE_CHUNK))
-            .zip(features.par_chunks_mut(BAKE_CHUNK * field.config.feature_dim))
+            .zip(features.par_chunks_mut(BAKE_CHUNK * field.config.feature_dim.max(1)))
             .for_each(|((p, s), f)| {
                 let (mut unit01, mut enc, mut input) = (Vec::new(), Vec::new(), Vec::new());
                 let mut scratch = MlpScratch::default();
@@ -155,12 +156,13 @@ impl BakedGeometry {
         let mut w = [0.0f32; 3];
         for k in 0..3 {
             let g = (p[k] + 1.0) * 0.5 * r;
-            // In [0, r) the cast truncates as `floor` would (see `OccupancyGrid::occupied`).
-            if !(0.0..r).contains(&g) {
+            // In [0, r) the cast truncates as `floor` would (see `OccupancyGrid::occupied`). A neighbour up to a
+            // cell past the grid's far face (its sample in the last cell) reads the face's values.
+            if !(0.0..r + 1.0).contains(&g) {
                 return None;
             }
             let c = (g as usize).min(self.res - 1);
-            let f = (g - c as f32) * self.sub as f32;
+            let f = ((g - c as f32) * self.sub as f32).min(self.sub as f32);
             let v = (f.max(0.0) as usize).min(self.sub - 1);
             cell[k] = c;
             voxel[k] = v;

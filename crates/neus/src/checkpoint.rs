@@ -35,16 +35,35 @@ pub struct LoadedField {
     pub radius: f64,
     /// The capture it was trained on.
     pub capture: PathBuf,
-    /// Its geometry baked for rendering once it no longer trains ([`LoadedField::bake`]); the composer and
-    /// renderer read it in place of the hash grid and SDF MLP when present.
+    /// Its geometry baked for rendering once it no longer trains ([`LoadedField::bake`]); the composer reads it
+    /// in place of the hash grid and SDF MLP when present (`render_view` does not).
     pub baked: Option<BakedGeometry>,
 }
 
 impl LoadedField {
     /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid (see
-    /// [`crate::baked_geometry`]); `sub = 0` drops a bake.
-    pub fn bake(&mut self, sub: usize) {
-        self.baked = (sub > 0).then(|| BakedGeometry::bake(&self.field, &self.occupancy, sub));
+    /// [`crate::baked_geometry`]); `sub = 0` drops a bake. Refused (an error naming why) for one step a cell, and
+    /// where the field's finite-difference step (its finest hash cell) is not under a cell: the normals'
+    /// neighbours would leave the bricks.
+    pub fn bake(&mut self, sub: usize) -> Result<(), String> {
+        self.baked = None;
+        if sub == 0 {
+            return Ok(());
+        }
+        if sub < 2 {
+            return Err(format!("{sub} lattice step a cell: at least 2 (0: not baked)"));
+        }
+        let (finest, cell) = (
+            2.0 / self.config.field.grid.max_resolution as f32,
+            self.occupancy.cell_size(),
+        );
+        if finest >= cell {
+            return Err(format!(
+                "its finest hash cell ({finest}) is not under its occupancy cell ({cell}): not baked"
+            ));
+        }
+        self.baked = Some(BakedGeometry::bake(&self.field, &self.occupancy, sub));
+        Ok(())
     }
 }
 

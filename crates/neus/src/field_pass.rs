@@ -120,7 +120,7 @@ impl FieldPass {
     ) {
         let m = t.len();
         // A baked geometry's normals from differences a lattice step apart: within a lattice cell the
-        // trilinear SDF's gradient is bilinear and bends only at the cell's faces, so differences a smaller
+        // interpolated SDF's gradient is smooth and bends mostly at the cell's faces, so differences a smaller
         // step apart see the surface's curvature as jumps that no pose gradient reaches (the depth's pose
         // gradient 4.5 % off central differences, the test's bound 3 %); a step's differences are continuous and
         // their slope is the curvature.
@@ -201,8 +201,8 @@ impl FieldPass {
         self.backward_with(field, None, g, params, inputs);
     }
 
-    /// [`Self::backward`] after [`Self::forward_with`] with the same `baked` (whose geometry has no
-    /// parameters: only the colour MLP's and the inputs' gradients then).
+    /// [`Self::backward`] after [`Self::forward_with`] with the same `baked`: to the inputs only (a baked
+    /// geometry belongs to a field that no longer trains).
     pub fn backward_with(
         &mut self,
         field: &NeusField,

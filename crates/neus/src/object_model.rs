@@ -160,10 +160,12 @@ fn capture_name(field: &LoadedField) -> String {
 impl ObjectModel {
     /// Bake each field's geometry `sub` lattice steps a cell of its occupancy grid for the renders that
     /// follow ([`LoadedField::bake`]; 0 drops a bake): the object no longer trains.
-    pub fn bake(&mut self, sub: usize) {
-        let t = std::time::Instant::now();
+    pub fn bake(&mut self, sub: usize) -> Result<(), ObjectError> {
         for f in std::iter::once(&mut self.primary).chain(self.other.as_mut()) {
-            f.field.bake(sub);
+            let t = std::time::Instant::now();
+            f.field
+                .bake(sub)
+                .map_err(|msg| invalid(&self.source, format!("bake_object = {sub}: {msg}")))?;
             if let Some(b) = &f.field.baked {
                 tracing::info!(
                     "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
@@ -175,6 +177,7 @@ impl ObjectModel {
                 );
             }
         }
+        Ok(())
     }
 
     /// Load a `merge` output folder (`transform.json`, `merged.ply`) or a `train` run folder.

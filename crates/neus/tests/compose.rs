@@ -244,10 +244,24 @@ fn pose_gradients_of_a_baked_object_match_central_differences() {
     // The object's geometry baked (neus::baked_geometry): the fit's path, three lattice steps a cell of its
     // occupancy (every cell: no occupancy border moves samples as the pose moves).
     let mut r = rig();
-    r.object.bake(3);
+    r.object.bake(3).unwrap();
     let cam = camera(Vec3::new(0.2, -0.12, 0.12), Vec3::new(0.02, 0.0, 0.03), 24, 18);
     let pose = Pose::new(Quat::exp(Vec3::new(0.2, 0.1, -0.4)), Vec3::new(0.02, 0.01, 0.01));
     check_pose_gradients(&r, &r.object, &r.capture_from_body, &cam, pose, true);
+}
+
+#[test]
+fn a_bake_whose_normals_would_leave_its_bricks_is_refused() {
+    let mut r = rig();
+    let one = r.object.bake(1).unwrap_err();
+    assert!(one.contains("at least 2"), "{one}");
+    // A field whose finest hash cell is a whole occupancy cell.
+    r.object.config.field.grid.max_resolution = 4;
+    let coarse = r.object.bake(4).unwrap_err();
+    assert!(coarse.contains("finest hash cell"), "{coarse}");
+    assert!(r.object.baked.is_none());
+    r.object.bake(0).unwrap();
+    assert!(r.object.baked.is_none());
 }
 
 #[test]
@@ -261,7 +275,7 @@ fn a_baked_object_renders_as_its_network() {
         render_composed(&[layer], 1, Behind::Colour([0.0; 3]), &cam, &mut Composer::default())
     };
     let network = render(&r.object);
-    r.object.bake(4);
+    r.object.bake(4).unwrap();
     let baked = render(&r.object);
     let (mut worst, mut sq) = (0.0f32, 0.0f64);
     for (a, b) in baked.rgb.iter().zip(&network.rgb) {

@@ -42,7 +42,7 @@ pub fn load_objects(named: &[(String, PathBuf)], bake: usize) -> Result<Vec<(Str
             Some((_, m)) => m.clone(),
             None => {
                 let mut m = ObjectModel::load(dir).with_context(|| format!("--object {name}"))?;
-                m.bake(bake);
+                m.bake(bake).with_context(|| format!("--object {name}"))?;
                 let m = Arc::new(m);
                 loaded.push((dir.clone(), m.clone()));
                 m

@@ -80,7 +80,9 @@ pub struct VideoFitConfig {
     /// The objects' geometry baked this many lattice steps a cell of their occupancy grids before the fit
     /// (`neus::baked_geometry`: the SDF and the colour MLP's features read by trilinear interpolation in
     /// place of the hash grid and SDF MLP at every sample and its three finite-difference neighbours); 0: the
-    /// network at every sample.
+    /// network at every sample. A fit folder's settings written before the bake read back as 0 (the network it
+    /// was fitted with), so a resume goes on as it began.
+    #[serde(default)]
     pub bake_object: usize,
 }
 

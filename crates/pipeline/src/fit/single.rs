@@ -101,7 +101,9 @@ pub(super) fn prepare(a: &FitInputs, cfg: &VideoFitConfig) -> Result<(Prepared, 
     let fps = video_fps(a, fps_of_capture)?;
     let shutter = set_shutter(a, &mut frames, fps)?;
     let mut object = ObjectModel::load(&object_dir).with_context(|| format!("--object {name}"))?;
-    object.bake(cfg.bake_object);
+    object
+        .bake(cfg.bake_object)
+        .with_context(|| format!("--object {name}"))?;
     let guess = if is_auto(&a.init) {
         None
     } else {
