@@ -61,9 +61,10 @@ fn locate(g: LevelGeom, r: f32, p: &[f32]) -> ([u32; 8], [f32; 3]) {
     (idx, [fx, fy, fz])
 }
 
-/// Trilinear weights of the 8 corners, in the corner order of [`locate`].
+/// Trilinear weights of the 8 corners at fractions `f` along x, y, z, in the corner order of [`locate`] (x
+/// fastest: corner `c` is `+1` along x if `c & 1`, along y if `c & 2`, along z if `c & 4`).
 #[inline(always)]
-fn weights(f: [f32; 3]) -> [f32; 8] {
+pub fn weights(f: [f32; 3]) -> [f32; 8] {
     let wx = [1.0 - f[0], f[0]];
     let wy = [1.0 - f[1], f[1]];
     let wz = [1.0 - f[2], f[2]];

@@ -176,7 +176,7 @@ impl BakedGeometry {
         })
     }
 
-    /// The eight lattice points around a lookup (x fastest) and their weights.
+    /// The eight lattice points around a lookup and their weights, in the hash grid's corner order (x fastest).
     #[inline]
     fn corners(&self, l: &Lookup) -> ([usize; 8], [f32; 8]) {
         let side = self.sub + 1;
@@ -192,18 +192,7 @@ impl BakedGeometry {
             base + dz + dy,
             base + dz + dy + 1,
         ];
-        let [x, y, z] = l.w;
-        let wt = [
-            (1.0 - x) * (1.0 - y) * (1.0 - z),
-            x * (1.0 - y) * (1.0 - z),
-            (1.0 - x) * y * (1.0 - z),
-            x * y * (1.0 - z),
-            (1.0 - x) * (1.0 - y) * z,
-            x * (1.0 - y) * z,
-            (1.0 - x) * y * z,
-            x * y * z,
-        ];
-        (idx, wt)
+        (idx, field::kernels::weights(l.w))
     }
 
     /// The weights' derivatives along x, y, z (per lattice step).
