@@ -61,7 +61,7 @@ fn locate(g: LevelGeom, r: f32, p: &[f32]) -> ([u32; 8], [f32; 3]) {
     (idx, [fx, fy, fz])
 }
 
-/// Trilinear weights of the 8 corners at fractions `f` along x, y, z, in the corner order of [`locate`] (x
+/// Trilinear weights of the 8 corners at fractions `f` along x, y, z, in the hash grid's corner order (x
 /// fastest: corner `c` is `+1` along x if `c & 1`, along y if `c & 2`, along z if `c & 4`).
 #[inline(always)]
 pub fn weights(f: [f32; 3]) -> [f32; 8] {
