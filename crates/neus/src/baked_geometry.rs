@@ -6,8 +6,12 @@
 //! points a sample (the sample and its three finite-difference neighbours),
 //! forward and back to the points; the hash grid and the SDF MLP there were
 //! about half of a fit's time (profile notebook), where a lookup reads eight
-//! lattice points. Only for fields that no longer train: nothing flows back
-//! to the network's parameters.
+//! lattice points. The normals are baked too (the network's own
+//! finite-difference gradient at each lattice point, interpolated): normals
+//! taken from differences of the interpolated SDF are smoothed over the
+//! lattice's step, which drew a trained body's silhouette thinner and its
+//! colours off (the fit's body sat nearer the camera). Only for fields that
+//! no longer train: nothing flows back to the network's parameters.
 
 use crate::neus_field::NeusField;
 use crate::occupancy::OccupancyGrid;
@@ -30,6 +34,9 @@ pub struct BakedGeometry {
     sdf: Vec<f32>,
     /// Per brick and lattice point, `feature_dim` features.
     features: Vec<f32>,
+    /// Per brick and lattice point, the network's SDF gradient as its renderer takes it (forward differences
+    /// at the render's step): a lookup's normal is their trilinear mix, continuous across the lattice.
+    grad: Vec<[f32; 3]>,
     /// Per brick and lattice point, half the SDF's second difference along x, y and z (`h² ∂²s/∂x_k² / 2`).
     /// Trilinear interpolation of a surface curving at radius `R` misses it by up to `h² / 8R` — outward
     /// for a convex one: the demo's toy rendered 0.07 % less opaque at four steps a cell, which a fit reads
@@ -38,7 +45,7 @@ pub struct BakedGeometry {
     /// the lattice cells' faces (a face's points are the same in the bricks either side).
     curvature: Vec<[f32; 3]>,
     /// The SDF given where no brick is: a cell's width, empty space (no sample of the occupancy's marching
-    /// nor its finite-difference neighbours a lattice step or less away land there).
+    /// lands there).
     outside: f32,
 }
 
@@ -52,11 +59,12 @@ struct Lookup {
 }
 
 impl BakedGeometry {
-    /// Bake `field` (all levels) in `occupancy`'s occupied cells and the cells one step past them along +x,
-    /// +y and +z, `sub` lattice steps a cell: a sample lies in an occupied cell (the march keeps no other), and
-    /// its finite-difference neighbours less than a cell from it along +x, +y, +z.
-    pub fn bake(field: &NeusField, occupancy: &OccupancyGrid, sub: usize) -> Self {
+    /// Bake `field` (all levels) in `occupancy`'s occupied cells (a sample lies in one: the march keeps no
+    /// other), `sub` lattice steps a cell, its normals from forward differences `fd_eps` apart (as the
+    /// renderer takes the network's).
+    pub fn bake(field: &NeusField, occupancy: &OccupancyGrid, sub: usize, fd_eps: f32) -> Self {
         assert!(sub >= 1, "BakedGeometry::bake: at least one step a cell");
+        assert!(fd_eps > 0.0, "BakedGeometry::bake: a positive difference step");
         let res = occupancy.res;
         let cells = occupancy.cells();
         let mut brick_of_cell = vec![NONE; res * res * res];
@@ -64,13 +72,9 @@ impl BakedGeometry {
         for k in 0..res {
             for j in 0..res {
                 for i in 0..res {
-                    let at = |a: usize, b: usize, c: usize| cells[(c * res + b) * res + a] != 0;
-                    let needed = at(i, j, k)
-                        || (i > 0 && at(i - 1, j, k))
-                        || (j > 0 && at(i, j - 1, k))
-                        || (k > 0 && at(i, j, k - 1));
-                    if needed {
-                        brick_of_cell[(k * res + j) * res + i] = bricks.len() as u32;
+                    let c = (k * res + j) * res + i;
+                    if cells[c] != 0 {
+                        brick_of_cell[c] = bricks.len() as u32;
                         bricks.push([i, j, k]);
                     }
                 }
@@ -79,44 +83,112 @@ impl BakedGeometry {
         let side = sub + 1;
         let per = side * side * side;
         let h = 2.0 / (res * sub) as f32;
-        let mut points = Vec::with_capacity(bricks.len() * per * 3);
-        for b in &bricks {
+        // Bricks share the lattice points on their faces: each point is evaluated once, in the brick of the
+        // highest cell that holds it (its coordinates there the lowest), and copied to the others.
+        let owner = |b: &[usize; 3], local: [usize; 3]| -> usize {
+            let global: [usize; 3] = std::array::from_fn(|k| b[k] * sub + local[k]);
+            for choice in 0..8 {
+                let mut cell = [0usize; 3];
+                let mut at = [0usize; 3];
+                let mut ok = true;
+                for k in 0..3 {
+                    let (c, l) = (global[k] / sub, global[k] % sub);
+                    // Bit k of `choice`: the cell below, whose far face the point is on.
+                    let below = choice >> k & 1 == 1;
+                    let (c, l) = if below { (c.wrapping_sub(1), sub) } else { (c, l) };
+                    if c >= res || (below && !global[k].is_multiple_of(sub)) {
+                        ok = false;
+                        break;
+                    }
+                    cell[k] = c;
+                    at[k] = l;
+                }
+                if !ok {
+                    continue;
+                }
+                let brick = brick_of_cell[(cell[2] * res + cell[1]) * res + cell[0]];
+                if brick != NONE {
+                    return brick as usize * per + (at[2] * side + at[1]) * side + at[0];
+                }
+            }
+            unreachable!("a brick's point lies in its own brick")
+        };
+        let mut slot_of = Vec::with_capacity(bricks.len() * per);
+        let mut points = Vec::new();
+        let mut unique = 0usize;
+        for (bi, b) in bricks.iter().enumerate() {
             for z in 0..side {
                 for y in 0..side {
                     for x in 0..side {
-                        let lattice = [b[0] * sub + x, b[1] * sub + y, b[2] * sub + z];
-                        points.extend(lattice.map(|l| -1.0 + l as f32 * h));
+                        let own = bi * per + (z * side + y) * side + x;
+                        let o = owner(b, [x, y, z]);
+                        if o == own {
+                            let lattice = [b[0] * sub + x, b[1] * sub + y, b[2] * sub + z];
+                            points.extend(lattice.map(|l| -1.0 + l as f32 * h));
+                            slot_of.push(unique);
+                            unique += 1;
+                        } else {
+                            // Its owner's slot once every owner has one (below).
+                            slot_of.push(usize::MAX - o);
+                        }
                     }
                 }
             }
         }
-        let width = 1 + field.config.feature_dim;
+        for i in 0..slot_of.len() {
+            if slot_of[i] >= unique {
+                slot_of[i] = slot_of[usize::MAX - slot_of[i]];
+            }
+        }
+        let fdim = field.config.feature_dim;
+        let width = 1 + fdim;
         let levels = field.config.grid.levels;
-        let n = points.len() / 3;
-        let mut sdf = vec![0.0f32; n];
-        let mut features = vec![0.0f32; n * field.config.feature_dim];
-        const BAKE_CHUNK: usize = 16384;
+        let mut u_sdf = vec![0.0f32; unique];
+        let mut u_features = vec![0.0f32; unique * fdim];
+        let mut u_grad = vec![[0.0f32; 3]; unique];
+        const BAKE_CHUNK: usize = 8192;
         points
             .par_chunks(BAKE_CHUNK * 3)
-            .zip(sdf.par_chunks_mut(BAKE_CHUNK))
-            .zip(features.par_chunks_mut(BAKE_CHUNK * field.config.feature_dim.max(1)))
-            .for_each(|((p, s), f)| {
+            .zip(u_sdf.par_chunks_mut(BAKE_CHUNK))
+            .zip(u_features.par_chunks_mut(BAKE_CHUNK * fdim.max(1)))
+            .zip(u_grad.par_chunks_mut(BAKE_CHUNK))
+            .for_each(|(((p, s), f), g)| {
                 let (mut unit01, mut enc, mut input) = (Vec::new(), Vec::new(), Vec::new());
                 let mut scratch = MlpScratch::default();
-                let out = field.sdf_forward(p, levels, &mut unit01, &mut enc, &mut input, &mut scratch);
-                for (r, row) in out.chunks_exact(width).enumerate() {
+                // Each point, then it moved by the step along x, y and z, side by side (the four share
+                // their coarser hash cells).
+                let mut four = Vec::with_capacity(4 * p.len());
+                for q in p.chunks_exact(3) {
+                    four.extend_from_slice(q);
+                    for k in 0..3 {
+                        let mut moved = [q[0], q[1], q[2]];
+                        moved[k] += fd_eps;
+                        four.extend(moved);
+                    }
+                }
+                let out = field.sdf_forward(&four, levels, &mut unit01, &mut enc, &mut input, &mut scratch);
+                for (r, rows) in out.chunks_exact(4 * width).enumerate() {
+                    let row = &rows[..width];
                     s[r] = row[0];
-                    f[r * (width - 1)..(r + 1) * (width - 1)].copy_from_slice(&row[1..]);
+                    f[r * fdim..(r + 1) * fdim].copy_from_slice(&row[1..]);
+                    g[r] = std::array::from_fn(|k| (rows[(k + 1) * width] - row[0]) / fd_eps);
                 }
             });
+        let sdf: Vec<f32> = slot_of.iter().map(|&u| u_sdf[u]).collect();
+        let grad: Vec<[f32; 3]> = slot_of.iter().map(|&u| u_grad[u]).collect();
+        let mut features = Vec::with_capacity(slot_of.len() * fdim);
+        for &u in &slot_of {
+            features.extend_from_slice(&u_features[u * fdim..(u + 1) * fdim]);
+        }
         let curvature = half_second_differences(&sdf, sub);
         Self {
             res,
             sub,
-            feature_dim: field.config.feature_dim,
+            feature_dim: fdim,
             brick_of_cell,
             sdf,
             features,
+            grad,
             curvature,
             outside: occupancy.cell_size(),
         }
@@ -129,7 +201,11 @@ impl BakedGeometry {
 
     /// Memory the lattice holds, bytes.
     pub fn bytes(&self) -> usize {
-        4 * (self.sdf.len() + self.features.len() + 3 * self.curvature.len() + self.brick_of_cell.len())
+        4 * (self.sdf.len()
+            + self.features.len()
+            + 3 * self.grad.len()
+            + 3 * self.curvature.len()
+            + self.brick_of_cell.len())
     }
 
     /// The occupancy grid's cell, unit coordinates: a brick's width.
@@ -156,9 +232,9 @@ impl BakedGeometry {
         let mut w = [0.0f32; 3];
         for k in 0..3 {
             let g = (p[k] + 1.0) * 0.5 * r;
-            // In [0, r) the cast truncates as `floor` would (see `OccupancyGrid::occupied`). A neighbour up to a
-            // cell past the grid's far face (its sample in the last cell) reads the face's values.
-            if !(0.0..r + 1.0).contains(&g) {
+            // In [0, r) the cast truncates as `floor` would (see `OccupancyGrid::occupied`); the far face
+            // belongs to the last cell.
+            if !(0.0..=r).contains(&g) {
                 return None;
             }
             let c = (g as usize).min(self.res - 1);
@@ -219,9 +295,48 @@ impl BakedGeometry {
             .sum()
     }
 
+    /// The gradient in `p` (unit coordinates) of `d_sdf` times the SDF at `p`, plus `d_features` (when given)
+    /// dotted with its features, plus `d_grad` dotted with its interpolated normal gradient; zero outside
+    /// every brick.
+    fn point_gradient(&self, l: &Lookup, d_sdf: f32, d_features: Option<&[f32]>, d_grad: [f32; 3]) -> [f32; 3] {
+        let fdim = self.feature_dim;
+        let (idx, wt) = self.corners(l);
+        let slopes = Self::corner_slopes(l.w);
+        // The curvature's weights w_k (1 − w_k), and its interpolated values.
+        let q = l.w.map(|w| w * (1.0 - w));
+        let c: [f32; 3] = std::array::from_fn(|k| (0..8).map(|i| wt[i] * self.curvature[idx[i]][k]).sum());
+        // d(out)/d(corner value) · the corner's value, summed over the outputs read (the SDF's corner value
+        // with its curvature taken off at the point's weights).
+        let mut dv = [0.0f32; 8];
+        for i in 0..8 {
+            let k = &self.curvature[idx[i]];
+            let g = &self.grad[idx[i]];
+            dv[i] = d_sdf * (self.sdf[idx[i]] - q[0] * k[0] - q[1] * k[1] - q[2] * k[2])
+                + d_grad[0] * g[0]
+                + d_grad[1] * g[1]
+                + d_grad[2] * g[2];
+        }
+        if let Some(d) = d_features {
+            for i in 0..8 {
+                let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
+                dv[i] += d.iter().zip(f).map(|(a, b)| a * b).sum::<f32>();
+            }
+        }
+        // Unit coordinates to lattice steps.
+        let scale = 0.5 * (self.res * self.sub) as f32;
+        std::array::from_fn(|k| {
+            let own = -d_sdf * (1.0 - 2.0 * l.w[k]) * c[k];
+            scale * ((0..8).map(|i| slopes[k][i] * dv[i]).sum::<f32>() + own)
+        })
+    }
+
     /// A finite-difference pass's outputs at `points` (four blocks of `m` points, as
-    /// [`crate::field_pass::FieldPass`] lays them out): rows of [`Self::width`] into `out`, the features only in
-    /// the first block (the neighbours' are read for their SDF alone; theirs are zero).
+    /// [`crate::field_pass::FieldPass`] lays them out: each sample `p`, then `q_k = p + e e_k` for k = x, y, z):
+    /// rows of [`Self::width`] into `out`, the features only in the first block (the neighbours' are zero).
+    ///
+    /// A neighbour's row holds `s(p) + (q_k − p)_k n_k(p)`, with `n` the baked normal gradient interpolated at
+    /// the sample, so that the pass's difference `(row_k − s(p)) / e` is the network's gradient as the lattice
+    /// holds it, whatever the step: the neighbours' points are not read.
     pub fn forward_fd(&self, points: &[f32], m: usize, out: &mut Vec<f32>) {
         let width = self.width();
         let fdim = self.feature_dim;
@@ -232,81 +347,91 @@ impl BakedGeometry {
         );
         out.clear();
         out.resize(4 * m * width, 0.0);
-        out.par_chunks_mut(CHUNK * width)
-            .zip(points.par_chunks(CHUNK * 3))
+        let (b0, rest) = out.split_at_mut(m * width);
+        let (b1, rest) = rest.split_at_mut(m * width);
+        let (b2, b3) = rest.split_at_mut(m * width);
+        b0.par_chunks_mut(CHUNK * width)
+            .zip(b1.par_chunks_mut(CHUNK * width))
+            .zip(b2.par_chunks_mut(CHUNK * width))
+            .zip(b3.par_chunks_mut(CHUNK * width))
             .enumerate()
-            .for_each(|(c, (rows, pts))| {
-                let first = c * CHUNK;
-                for (r, (row, p)) in rows.chunks_exact_mut(width).zip(pts.chunks_exact(3)).enumerate() {
-                    let with_features = first + r < m;
+            .for_each(|(c, (((r0, r1), r2), r3))| {
+                let mut neighbours = [r1, r2, r3];
+                for (r, row) in r0.chunks_exact_mut(width).enumerate() {
+                    let s = c * CHUNK + r;
+                    let p = &points[s * 3..s * 3 + 3];
                     let Some(l) = self.locate(p) else {
                         row[0] = self.outside;
+                        for block in neighbours.iter_mut() {
+                            block[r * width] = self.outside;
+                        }
                         continue;
                     };
                     let (idx, wt) = self.corners(&l);
-                    row[0] = self.sdf_at(&l, &idx, &wt);
-                    if with_features {
-                        for i in 0..8 {
-                            let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
-                            for (o, v) in row[1..].iter_mut().zip(f) {
-                                *o += wt[i] * v;
-                            }
+                    let mut n = [0.0f32; 3];
+                    for i in 0..8 {
+                        let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
+                        for (o, v) in row[1..].iter_mut().zip(f) {
+                            *o += wt[i] * v;
                         }
+                        for (nk, gk) in n.iter_mut().zip(&self.grad[idx[i]]) {
+                            *nk += wt[i] * gk;
+                        }
+                    }
+                    let here = self.sdf_at(&l, &idx, &wt);
+                    row[0] = here;
+                    for (k, block) in neighbours.iter_mut().enumerate() {
+                        let e = points[((k + 1) * m + s) * 3 + k] - p[k];
+                        block[r * width] = here + e * n[k];
                     }
                 }
             });
     }
 
     /// Backward of [`Self::forward_fd`] to the points: `d_points` (4m × 3, overwritten) from the rows'
-    /// gradients `d_out` (4m × width).
+    /// gradients `d_out` (4m × width), each row's point moved alone (a neighbour's row reads its sample's
+    /// point too, and its own only through its offset `e`).
     pub fn backward_fd_points(&self, points: &[f32], m: usize, d_out: &[f32], d_points: &mut [f32]) {
         let width = self.width();
-        let fdim = self.feature_dim;
         assert_eq!(d_out.len(), 4 * m * width, "BakedGeometry::backward_fd_points: 4m rows");
         assert_eq!(
             d_points.len(),
             4 * m * 3,
             "BakedGeometry::backward_fd_points: 4m points"
         );
-        // Unit coordinates to lattice steps.
-        let scale = 0.5 * (self.res * self.sub) as f32;
-        d_points
-            .par_chunks_mut(CHUNK * 3)
-            .zip(points.par_chunks(CHUNK * 3))
-            .zip(d_out.par_chunks(CHUNK * width))
+        let (g0, rest) = d_points.split_at_mut(m * 3);
+        let (g1, rest) = rest.split_at_mut(m * 3);
+        let (g2, g3) = rest.split_at_mut(m * 3);
+        g0.par_chunks_mut(CHUNK * 3)
+            .zip(g1.par_chunks_mut(CHUNK * 3))
+            .zip(g2.par_chunks_mut(CHUNK * 3))
+            .zip(g3.par_chunks_mut(CHUNK * 3))
             .enumerate()
-            .for_each(|(c, ((dp, pts), drows))| {
-                let first = c * CHUNK;
-                for (r, ((g, p), d)) in dp
-                    .chunks_exact_mut(3)
-                    .zip(pts.chunks_exact(3))
-                    .zip(drows.chunks_exact(width))
-                    .enumerate()
-                {
-                    g.fill(0.0);
-                    let Some(l) = self.locate(p) else { continue };
+            .for_each(|(c, (((q0, q1), q2), q3))| {
+                let mut neighbours = [q1, q2, q3];
+                for (r, g) in q0.chunks_exact_mut(3).enumerate() {
+                    let s = c * CHUNK + r;
+                    let p = &points[s * 3..s * 3 + 3];
+                    for block in neighbours.iter_mut() {
+                        block[r * 3..r * 3 + 3].fill(0.0);
+                    }
+                    let Some(l) = self.locate(p) else {
+                        g.fill(0.0);
+                        continue;
+                    };
+                    let d = &d_out[s * width..(s + 1) * width];
+                    let d_nb: [f32; 3] = std::array::from_fn(|k| d_out[((k + 1) * m + s) * width]);
+                    let e: [f32; 3] = std::array::from_fn(|k| points[((k + 1) * m + s) * 3 + k] - p[k]);
                     let (idx, wt) = self.corners(&l);
-                    let slopes = Self::corner_slopes(l.w);
-                    // The curvature's weights w_k (1 − w_k), and its interpolated values.
-                    let q = l.w.map(|w| w * (1.0 - w));
-                    let c: [f32; 3] = std::array::from_fn(|k| (0..8).map(|i| wt[i] * self.curvature[idx[i]][k]).sum());
-                    // d(out)/d(corner value) · the corner's value, summed over the outputs read (the SDF's
-                    // corner value with its curvature taken off at the point's weights).
-                    let mut dv = [0.0f32; 8];
-                    for i in 0..8 {
-                        let k = &self.curvature[idx[i]];
-                        dv[i] = d[0] * (self.sdf[idx[i]] - q[0] * k[0] - q[1] * k[1] - q[2] * k[2]);
+                    let n: [f32; 3] = std::array::from_fn(|k| (0..8).map(|i| wt[i] * self.grad[idx[i]][k]).sum());
+                    // Row k = s(p) + (q_k − p)_k n_k(p): s(p) is read by every row, n_k(p) by row k.
+                    let d_grad: [f32; 3] = std::array::from_fn(|k| d_nb[k] * e[k]);
+                    let mut sum = self.point_gradient(&l, d[0] + d_nb.iter().sum::<f32>(), Some(&d[1..]), d_grad);
+                    for (k, block) in neighbours.iter_mut().enumerate() {
+                        block[r * 3 + k] = d_nb[k] * n[k];
+                        sum[k] -= d_nb[k] * n[k];
                     }
-                    if first + r < m {
-                        for i in 0..8 {
-                            let f = &self.features[idx[i] * fdim..(idx[i] + 1) * fdim];
-                            dv[i] += d[1..].iter().zip(f).map(|(a, b)| a * b).sum::<f32>();
-                        }
-                    }
-                    for k in 0..3 {
-                        let own = -d[0] * (1.0 - 2.0 * l.w[k]) * c[k];
-                        g[k] = scale * ((0..8).map(|i| slopes[k][i] * dv[i]).sum::<f32>() + own);
-                    }
+                    g.copy_from_slice(&sum);
                 }
             });
     }
@@ -383,13 +508,38 @@ mod tests {
         pts
     }
 
-    /// At lattice points the bake gives the network's values (the SDF at its neighbours too).
+    /// The network's step for its normals, as the renderer takes it.
+    fn eps_of(field: &NeusField) -> f32 {
+        2.0 / field.config.grid.max_resolution as f32
+    }
+
+    /// The network's SDF at `points` and its forward-difference gradient `eps` apart, as the renderer takes it.
+    fn network_with_gradient(field: &NeusField, points: &[f32], eps: f32) -> (Vec<f32>, Vec<[f32; 3]>) {
+        let levels = field.config.grid.levels;
+        let here = field.sdf_values(points, levels);
+        let moved: Vec<Vec<f32>> = (0..3)
+            .map(|k| {
+                let q: Vec<f32> = points
+                    .chunks_exact(3)
+                    .flat_map(|p| std::array::from_fn::<f32, 3, _>(|j| p[j] + if j == k { eps } else { 0.0 }))
+                    .collect();
+                field.sdf_values(&q, levels)
+            })
+            .collect();
+        let grad = (0..here.len())
+            .map(|r| std::array::from_fn(|k| (moved[k][r] - here[r]) / eps))
+            .collect();
+        (here, grad)
+    }
+
+    /// At lattice points the bake gives the network's values, features and normal gradient.
     #[test]
     fn the_lattice_holds_the_networks_values() {
         let (field, occ) = field_and_shell();
-        let baked = BakedGeometry::bake(&field, &occ, 4);
+        let eps = eps_of(&field);
+        let baked = BakedGeometry::bake(&field, &occ, 4, eps);
         let m = 64;
-        // Lattice points: a whole multiple of the lattice step.
+        // Lattice points: a whole multiple of the lattice step; the neighbours a lattice step away.
         let h = baked.step();
         let pts = fd_points(&occ, m, h);
         let snapped: Vec<f32> = pts.iter().map(|v| ((v + 1.0) / h).round() * h - 1.0).collect();
@@ -399,10 +549,29 @@ mod tests {
         let (mut u, mut e, mut i) = (vec![], vec![], vec![]);
         let mut sc = MlpScratch::default();
         let net = field
-            .sdf_forward(&snapped, field.config.grid.levels, &mut u, &mut e, &mut i, &mut sc)
+            .sdf_forward(
+                &snapped[..3 * m],
+                field.config.grid.levels,
+                &mut u,
+                &mut e,
+                &mut i,
+                &mut sc,
+            )
             .to_vec();
+        let (_, grad) = network_with_gradient(&field, &snapped[..3 * m], eps);
         for r in 0..4 * m {
-            assert!((out[r * width] - net[r * width]).abs() < 1e-5, "row {r}: SDF");
+            let s = r % m;
+            let want = if r < m {
+                net[s * width]
+            } else {
+                let k = r / m - 1;
+                net[s * width] + (snapped[r * 3 + k] - snapped[s * 3 + k]) * grad[s][k]
+            };
+            assert!(
+                (out[r * width] - want).abs() < 1e-5,
+                "row {r}: SDF {} against {want}",
+                out[r * width]
+            );
             if r < m {
                 for f in 1..width {
                     assert!(
@@ -416,8 +585,8 @@ mod tests {
         }
     }
 
-    /// For a quadratic SDF the lookup is exact between lattice points too (the curvature's correction), and
-    /// the plain trilinear mix is not.
+    /// For a quadratic SDF the lookup is exact between lattice points too (the curvature's correction; its
+    /// gradient, linear, interpolates exactly), and the plain trilinear mix is not.
     #[test]
     fn a_quadratic_sdf_is_interpolated_exactly() {
         let (res, sub) = (2usize, 4usize);
@@ -426,13 +595,22 @@ mod tests {
                 + 0.5 * p[0] * p[1]
                 - 0.2
         };
+        let grad_f = |p: [f32; 3]| {
+            [
+                6.0 * (p[0] + 0.6) + 0.5 * p[1],
+                4.0 * (p[1] + 0.7) + 0.5 * p[0],
+                -2.0 * (p[2] + 0.4),
+            ]
+        };
         let side = sub + 1;
         let h = 2.0 / (res * sub) as f32;
-        let mut sdf = Vec::new();
+        let (mut sdf, mut grad) = (Vec::new(), Vec::new());
         for z in 0..side {
             for y in 0..side {
                 for x in 0..side {
-                    sdf.push(f([x, y, z].map(|l| -1.0 + l as f32 * h)));
+                    let p = [x, y, z].map(|l| -1.0 + l as f32 * h);
+                    sdf.push(f(p));
+                    grad.push(grad_f(p));
                 }
             }
         }
@@ -446,34 +624,49 @@ mod tests {
             curvature: half_second_differences(&sdf, sub),
             sdf,
             features: Vec::new(),
+            grad,
             outside: 1.0,
         };
         let m = 50;
-        let mut pts = Vec::new();
-        for s in 0..4 * m {
+        let eps = 0.05;
+        let mut samples = Vec::new();
+        for s in 0..m {
             let t = s as f32 * 0.618_034;
-            pts.extend([t.fract(), (t * 1.7).fract(), (t * 2.3).fract()].map(|u| -1.0 + 0.999 * u));
+            samples.push([t.fract(), (t * 1.7).fract(), (t * 2.3).fract()].map(|u| -1.0 + 0.999 * u));
+        }
+        let mut pts = Vec::new();
+        for b in 0..4 {
+            for p in &samples {
+                let mut q = *p;
+                if b > 0 {
+                    q[b - 1] += eps;
+                }
+                pts.extend(q);
+            }
         }
         let mut out = Vec::new();
         baked.forward_fd(&pts, m, &mut out);
         let mut plain_worst = 0.0f32;
-        for (r, p) in pts.chunks_exact(3).enumerate() {
-            let want = f([p[0], p[1], p[2]]);
+        for r in 0..4 * m {
+            let (s, p) = (r % m, samples[r % m]);
+            let want = if r < m { f(p) } else { f(p) + eps * grad_f(p)[r / m - 1] };
             assert!((out[r] - want).abs() < 2e-5, "point {r}: {} against {want}", out[r]);
-            let l = baked.locate(p).expect("inside the brick");
-            let (idx, wt) = baked.corners(&l);
-            let plain: f32 = (0..8).map(|i| wt[i] * baked.sdf[idx[i]]).sum();
-            plain_worst = plain_worst.max((plain - want).abs());
+            if r < m {
+                let l = baked.locate(&pts[3 * s..3 * s + 3]).expect("inside the brick");
+                let (idx, wt) = baked.corners(&l);
+                let plain: f32 = (0..8).map(|i| wt[i] * baked.sdf[idx[i]]).sum();
+                plain_worst = plain_worst.max((plain - want).abs());
+            }
         }
         assert!(plain_worst > 1e-3, "the plain mix misses the curvature: {plain_worst}");
     }
 
-    /// The baked SDF stays near the network's between lattice points (the field is smooth at the lattice's
-    /// scale).
+    /// The baked SDF and normals stay near the network's between lattice points (the field is smooth at the
+    /// lattice's scale).
     #[test]
     fn the_baked_sdf_is_near_the_networks_between_lattice_points() {
         let (field, occ) = field_and_shell();
-        let baked = BakedGeometry::bake(&field, &occ, 4);
+        let baked = BakedGeometry::bake(&field, &occ, 4, eps_of(&field));
         let m = 200;
         let pts = fd_points(&occ, m, 1e-3);
         let mut out = Vec::new();
@@ -489,7 +682,7 @@ mod tests {
     #[test]
     fn point_gradients_match_central_differences() {
         let (field, occ) = field_and_shell();
-        let baked = BakedGeometry::bake(&field, &occ, 3);
+        let baked = BakedGeometry::bake(&field, &occ, 3, eps_of(&field));
         let m = 40;
         let pts = fd_points(&occ, m, 1e-3);
         let width = baked.width();
@@ -513,11 +706,12 @@ mod tests {
         };
         let mut grad = vec![0.0f32; 4 * m * 3];
         baked.backward_fd_points(&pts, m, &weights, &mut grad);
-        // A step well inside a lattice cell (the interpolant is piecewise smooth), for points not on a face.
+        // A step well inside a lattice cell (the interpolant is piecewise smooth), for samples not on a face.
         let h = 1e-4f32;
         let mut checked = 0;
         for (j, &g) in grad.iter().enumerate() {
-            let frac = ((pts[j] + 1.0) / baked.step()).fract();
+            let sample = pts[(j / 3 % m) * 3 + j % 3];
+            let frac = ((sample + 1.0) / baked.step()).fract();
             if !(0.05..0.95).contains(&frac) {
                 continue;
             }
@@ -539,12 +733,8 @@ mod tests {
         let mut cells = vec![0u8; 8 * 8 * 8];
         cells[0] = 1;
         let occ = OccupancyGrid::from_cells(8, cells);
-        let baked = BakedGeometry::bake(&field, &occ, 2);
-        assert_eq!(
-            baked.bricks(),
-            4,
-            "the corner cell and the cells after it along x, y and z"
-        );
+        let baked = BakedGeometry::bake(&field, &occ, 2, eps_of(&field));
+        assert_eq!(baked.bricks(), 1, "the occupied cell alone");
         let far = [0.9f32, 0.9, 0.9];
         let pts: Vec<f32> = (0..4).flat_map(|_| far).collect();
         let mut out = Vec::new();

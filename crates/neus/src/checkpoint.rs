@@ -41,10 +41,9 @@ pub struct LoadedField {
 }
 
 impl LoadedField {
-    /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid (see
-    /// [`crate::baked_geometry`]); `sub = 0` drops a bake. Refused (an error naming why) for one step a cell, and
-    /// where the field's finite-difference step (its finest hash cell) is not under a cell: the normals'
-    /// neighbours would leave the bricks.
+    /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid, its normals at the
+    /// renderer's finite-difference step (see [`crate::baked_geometry`]); `sub = 0` drops a bake. Refused (an
+    /// error naming why) for one step a cell: the SDF's curvature, which the lookup takes off, needs two.
     pub fn bake(&mut self, sub: usize) -> Result<(), String> {
         self.baked = None;
         if sub == 0 {
@@ -53,16 +52,8 @@ impl LoadedField {
         if sub < 2 {
             return Err(format!("{sub} lattice step a cell: at least 2 (0: not baked)"));
         }
-        let (finest, cell) = (
-            2.0 / self.config.field.grid.max_resolution as f32,
-            self.occupancy.cell_size(),
-        );
-        if finest >= cell {
-            return Err(format!(
-                "its finest hash cell ({finest}) is not under its occupancy cell ({cell}): not baked"
-            ));
-        }
-        self.baked = Some(BakedGeometry::bake(&self.field, &self.occupancy, sub));
+        let fd_eps = crate::render_view::RenderSettings::of(self).fd_eps;
+        self.baked = Some(BakedGeometry::bake(&self.field, &self.occupancy, sub, fd_eps));
         Ok(())
     }
 }

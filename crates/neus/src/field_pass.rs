@@ -119,23 +119,6 @@ impl FieldPass {
         set: PassSettings,
     ) {
         let m = t.len();
-        // A baked geometry's normals from differences a lattice step apart: within a lattice cell the
-        // interpolated SDF's gradient is smooth and bends mostly at the cell's faces, so differences a smaller
-        // step apart see the surface's curvature as jumps that no pose gradient reaches (the depth's pose
-        // gradient 4.5 % off central differences, the test's bound 3 %); a step's differences are continuous and
-        // their slope is the curvature.
-        let set = PassSettings {
-            fd_eps: baked.map_or(set.fd_eps, |b| set.fd_eps.max(b.step())),
-            ..set
-        };
-        if let Some(b) = baked {
-            assert!(
-                set.fd_eps < b.cell(),
-                "FieldPass: differences {} apart leave a baked geometry's bricks (cells {})",
-                set.fd_eps,
-                b.cell()
-            );
-        }
         self.settings = Some(set);
         self.baked = baked.is_some();
         fd_points(origins, dirs, offsets, t, set.fd_eps, &mut self.points, &mut self.dirs);

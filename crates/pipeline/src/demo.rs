@@ -69,7 +69,7 @@ pub struct DemoArgs {
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
-/// of 2026-12-07 (214aa56 and after), the large tabletop of 2026-11-27 (/tmp runs of `synth --scale large`,
+/// of 2026-12-07 (214aa56 and after; its fits with the object baked, the afternoon's), the large tabletop of 2026-11-27 (/tmp runs of `synth --scale large`,
 /// training 1500 steps) with its fits of 2026-12-07, `--quick` alone with the test build's binary on
 /// 2026-12-07, the raw preset's synth and import of 2026-12-06. A fit is per body in the video.
 pub(crate) struct Expected {
@@ -143,7 +143,7 @@ pub(crate) const FULL: Plan = Plan {
         object: 66.0,
         merge: 21.0,
         bake: 3.0,
-        fit_per_body: 150.0,
+        fit_per_body: 86.0,
         eval: 2.0,
     },
 };

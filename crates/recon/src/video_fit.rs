@@ -78,13 +78,10 @@ pub struct VideoFitConfig {
     /// to 3.24. Default true.
     pub finer_step_round: bool,
     /// The objects' geometry baked this many lattice steps a cell of their occupancy grids before the fit
-    /// (`neus::baked_geometry`: the SDF and the colour MLP's features read by trilinear interpolation in
-    /// place of the hash grid and SDF MLP at every sample and its three finite-difference neighbours); 0: the
-    /// network at every sample (the default). 4 makes a fit 2–2.5× faster and the demo's fits as accurate, but a
-    /// body small in the image drifts along the line of sight: the toss test's ball (14 px wide) 5.5 mm in its
-    /// worst frame against 2.8 with the network, the 320 × 240 slide's resting frames 0.57 mm nearer the
-    /// camera against 0.13 (the baked window renders 0.06 % less opaque; profile notebook). Not the default
-    /// until that is found.
+    /// (`neus::baked_geometry`: the SDF, the colour MLP's features and the normals read by trilinear
+    /// interpolation in place of the hash grid and SDF MLP at every sample); 0: the network at every sample.
+    /// The default 4 makes the demo's fits 1.7× faster and the 320 × 240 ones about 2× (profile notebook). A
+    /// fit folder written before the bake has no key and reads 0 (it resumes as it began).
     #[serde(default)]
     pub bake_object: usize,
 }
@@ -124,7 +121,7 @@ impl Default for VideoFitConfig {
             rounds: 1,
             carve_scene: true,
             finer_step_round: true,
-            bake_object: 0,
+            bake_object: 4,
         }
     }
 }

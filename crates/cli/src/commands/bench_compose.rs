@@ -248,9 +248,18 @@ fn baked_against_network(
         let diff: f64 = r.clone().map(|k| (bg[k] - ng[k]).powi(2)).sum::<f64>().sqrt();
         diff / r.map(|k| ng[k].powi(2)).sum::<f64>().sqrt().max(1e-12)
     };
+    // Where the baked render is less opaque: rays the network draws opaque, and the silhouette's edge.
+    let deficit = |keep: fn(f32) -> bool| -> f32 {
+        nop.iter()
+            .zip(&bop)
+            .filter(|(n, _)| keep(**n))
+            .map(|(n, b)| n - b)
+            .sum()
+    };
     serde_json::json!({"bench": "compose", "case": "baked against the network", "rays": o.len(),
         "psnr_db": -10.0 * mse.max(1e-12).log10(), "worst_colour": worst, "worst_opacity": opacity,
         "translation_gradient_rel": rel(0..3), "rotation_gradient_rel": rel(3..6),
         "opacity_sum_baked": bop.iter().sum::<f32>(), "opacity_sum_network": nop.iter().sum::<f32>(),
+        "opacity_deficit_inside": deficit(|n| n > 0.99), "opacity_deficit_edge": deficit(|n| n <= 0.99),
         "gradient_baked": bg, "gradient_network": ng})
 }
