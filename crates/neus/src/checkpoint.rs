@@ -35,26 +35,52 @@ pub struct LoadedField {
     pub radius: f64,
     /// The capture it was trained on.
     pub capture: PathBuf,
-    /// Its geometry baked for rendering once it no longer trains ([`LoadedField::bake`]); the composer reads it
-    /// in place of the hash grid and SDF MLP when present (`render_view` does not).
-    pub baked: Option<BakedGeometry>,
+    /// Lattice steps a cell its geometry is baked at for rendering ([`LoadedField::bake`]; 0: not baked).
+    pub(crate) bake_steps: usize,
+    /// The baked geometry, made by the first render that reads it ([`LoadedField::baked`]): a merged object's
+    /// field that no camera of a video routes to is never baked.
+    pub(crate) baked: std::sync::OnceLock<BakedGeometry>,
 }
 
 impl LoadedField {
     /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid, its normals at the
-    /// renderer's finite-difference step (see [`crate::baked_geometry`]); `sub = 0` drops a bake. Refused (an
-    /// error naming why) for one step a cell: the SDF's curvature, which the lookup takes off, needs two.
+    /// renderer's finite-difference step (see [`crate::baked_geometry`]), on the first render that reads it;
+    /// `sub = 0` drops a bake. Refused (an error naming why) for one step a cell: the SDF's curvature, which
+    /// the lookup takes off, needs two.
     pub fn bake(&mut self, sub: usize) -> Result<(), String> {
-        self.baked = None;
-        if sub == 0 {
-            return Ok(());
-        }
-        if sub < 2 {
+        if sub == 1 {
             return Err(format!("{sub} lattice step a cell: at least 2 (0: not baked)"));
         }
-        let fd_eps = crate::render_view::RenderSettings::of(self).fd_eps;
-        self.baked = Some(BakedGeometry::bake(&self.field, &self.occupancy, sub, fd_eps));
+        self.bake_steps = sub;
+        self.baked = std::sync::OnceLock::new();
         Ok(())
+    }
+
+    /// Lattice steps a cell the geometry is baked at (0: the network is read).
+    pub fn bake_steps(&self) -> usize {
+        self.bake_steps
+    }
+
+    /// The baked geometry the composer reads in place of the hash grid and SDF MLP (`render_view` does not),
+    /// made now if this is its first use; None when not baked.
+    pub fn baked(&self) -> Option<&BakedGeometry> {
+        if self.bake_steps == 0 {
+            return None;
+        }
+        Some(self.baked.get_or_init(|| {
+            let t = std::time::Instant::now();
+            let fd_eps = crate::render_view::RenderSettings::of(self).fd_eps;
+            let b = BakedGeometry::bake(&self.field, &self.occupancy, self.bake_steps, fd_eps);
+            tracing::info!(
+                "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
+                self.capture.display(),
+                1e3 * b.step() as f64 * self.radius,
+                b.bricks(),
+                b.bytes() as f64 / 1e6,
+                t.elapsed().as_secs_f64()
+            );
+            b
+        }))
     }
 }
 
@@ -224,7 +250,8 @@ fn load_from(st: &SafeTensors, path: &Path) -> Result<LoadedField, CheckpointErr
         config,
         field,
         occupancy,
-        baked: None,
+        bake_steps: 0,
+        baked: Default::default(),
     })
 }
 

@@ -405,7 +405,7 @@ impl Composer {
             st.inv_s = f.inv_s();
             st.eval.forward(
                 f,
-                layer.field.baked.as_ref(),
+                layer.field.baked(),
                 &st.origins,
                 &st.dirs,
                 &st.all_offsets,
@@ -637,7 +637,7 @@ impl Composer {
             st.d_dir.resize(m, [0.0; 3]);
             st.eval.backward_inputs(
                 &layer.field.field,
-                layer.field.baked.as_ref(),
+                layer.field.baked(),
                 &st.d_sdf,
                 &st.d_cos,
                 &st.d_rgb,

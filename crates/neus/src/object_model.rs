@@ -159,23 +159,12 @@ fn capture_name(field: &LoadedField) -> String {
 
 impl ObjectModel {
     /// Bake each field's geometry `sub` lattice steps a cell of its occupancy grid for the renders that
-    /// follow ([`LoadedField::bake`]; 0 drops a bake): the object no longer trains.
+    /// follow, on its first use ([`LoadedField::bake`]; 0 drops a bake): the object no longer trains.
     pub fn bake(&mut self, sub: usize) -> Result<(), ObjectError> {
         for f in std::iter::once(&mut self.primary).chain(self.other.as_mut()) {
-            let t = std::time::Instant::now();
             f.field
                 .bake(sub)
                 .map_err(|msg| invalid(&self.source, format!("bake_object = {sub}: {msg}")))?;
-            if let Some(b) = &f.field.baked {
-                tracing::info!(
-                    "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
-                    self.source.display(),
-                    1e3 * b.step() as f64 * f.field.radius,
-                    b.bricks(),
-                    b.bytes() as f64 / 1e6,
-                    t.elapsed().as_secs_f64()
-                );
-            }
         }
         Ok(())
     }

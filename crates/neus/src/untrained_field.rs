@@ -47,6 +47,7 @@ pub fn untrained_field(init: FieldInit, centre: Vec3<f64>, radius: f64, seed: u6
         centre,
         radius,
         capture: PathBuf::from("toy_b"),
-        baked: None,
+        bake_steps: 0,
+        baked: Default::default(),
     }
 }
