@@ -41,6 +41,12 @@ impl Default for HashGridConfig {
 }
 
 impl HashGridConfig {
+    /// The finest level's cell over the unit cube [-1, 1]³ (`2 / N_max`): the step a field's normals are
+    /// taken at by finite differences.
+    pub fn finest_cell(&self) -> f32 {
+        2.0 / self.max_resolution as f32
+    }
+
     /// Check ranges: `levels ≥ 1`, `F ∈ {1,2,4,8}`, `3 ≤ log2 T ≤ 28`, `1 ≤ N_min ≤ N_max ≤ 2^20`.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.levels == 0 {

@@ -510,7 +510,7 @@ mod tests {
 
     /// The network's step for its normals, as the renderer takes it.
     fn eps_of(field: &NeusField) -> f32 {
-        2.0 / field.config.grid.max_resolution as f32
+        field.config.grid.finest_cell()
     }
 
     /// The network's SDF at `points` and its forward-difference gradient `eps` apart, as the renderer takes it.

@@ -69,7 +69,8 @@ impl LoadedField {
         }
         Some(self.baked.get_or_init(|| {
             let t = std::time::Instant::now();
-            let fd_eps = crate::render_view::RenderSettings::of(self).fd_eps;
+            // The renderer's step (`RenderSettings::of`).
+            let fd_eps = self.config.field.grid.finest_cell();
             let b = BakedGeometry::bake(&self.field, &self.occupancy, self.bake_steps, fd_eps);
             tracing::info!(
                 "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",

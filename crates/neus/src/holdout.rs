@@ -25,9 +25,7 @@ fn settings(t: &NeusTrainer) -> RenderSettings {
         steps_per_ray: t.config.steps_per_ray * 2,
         max_samples_per_ray: t.config.max_samples_per_ray * 2,
         active_levels: levels,
-        fd_eps: t
-            .fd_eps(levels)
-            .min(2.0 / t.config.field.grid.max_resolution as f32 * 4.0),
+        fd_eps: t.fd_eps(levels).min(t.config.field.grid.finest_cell() * 4.0),
         view_independent: t.step < t.config.view_independent_steps,
         stop_transmittance: STOP_TRANSMITTANCE,
     }

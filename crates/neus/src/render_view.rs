@@ -70,7 +70,7 @@ impl RenderSettings {
             steps_per_ray: c.steps_per_ray * 2,
             max_samples_per_ray: c.max_samples_per_ray * 2,
             active_levels: g.levels,
-            fd_eps: 2.0 / g.max_resolution as f32,
+            fd_eps: g.finest_cell(),
             view_independent: l.step < c.view_independent_steps,
             stop_transmittance: STOP_TRANSMITTANCE,
         }

@@ -371,7 +371,7 @@ impl NeusTrainer {
     pub fn fd_eps(&self, levels: usize) -> f32 {
         let g = &self.config.field.grid;
         let res = g.base_resolution as f64 * g.growth_factor().powi(levels.max(1) as i32 - 1);
-        (2.0 / res as f32).max(2.0 / g.max_resolution as f32)
+        (2.0 / res as f32).max(g.finest_cell())
     }
 
     /// One optimisation step.
@@ -445,6 +445,15 @@ impl NeusTrainer {
             let jitter = self.rng.next_f64() as f32;
             sample_ray(grid, sc.rays_o[i], sc.rays_d[i], march, jitter, &mut sc.t, &mut sc.dt);
             sc.offsets.push(sc.t.len());
+        }
+        if cfg.stop_transmittance > 0.0 && step >= cfg.occupancy_warmup {
+            drop_samples_behind_surfaces(
+                &self.field,
+                levels,
+                (&sc.rays_o, &sc.rays_d),
+                (&mut sc.offsets, &mut sc.t, &mut sc.dt),
+                (anneal, cfg.stop_transmittance),
+            );
         }
         let m = sc.t.len();
         if m == 0 {
@@ -757,5 +766,167 @@ impl NeusTrainer {
             band,
             100.0 * self.occupancy.occupied_fraction()
         );
+    }
+}
+
+/// Drop each ray's samples after the one where its transmittance falls below `stop` (and one more), the
+/// transmittance estimated from the SDF alone: at every sample once, each section's opacity from the SDF there
+/// and its slope to the next sample (NeuS's own estimate where it places its fine samples). A fraction of the
+/// full pass's cost (one SDF evaluation a sample, no colour, no differences, no backward) for the samples
+/// behind every surface, which cost the full pass as much and move nothing.
+fn drop_samples_behind_surfaces(
+    field: &NeusField,
+    levels: usize,
+    (origins, dirs): (&[[f32; 3]], &[[f32; 3]]),
+    (offsets, t, dt): (&mut Vec<usize>, &mut Vec<f32>, &mut Vec<f32>),
+    (anneal, stop): (f32, f32),
+) {
+    let rays = offsets.len() - 1;
+    let mut points = Vec::with_capacity(3 * t.len());
+    for i in 0..rays {
+        let (o, d) = (origins[i], dirs[i]);
+        for &ti in &t[offsets[i]..offsets[i + 1]] {
+            points.extend([o[0] + ti * d[0], o[1] + ti * d[1], o[2] + ti * d[2]]);
+        }
+    }
+    const CHUNK: usize = 8192;
+    let width = 1 + field.config.feature_dim;
+    let sdf: Vec<f32> = points
+        .par_chunks(3 * CHUNK)
+        .flat_map_iter(|p| {
+            let (mut unit01, mut enc, mut input) = (Vec::new(), Vec::new(), Vec::new());
+            let mut scratch = MlpScratch::default();
+            let out = field.sdf_forward(p, levels, &mut unit01, &mut enc, &mut input, &mut scratch);
+            out.chunks_exact(width).map(|r| r[0]).collect::<Vec<f32>>()
+        })
+        .collect();
+    let inv_s = field.inv_s();
+    let mut kept = 0;
+    let mut new_offsets = Vec::with_capacity(offsets.len());
+    new_offsets.push(0);
+    for i in 0..rays {
+        let (a, b) = (offsets[i], offsets[i + 1]);
+        let mut end = b;
+        let mut trans = 1.0f32;
+        for k in a..b {
+            // The slope along the ray to the next sample, where the next is the section's neighbour; else none
+            // (a gap in the occupancy: no opacity claimed, the conservative side).
+            let cos = if k + 1 < b && t[k + 1] - t[k] <= 1.5 * dt[k].max(dt[k + 1]) {
+                (sdf[k + 1] - sdf[k]) / (t[k + 1] - t[k]).max(1e-12)
+            } else {
+                0.0
+            };
+            trans *= 1.0 - crate::volume::section_alpha(sdf[k], cos, dt[k], inv_s, anneal);
+            if trans < stop {
+                end = (k + 2).min(b);
+                break;
+            }
+        }
+        for k in a..end {
+            t[kept] = t[k];
+            dt[kept] = dt[k];
+            kept += 1;
+        }
+        new_offsets.push(kept);
+    }
+    t.truncate(kept);
+    dt.truncate(kept);
+    *offsets = new_offsets;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::neus_field::FieldConfig;
+    use crate::volume::render_ray;
+
+    /// Rays into a sharp surface: the samples behind it are dropped, the kept ones are a prefix of each ray's,
+    /// and the full pass renders the ray as it did with every sample.
+    #[test]
+    fn samples_behind_a_sharp_surface_are_dropped_and_the_render_keeps() {
+        let mut field = NeusField::new(&FieldConfig::default(), 3, 0.0);
+        field.extra[0] = 800f32.ln() / 10.0;
+        let levels = field.config.grid.levels;
+        let grid = OccupancyGrid::full(1);
+        let march = Marching {
+            steps: 512,
+            cap: 4096,
+            anchored: false,
+        };
+        let (mut origins, mut dirs) = (Vec::new(), Vec::new());
+        for i in 0..64 {
+            let a = i as f32 * 0.37;
+            let o = [0.2 * a.cos(), 0.2 * a.sin(), -1.5];
+            let target = [0.1 * (a * 1.3).sin(), 0.1 * (a * 0.7).cos(), 0.0];
+            let d: [f32; 3] = std::array::from_fn(|k| target[k] - o[k]);
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            origins.push(o);
+            dirs.push(d.map(|v| v / n));
+        }
+        let (mut t, mut dt, mut offsets) = (Vec::new(), Vec::new(), vec![0]);
+        for i in 0..origins.len() {
+            sample_ray(&grid, origins[i], dirs[i], march, 0.5, &mut t, &mut dt);
+            offsets.push(t.len());
+        }
+        let (all_t, all_dt, all_offsets) = (t.clone(), dt.clone(), offsets.clone());
+        let stop = 1e-3;
+        drop_samples_behind_surfaces(
+            &field,
+            levels,
+            (&origins, &dirs),
+            (&mut offsets, &mut t, &mut dt),
+            (1.0, stop),
+        );
+        assert!(
+            t.len() * 10 < all_t.len() * 8,
+            "{} of {} samples kept",
+            t.len(),
+            all_t.len()
+        );
+        let set = PassSettings {
+            active_levels: levels,
+            fd_eps: field.config.grid.finest_cell(),
+            view_independent: false,
+        };
+        let render = |offsets: &[usize], t: &[f32], dt: &[f32]| {
+            let mut pass = FieldPass::default();
+            pass.forward(&field, &origins, &dirs, offsets, t, set);
+            (0..origins.len())
+                .map(|i| {
+                    let (a, b) = (offsets[i], offsets[i + 1]);
+                    let x = RayInputs {
+                        sdf: &pass.sdf[a..b],
+                        cos: &pass.cos[a..b],
+                        dt: &dt[a..b],
+                        t: &t[a..b],
+                        rgb: &pass.rgb[a..b],
+                        inv_s: field.inv_s(),
+                        anneal: 1.0,
+                        background: [0.0; 3],
+                    };
+                    let (mut alpha, mut w) = (vec![0.0; b - a], vec![0.0; b - a]);
+                    render_ray(&x, &mut alpha, &mut w)
+                })
+                .collect::<Vec<_>>()
+        };
+        let (full, cut) = (render(&all_offsets, &all_t, &all_dt), render(&offsets, &t, &dt));
+        let mut opaque = 0;
+        for i in 0..origins.len() {
+            let (a, b) = (offsets[i], offsets[i + 1]);
+            assert_eq!(
+                t[a..b],
+                all_t[all_offsets[i]..all_offsets[i] + (b - a)],
+                "ray {i}: a prefix"
+            );
+            assert!(
+                (full[i].opacity - cut[i].opacity).abs() < 5.0 * stop,
+                "ray {i}: opacity"
+            );
+            for k in 0..3 {
+                assert!((full[i].rgb[k] - cut[i].rgb[k]).abs() < 5.0 * stop, "ray {i}: colour");
+            }
+            opaque += usize::from(full[i].opacity > 0.99);
+        }
+        assert!(opaque > 50, "{opaque} of 64 rays meet the surface");
     }
 }
