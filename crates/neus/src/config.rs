@@ -33,11 +33,6 @@ pub struct TrainConfig {
     pub occupancy_every: usize,
     /// Sample everywhere in the sphere for this many steps first. Default 200.
     pub occupancy_warmup: usize,
-    /// Once the occupancy grid is in use, drop each ray's samples after the one where its transmittance
-    /// (estimated from the SDF alone at every sample, before the step's full pass) falls below this, as
-    /// instant-ngp and NeuS2 stop a ray: what lies behind a surface adds at most this much to the ray's colour.
-    /// 0: every sample the march gives. Default 0.
-    pub stop_transmittance: f32,
     /// Steps over which NeuS's cosine annealing goes from 0 to 1. Default 500.
     pub anneal_end: usize,
     /// Colour ignores the view direction (only the constant spherical harmonic) for this many steps: the
@@ -118,7 +113,6 @@ impl Default for TrainConfig {
             occupancy_res: 64,
             occupancy_every: 16,
             occupancy_warmup: 200,
-            stop_transmittance: 0.0,
             anneal_end: 500,
             view_independent_steps: 0,
             eikonal_weight: 0.1,
@@ -213,12 +207,6 @@ impl TrainConfig {
             if !(v.is_finite() && v > 0.0) {
                 return Err(ConfigError::new(name, format!("must be positive, got {v}")));
             }
-        }
-        if !(self.stop_transmittance.is_finite() && (0.0..0.5).contains(&self.stop_transmittance)) {
-            return Err(ConfigError::new(
-                "stop_transmittance",
-                format!("must be 0 to 0.5, got {}", self.stop_transmittance),
-            ));
         }
         if !(self.average_last.is_finite() && (0.0..=1.0).contains(&self.average_last)) {
             return Err(ConfigError::new(
