@@ -105,7 +105,7 @@ impl FieldPass {
         self.forward_with(field, None, origins, dirs, offsets, t, set);
     }
 
-    /// [`Self::forward`], the geometry (SDF and features) read from `baked` when given (the field frozen:
+    /// [`Self::forward`], the geometry (SDF, features and normals) read from `baked` when given (the field frozen:
     /// [`crate::baked_geometry`]), the colour MLP still `field`'s.
     #[allow(clippy::too_many_arguments)]
     pub fn forward_with(
