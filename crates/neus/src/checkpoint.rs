@@ -38,9 +38,14 @@ pub struct LoadedField {
     /// Lattice steps a cell its geometry is baked at for rendering ([`LoadedField::bake`]; 0: not baked).
     pub(crate) bake_steps: usize,
     /// The baked geometry, made by the first render that reads it ([`LoadedField::baked`]): a merged object's
-    /// field that no camera of a video routes to is never baked.
-    pub(crate) baked: std::sync::OnceLock<BakedGeometry>,
+    /// field that no camera of a video routes to is never baked. None inside when over [`BAKE_BUDGET`].
+    pub(crate) baked: std::sync::OnceLock<Option<BakedGeometry>>,
 }
+
+/// At most this many lattice points are baked (about 0.7 GB and 8 s on two cores): a field whose occupancy
+/// grid is not yet refined (a short training: every cell occupied, 33 M points at 4 steps a cell, 2.9 GB and
+/// 35–40 s) is read through its network instead. The demo's toy bakes 2.5 M.
+pub const BAKE_BUDGET: usize = 8_000_000;
 
 impl LoadedField {
     /// Bake the field's geometry `sub` lattice steps a cell of its occupancy grid, its normals at the
@@ -67,21 +72,38 @@ impl LoadedField {
         if self.bake_steps == 0 {
             return None;
         }
-        Some(self.baked.get_or_init(|| {
-            let t = std::time::Instant::now();
-            // The renderer's step (`RenderSettings::of`).
-            let fd_eps = self.config.field.grid.finest_cell();
-            let b = BakedGeometry::bake(&self.field, &self.occupancy, self.bake_steps, fd_eps);
-            tracing::info!(
-                "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
-                self.capture.display(),
-                1e3 * b.step() as f64 * self.radius,
-                b.bricks(),
-                b.bytes() as f64 / 1e6,
-                t.elapsed().as_secs_f64()
-            );
-            b
-        }))
+        self.baked
+            .get_or_init(|| {
+                let occupied = self.occupancy.cells().iter().filter(|&&c| c != 0).count();
+                let points = occupied * (self.bake_steps + 1).pow(3);
+                if points > BAKE_BUDGET {
+                    tracing::info!(
+                        "{}: not baked ({occupied} occupied cells, {points} lattice points over the budget of \
+                         {BAKE_BUDGET}: its occupancy grid is not yet refined); the network is read",
+                        self.capture.display()
+                    );
+                    return None;
+                }
+                Some(self.bake_now())
+            })
+            .as_ref()
+    }
+
+    /// The lattice, made now (logged with its size and time).
+    fn bake_now(&self) -> BakedGeometry {
+        let t = std::time::Instant::now();
+        // The renderer's step (`RenderSettings::of`).
+        let fd_eps = self.config.field.grid.finest_cell();
+        let b = BakedGeometry::bake(&self.field, &self.occupancy, self.bake_steps, fd_eps);
+        tracing::info!(
+            "{}: geometry baked on a {:.2} mm lattice, {} bricks, {:.0} MB, {:.1} s",
+            self.capture.display(),
+            1e3 * b.step() as f64 * self.radius,
+            b.bricks(),
+            b.bytes() as f64 / 1e6,
+            t.elapsed().as_secs_f64()
+        );
+        b
     }
 }
 

@@ -261,6 +261,13 @@ fn a_bake_of_one_step_a_cell_is_refused_and_zero_drops_a_bake() {
     assert!(r.object.baked().is_some_and(|b| b.bricks() > 0));
     r.object.bake(0).unwrap();
     assert!(r.object.baked().is_none());
+    // A grid not yet refined (every cell occupied) would bake 33 M points: the network is read instead.
+    r.object.occupancy = OccupancyGrid::full(64);
+    r.object.bake(4).unwrap();
+    assert!(r.object.baked().is_none());
+    r.object.occupancy = OccupancyGrid::full(16);
+    r.object.bake(4).unwrap();
+    assert!(r.object.baked().is_some());
 }
 
 #[test]
