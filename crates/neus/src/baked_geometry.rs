@@ -208,11 +208,6 @@ impl BakedGeometry {
             + self.brick_of_cell.len())
     }
 
-    /// The occupancy grid's cell, unit coordinates: a brick's width.
-    pub fn cell(&self) -> f32 {
-        2.0 / self.res as f32
-    }
-
     /// The lattice's step, unit coordinates.
     pub fn step(&self) -> f32 {
         2.0 / (self.res * self.sub) as f32
@@ -295,12 +290,17 @@ impl BakedGeometry {
             .sum()
     }
 
-    /// The gradient in `p` (unit coordinates) of `d_sdf` times the SDF at `p`, plus `d_features` (when given)
-    /// dotted with its features, plus `d_grad` dotted with its interpolated normal gradient; zero outside
-    /// every brick.
-    fn point_gradient(&self, l: &Lookup, d_sdf: f32, d_features: Option<&[f32]>, d_grad: [f32; 3]) -> [f32; 3] {
+    /// The gradient in the looked-up point (unit coordinates; its corners and weights from [`Self::corners`])
+    /// of `d_sdf` times its SDF, plus `d_features` (when given) dotted with its features, plus `d_grad` dotted
+    /// with its interpolated normal gradient.
+    fn point_gradient(
+        &self,
+        (l, idx, wt): (&Lookup, &[usize; 8], &[f32; 8]),
+        d_sdf: f32,
+        d_features: Option<&[f32]>,
+        d_grad: [f32; 3],
+    ) -> [f32; 3] {
         let fdim = self.feature_dim;
-        let (idx, wt) = self.corners(l);
         let slopes = Self::corner_slopes(l.w);
         // The curvature's weights w_k (1 − w_k), and its interpolated values.
         let q = l.w.map(|w| w * (1.0 - w));
@@ -426,7 +426,8 @@ impl BakedGeometry {
                     let n: [f32; 3] = std::array::from_fn(|k| (0..8).map(|i| wt[i] * self.grad[idx[i]][k]).sum());
                     // Row k = s(p) + (q_k − p)_k n_k(p): s(p) is read by every row, n_k(p) by row k.
                     let d_grad: [f32; 3] = std::array::from_fn(|k| d_nb[k] * e[k]);
-                    let mut sum = self.point_gradient(&l, d[0] + d_nb.iter().sum::<f32>(), Some(&d[1..]), d_grad);
+                    let mut sum =
+                        self.point_gradient((&l, &idx, &wt), d[0] + d_nb.iter().sum::<f32>(), Some(&d[1..]), d_grad);
                     for (k, block) in neighbours.iter_mut().enumerate() {
                         block[r * 3 + k] = d_nb[k] * n[k];
                         sum[k] -= d_nb[k] * n[k];
