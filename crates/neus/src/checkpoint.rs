@@ -8,6 +8,7 @@ use crate::config::TrainConfig;
 use crate::dataset::Dataset;
 use crate::neus_field::NeusField;
 use crate::occupancy::OccupancyGrid;
+use crate::surface_band::CentreSdf;
 use crate::trainer::NeusTrainer;
 use geom::{SplitMix64, Vec3};
 use pganeus_io::{read_safetensors, write_safetensors, IoError, SafeTensors, Tensor, TensorData};
@@ -180,6 +181,11 @@ pub fn save(trainer: &NeusTrainer, path: &Path) -> Result<(), CheckpointError> {
     tensors.insert("adam.appearance.v".into(), f32_tensor(&app.adam.v));
     metadata.insert("appearance_adam_step".into(), app.adam.step.to_string());
     metadata.insert("rng".into(), trainer.rng.0.to_string());
+    // Where the refresh placed the surface inside each cell (`sample_band`): a resumed run keeps the same
+    // samples as an uninterrupted one.
+    if trainer.config.sample_band > 0.0 {
+        tensors.insert("centre_sdf".into(), f32_tensor(trainer.centre_sdf.values()));
+    }
     let bg_steps = trainer.bg_optim.iter().flat_map(|o| o.adam.iter().map(|a| a.step));
     metadata.insert(
         "adam_steps".into(),
@@ -309,6 +315,11 @@ pub fn resume(path: &Path, data: Dataset) -> Result<NeusTrainer, CheckpointError
         app.adam.m = floats(&st, path, "adam.appearance.m", n)?;
         app.adam.v = floats(&st, path, "adam.appearance.v", n)?;
         app.adam.step = parse(path, "appearance_adam_step", meta(&st, path, "appearance_adam_step")?)?;
+    }
+    if st.tensors.contains_key("centre_sdf") {
+        let res = t.config.occupancy_res;
+        let values = floats(&st, path, "centre_sdf", res * res * res)?;
+        t.centre_sdf = CentreSdf::from_values(res, values).expect("res³ values read");
     }
     if let Some(count) = st.metadata.get("average_count") {
         t.average.count = parse(path, "average_count", count)?;

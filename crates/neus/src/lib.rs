@@ -27,6 +27,7 @@ pub mod ray_rounds;
 pub mod render_view;
 pub mod stereo;
 pub mod surface;
+pub mod surface_band;
 pub mod switching;
 pub mod trainer;
 pub mod untrained_field;

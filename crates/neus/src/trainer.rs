@@ -17,6 +17,7 @@ use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::param_average::ParamAverage;
 use crate::stereo::stereo_points;
+use crate::surface_band::CentreSdf;
 use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
 use field::ConfigError;
 use field::{Adam, AdamConfig, GradMode, MlpScratch, Touched};
@@ -146,6 +147,8 @@ pub struct NeusTrainer {
     pub train_views: Vec<usize>,
     pub holdout_views: Vec<usize>,
     pub occupancy: OccupancyGrid,
+    /// The SDF the occupancy's refresh read at its cells' centres: where in a cell the surface lies.
+    pub centre_sdf: CentreSdf,
     pub step: usize,
     pub(crate) adam: [Adam; 4],
     pub(crate) bg_optim: Option<BackgroundOptim>,
@@ -286,6 +289,7 @@ impl NeusTrainer {
         let data_views = data.views.len();
         Ok(Self {
             occupancy: OccupancyGrid::full(config.occupancy_res),
+            centre_sdf: CentreSdf::unknown(config.occupancy_res),
             rng: SplitMix64::new(config.seed ^ 0xA5A5),
             config,
             field,
@@ -441,9 +445,17 @@ impl NeusTrainer {
             cap: cfg.max_samples_per_ray,
             anchored: false,
         };
+        // Within the density's reach of the surface and a margin for the centres' age and interpolation.
+        let reach = (step >= cfg.occupancy_warmup && cfg.sample_band > 0.0)
+            .then(|| 4.0 / self.field.inv_s() + cfg.sample_band * self.occupancy.cell_size());
         for i in 0..r {
             let jitter = self.rng.next_f64() as f32;
+            let from = sc.t.len();
             sample_ray(grid, sc.rays_o[i], sc.rays_d[i], march, jitter, &mut sc.t, &mut sc.dt);
+            if let Some(reach) = reach {
+                self.centre_sdf
+                    .keep_near_surface(sc.rays_o[i], sc.rays_d[i], reach, from, &mut sc.t, &mut sc.dt);
+            }
             sc.offsets.push(sc.t.len());
         }
         let m = sc.t.len();
@@ -750,6 +762,7 @@ impl NeusTrainer {
         // Within a cell's half-diagonal plus the width of the NeuS density (a few 1/s).
         let band = 0.5 * 3f32.sqrt() * self.occupancy.cell_size() * 1.5 + 4.0 / self.field.inv_s();
         self.occupancy.update(&idx, &sdf, band);
+        self.centre_sdf.record(&idx, &sdf);
         tracing::debug!(
             "step {}: occupancy refreshed on {} cells, band {:.4} (unit), {:.1} % occupied",
             self.step,

@@ -166,6 +166,39 @@ fn the_last_steps_are_averaged_into_the_field() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// With `sample_band`, a step past the warm-up keeps only the samples near the surface, fewer than every
+/// sample in an occupied cell (this early, with 1/s still wide, about 80 % of them); the steps before the
+/// grid is in use are the same.
+#[test]
+fn a_step_keeps_the_samples_near_the_surface() {
+    let dir = scratch("band");
+    let (capture, _, _) = ball_capture(&dir);
+    let mut cfg = tiny_config();
+    cfg.occupancy_warmup = 8;
+    cfg.occupancy_every = 4;
+    let banded_cfg = TrainConfig {
+        sample_band: 0.5,
+        ..cfg.clone()
+    };
+    let mut plain = NeusTrainer::new(cfg, Dataset::load(&capture).unwrap()).unwrap();
+    let mut banded = NeusTrainer::new(banded_cfg, Dataset::load(&capture).unwrap()).unwrap();
+    let (mut all, mut near) = (0, 0);
+    for step in 1..=40 {
+        let (p, b) = (plain.step(), banded.step());
+        if step <= 8 {
+            assert_eq!(p.samples, b.samples, "step {step}: the grid is not in use yet");
+        } else if step > 24 {
+            all += p.samples;
+            near += b.samples;
+        }
+    }
+    assert!(
+        near > 0 && 10 * near < 9 * all,
+        "{near} samples near the surface against {all}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 fn round_trip(name: &str, mut cfg: TrainConfig) {
     let dir = scratch(name);
     let (capture, _, _) = ball_capture(&dir);
@@ -174,6 +207,8 @@ fn round_trip(name: &str, mut cfg: TrainConfig) {
     // state is part of what must round-trip.
     cfg.occupancy_warmup = 8;
     cfg.occupancy_every = 4;
+    // Keep only the samples near the surface (a scene's default): where the refresh placed it is state too.
+    cfg.sample_band = 0.5;
     let mut straight = NeusTrainer::new(cfg.clone(), Dataset::load(&capture).unwrap()).unwrap();
     for _ in 0..30 {
         straight.step();
@@ -209,6 +244,12 @@ fn round_trip(name: &str, mut cfg: TrainConfig) {
         _ => panic!("the background field did not survive the checkpoint"),
     }
     assert_eq!(resumed.occupancy.cells(), straight.occupancy.cells());
+    // Where the refresh put the surface inside the cells decides which samples a step keeps (`sample_band`).
+    let bits = |t: &NeusTrainer| t.centre_sdf.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert!(
+        bits(&resumed) == bits(&straight),
+        "the SDF at the cells' centres must round-trip"
+    );
     assert!(
         straight.occupancy.cells().contains(&0),
         "the grid should have been refreshed (some cells empty)"
