@@ -75,7 +75,7 @@ impl LoadedField {
         }
         self.baked
             .get_or_init(|| {
-                let occupied = self.occupancy.cells().iter().filter(|&&c| c != 0).count();
+                let occupied = self.occupancy.occupied_cells();
                 let points = occupied * (self.bake_steps + 1).pow(3);
                 if points > BAKE_BUDGET {
                     tracing::info!(

@@ -109,9 +109,14 @@ impl OccupancyGrid {
         Some((centre, radius))
     }
 
+    /// How many cells are occupied.
+    pub fn occupied_cells(&self) -> usize {
+        self.cells.iter().filter(|&&c| c != 0).count()
+    }
+
     /// Fraction of occupied cells.
     pub fn occupied_fraction(&self) -> f32 {
-        self.cells.iter().filter(|&&c| c != 0).count() as f32 / self.cells.len() as f32
+        self.occupied_cells() as f32 / self.cells.len() as f32
     }
 }
 
