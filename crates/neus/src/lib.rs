@@ -25,6 +25,7 @@ pub mod occupancy;
 pub mod param_average;
 pub mod ray_rounds;
 pub mod render_view;
+pub mod step_phases;
 pub mod stereo;
 pub mod surface;
 pub mod surface_band;

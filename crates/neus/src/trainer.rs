@@ -16,9 +16,10 @@ use crate::field_pass::{FieldPass, ParamGrads, PassSettings, SampleGrads};
 use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
 use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
 use crate::param_average::ParamAverage;
+use crate::step_phases::{Lap, StepPhases};
 use crate::stereo::stereo_points;
 use crate::surface_band::CentreSdf;
-use crate::volume::{render_ray, render_ray_backward, RayGrads, RayInputs};
+use crate::volume::{render_ray, render_ray_backward, section_alpha, RayGrads, RayInputs};
 use field::ConfigError;
 use field::{Adam, AdamConfig, GradMode, MlpScratch, Touched};
 use geom::SplitMix64;
@@ -67,6 +68,9 @@ pub struct StepStats {
     pub psnr: f32,
     pub rays: usize,
     pub samples: usize,
+    /// Rays the background field was run for: those whose light gets through their samples (0 without a
+    /// background field).
+    pub background_rays: usize,
     pub seconds: f64,
     pub lr: f32,
     pub inv_s: f32,
@@ -93,7 +97,34 @@ struct Scratch {
     d_behind: Vec<[f32; 3]>,
     bg_jitter: Vec<f32>,
     bg: BackgroundScratch,
+    /// Each ray's jitter along its march, drawn before the rays are marched in parallel.
+    march_jitter: Vec<f32>,
+    /// The samples of each chunk of rays, marched in parallel and then joined in ray order.
+    march_parts: Vec<MarchPart>,
+    /// The rays whose light gets through their samples to the background, and their origins and directions.
+    seen_behind: Vec<usize>,
+    behind_o: Vec<[f32; 3]>,
+    behind_d: Vec<[f32; 3]>,
+    /// The colour behind each ray of the batch.
+    behind: Vec<[f32; 3]>,
 }
+
+/// The samples of one chunk of a batch's rays.
+#[derive(Default)]
+struct MarchPart {
+    t: Vec<f32>,
+    dt: Vec<f32>,
+    /// Samples per ray of the chunk.
+    counts: Vec<usize>,
+}
+
+/// A ray whose transmittance through its samples falls below this sees nothing of the background field: its
+/// colour there would add less than a ten-thousandth to the pixel, so the field is not run for it (on a
+/// tabletop scene most rays end on the board inside the sphere).
+const BEHIND_MIN_TRANSMITTANCE: f32 = 1e-4;
+
+/// Rays marched together by one task: enough to amortise its start, few enough to share the cores.
+const MARCH_CHUNK: usize = 64;
 
 /// Adam state, gradients and touched hash entries of the background field.
 pub(crate) struct BackgroundOptim {
@@ -158,6 +189,8 @@ pub struct NeusTrainer {
     /// The running mean of the parameters over the run's last steps (`average_last`), put into the field
     /// after the last step.
     pub average: ParamAverage,
+    /// Seconds spent in each phase of the steps taken so far (not saved in checkpoints).
+    pub phases: StepPhases,
     touched: Touched,
     grads: [Vec<f32>; 4],
     scratch: Scratch,
@@ -301,6 +334,7 @@ impl NeusTrainer {
             bg_optim,
             appearance: AppearanceOptim::new(data_views),
             average: ParamAverage::default(),
+            phases: StepPhases::default(),
             touched,
             grads,
             scratch: Scratch::default(),
@@ -381,6 +415,7 @@ impl NeusTrainer {
     /// One optimisation step.
     pub fn step(&mut self) -> StepStats {
         let t0 = std::time::Instant::now();
+        let mut lap = Lap::start();
         let cfg = self.config.clone();
         let step = self.step;
         let lr = cfg.lr_at(step);
@@ -428,6 +463,8 @@ impl NeusTrainer {
             sc.bg_jitter.push(self.rng.next_f64() as f32);
         }
 
+        lap.charge(&mut self.phases.rays);
+
         // Samples where the occupancy grid allows.
         let everywhere;
         let grid = if step < cfg.occupancy_warmup {
@@ -448,16 +485,35 @@ impl NeusTrainer {
         // Within the density's reach of the surface and a margin for the centres' age and interpolation.
         let reach = (step >= cfg.occupancy_warmup && cfg.sample_band > 0.0)
             .then(|| 4.0 / self.field.inv_s() + cfg.sample_band * self.occupancy.cell_size());
-        for i in 0..r {
-            let jitter = self.rng.next_f64() as f32;
-            let from = sc.t.len();
-            sample_ray(grid, sc.rays_o[i], sc.rays_d[i], march, jitter, &mut sc.t, &mut sc.dt);
-            if let Some(reach) = reach {
-                self.centre_sdf
-                    .keep_near_surface(sc.rays_o[i], sc.rays_d[i], reach, from, &mut sc.t, &mut sc.dt);
-            }
-            sc.offsets.push(sc.t.len());
+        // The jitters drawn in ray order first, so the parallel march draws the stream a serial one would.
+        sc.march_jitter.clear();
+        for _ in 0..r {
+            sc.march_jitter.push(self.rng.next_f64() as f32);
         }
+        let chunks = r.div_ceil(MARCH_CHUNK);
+        sc.march_parts.resize_with(chunks, MarchPart::default);
+        let (rays_o, rays_d, jitters, centre_sdf) = (&sc.rays_o, &sc.rays_d, &sc.march_jitter, &self.centre_sdf);
+        sc.march_parts.par_iter_mut().enumerate().for_each(|(c, part)| {
+            part.t.clear();
+            part.dt.clear();
+            part.counts.clear();
+            for i in c * MARCH_CHUNK..((c + 1) * MARCH_CHUNK).min(r) {
+                let from = part.t.len();
+                sample_ray(grid, rays_o[i], rays_d[i], march, jitters[i], &mut part.t, &mut part.dt);
+                if let Some(reach) = reach {
+                    centre_sdf.keep_near_surface(rays_o[i], rays_d[i], reach, from, &mut part.t, &mut part.dt);
+                }
+                part.counts.push(part.t.len() - from);
+            }
+        });
+        for part in &sc.march_parts {
+            sc.t.extend_from_slice(&part.t);
+            sc.dt.extend_from_slice(&part.dt);
+            for &n in &part.counts {
+                sc.offsets.push(sc.offsets[sc.offsets.len() - 1] + n);
+            }
+        }
+        lap.charge(&mut self.phases.march);
         let m = sc.t.len();
         if m == 0 {
             // Every ray missed the occupied region: nothing to learn from this batch.
@@ -468,6 +524,7 @@ impl NeusTrainer {
                 psnr: 0.0,
                 rays: r,
                 samples: 0,
+                background_rays: 0,
                 seconds: t0.elapsed().as_secs_f64(),
                 lr,
                 inv_s: self.field.inv_s(),
@@ -485,13 +542,43 @@ impl NeusTrainer {
         self.pass
             .forward(&self.field, &sc.rays_o, &sc.rays_d, &sc.offsets, &sc.t, pass_settings);
         let (eik, overhang) = (self.pass.eikonal_sum, self.pass.overhang_sum);
+        lap.charge(&mut self.phases.field_forward);
 
-        // What lies behind each ray's samples.
-        let jit = &sc.bg_jitter;
-        self.field.colour_behind(&sc.rays_o, &sc.rays_d, |i| jit[i], &mut sc.bg);
+        // What lies behind each ray's samples: the background field's colour where light gets through them.
+        let inv_s = self.field.inv_s();
+        sc.seen_behind.clear();
+        if self.field.background.is_some() {
+            let (offsets, sdf0, cos, dt) = (&sc.offsets, &self.pass.sdf, &self.pass.cos, &sc.dt);
+            sc.seen_behind.extend((0..r).filter(|&i| {
+                let mut t = 1.0f32;
+                for s in offsets[i]..offsets[i + 1] {
+                    t *= 1.0 - section_alpha(sdf0[s], cos[s], dt[s], inv_s, anneal);
+                    if t < BEHIND_MIN_TRANSMITTANCE {
+                        return false;
+                    }
+                }
+                true
+            }));
+        } else {
+            sc.seen_behind.extend(0..r);
+        }
+        sc.behind_o.clear();
+        sc.behind_d.clear();
+        for &i in &sc.seen_behind {
+            sc.behind_o.push(sc.rays_o[i]);
+            sc.behind_d.push(sc.rays_d[i]);
+        }
+        let (jit, seen) = (&sc.bg_jitter, &sc.seen_behind);
+        self.field
+            .colour_behind(&sc.behind_o, &sc.behind_d, |j| jit[seen[j]], &mut sc.bg);
+        sc.behind.clear();
+        sc.behind.resize(r, self.field.background());
+        for (&i, &c) in sc.seen_behind.iter().zip(&sc.bg.out) {
+            sc.behind[i] = c;
+        }
+        lap.charge(&mut self.phases.background_forward);
 
         // Render, losses and their gradients, ray by ray.
-        let inv_s = self.field.inv_s();
         let count = if masked {
             sc.mask.iter().sum::<f32>().max(1.0)
         } else {
@@ -512,7 +599,7 @@ impl NeusTrainer {
             &self.pass.rgb,
             &sc.gt,
             &sc.mask,
-            &sc.bg.out,
+            &sc.behind,
             &sc.view,
         );
         let mask_w = cfg.mask_weight;
@@ -589,12 +676,11 @@ impl NeusTrainer {
         if learn_appearance {
             app.grads.iter_mut().for_each(|g| *g = 0.0);
         }
-        for ((l1, se, bce, dis, dbg, dmap), &v) in per_ray.iter().zip(&sc.view) {
+        for ((l1, se, bce, dis, _, dmap), &v) in per_ray.iter().zip(&sc.view) {
             loss.rgb += l1;
             sq += se;
             loss.mask += bce;
             d_inv_s += dis;
-            sc.d_behind.push(*dbg);
             if learn_appearance {
                 for (g, d) in app.grads[3 * v..3 * v + 3].iter_mut().zip(dmap) {
                     *g += d;
@@ -613,7 +699,9 @@ impl NeusTrainer {
                 }
             }
         }
-        // Through the background field to the colour at infinity.
+        lap.charge(&mut self.phases.render);
+        // Through the background field to the colour at infinity (from the rays it was run for).
+        sc.d_behind.extend(sc.seen_behind.iter().map(|&i| per_ray[i].4));
         let d_bg = match (&self.field.background, &mut self.bg_optim) {
             (Some(b), Some(opt)) => {
                 let [gg, gd, gc] = &mut opt.grads;
@@ -633,6 +721,7 @@ impl NeusTrainer {
                 .iter()
                 .fold([0.0f32; 3], |a, d| [a[0] + d[0], a[1] + d[1], a[2] + d[2]]),
         };
+        lap.charge(&mut self.phases.background_backward);
         loss.rgb /= count;
         loss.mask /= r as f32;
         loss.eikonal = (eik / m.max(1) as f64) as f32;
@@ -658,10 +747,14 @@ impl NeusTrainer {
             }),
             None,
         );
+        lap.charge(&mut self.phases.field_backward);
         let stereo_w = cfg.stereo_weight_at(step);
         if stereo_w > 0.0 {
+            self.stereo_points();
+            lap.charge(&mut self.phases.stereo_start);
             loss.stereo = self.stereo_term(stereo_w, levels);
         }
+        lap.charge(&mut self.phases.stereo);
         // inv_s = exp(10 v): dv = 10 inv_s d(inv_s); the background is clamped to [0, 1].
         self.grads[3][0] = d_inv_s * 10.0 * inv_s;
         for k in 0..3 {
@@ -702,11 +795,14 @@ impl NeusTrainer {
             ac.step_dense(&adam_cfg, lr, &mut b.color_params, gc);
         }
 
+        lap.charge(&mut self.phases.adam);
+
         self.step += 1;
         let averaged = self.step > cfg.average_start() && self.step <= cfg.iterations;
         if averaged {
             self.average.add(&self.field);
         }
+        lap.charge(&mut self.phases.average);
         if averaged && self.step == cfg.iterations {
             tracing::debug!(
                 "the field is the mean of the last {} steps' parameters",
@@ -722,6 +818,7 @@ impl NeusTrainer {
         } else if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
             self.refresh_occupancy();
         }
+        lap.charge(&mut self.phases.occupancy);
         if self.step.is_multiple_of(100) {
             tracing::debug!(
                 "step {}: {:.1} samples per ray, {} active levels, 1/s {:.0}, lr {:.2e}, {:.1} ms",
@@ -739,6 +836,11 @@ impl NeusTrainer {
             psnr,
             rays: r,
             samples: m,
+            background_rays: if self.field.background.is_some() {
+                self.scratch.seen_behind.len()
+            } else {
+                0
+            },
             seconds: t0.elapsed().as_secs_f64(),
             lr,
             inv_s,

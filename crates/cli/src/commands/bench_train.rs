@@ -136,6 +136,11 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
         pganeus_io::write_atomic(&out.join("config.toml"), toml::to_string(&t.config)?.as_bytes())?;
         neus::checkpoint::save(&t, &out.join("checkpoint.safetensors"))?;
     }
+    // Where the steps' time went, phase by phase (seconds over the whole run).
+    println!(
+        "{}",
+        serde_json::json!({"bench": "train", "phases_s": t.phases, "phases_total_s": t.phases.total()})
+    );
     println!(
         "{}",
         serde_json::json!({"bench": "train", "peak_memory_mib": peak_memory_mib()})
