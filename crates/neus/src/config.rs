@@ -163,7 +163,8 @@ impl TrainConfig {
                 // `sample_band` stays 0: on the demo's tabletop 0.5 cut 1500 steps from 292 to 246 s (28.06 against
                 // 28.15 dB, Chamfer 1.17 against 1.09 mm) and on the backdrop variant from 383 to 311 s, but the
                 // backdrop's slide fitted on that scene ended 5.3 mm off in its frame 1 (2.1–2.8 mm on scenes
-                // trained with every sample): off until fits over scene seeds say (profile notebook).
+                // trained with every sample): the field a centimetre off the surface, which the simulator reads,
+                // is no longer held to a distance by the eikonal term there (profile notebook).
                 view_independent_steps: 1000,
                 stereo_weight: 0.5,
                 stereo_steps: 1000,

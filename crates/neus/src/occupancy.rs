@@ -118,6 +118,42 @@ impl OccupancyGrid {
     pub fn occupied_fraction(&self) -> f32 {
         self.occupied_cells() as f32 / self.cells.len() as f32
     }
+
+    /// For every cell (x fastest), whether an occupied cell lies within `radius` cells of it along each axis
+    /// (a cube of side 2·radius + 1 about it): a max filter along x, then y, then z.
+    pub fn near_occupied(&self, radius: usize) -> Vec<bool> {
+        let r = self.res;
+        let mut near: Vec<bool> = self.cells.iter().map(|&c| c != 0).collect();
+        let mut line = vec![false; r];
+        let mut dist_before = vec![usize::MAX; r];
+        for (axis_stride, outer) in [(1, [r, r * r]), (r, [1, r * r]), (r * r, [1, r])] {
+            for a in 0..r {
+                for b in 0..r {
+                    let first = a * outer[0] + b * outer[1];
+                    for (i, v) in line.iter_mut().enumerate() {
+                        *v = near[first + i * axis_stride];
+                    }
+                    // Cells to the last occupied one before and the next after, within the radius.
+                    let mut last = None::<usize>;
+                    for (i, &v) in line.iter().enumerate() {
+                        if v {
+                            last = Some(i);
+                        }
+                        dist_before[i] = last.map_or(usize::MAX, |l| i - l);
+                    }
+                    let mut next = None::<usize>;
+                    for i in (0..r).rev() {
+                        if line[i] {
+                            next = Some(i);
+                        }
+                        let after = next.map_or(usize::MAX, |n| n - i);
+                        near[first + i * axis_stride] = dist_before[i].min(after) <= radius;
+                    }
+                }
+            }
+        }
+        near
+    }
 }
 
 /// Where a ray enters and leaves the unit sphere (`None` if it misses).
@@ -334,6 +370,37 @@ mod tests {
             }
         }
         (out_t, out_dt)
+    }
+
+    /// The near-occupied mask is the cube about every occupied cell, as a direct search finds it.
+    #[test]
+    fn near_occupied_marks_the_cube_about_every_occupied_cell() {
+        let res = 12;
+        let mut rng = SplitMix64::new(3);
+        let cells: Vec<u8> = (0..res * res * res).map(|_| u8::from(rng.next_f64() < 0.01)).collect();
+        let grid = OccupancyGrid::from_cells(res, cells.clone());
+        for radius in [0, 1, 3] {
+            let near = grid.near_occupied(radius);
+            for z in 0..res {
+                for y in 0..res {
+                    for x in 0..res {
+                        let want = (0..res * res * res).any(|j| {
+                            let (jx, jy, jz) = (j % res, (j / res) % res, j / (res * res));
+                            cells[j] != 0
+                                && jx.abs_diff(x) <= radius
+                                && jy.abs_diff(y) <= radius
+                                && jz.abs_diff(z) <= radius
+                        });
+                        assert_eq!(
+                            near[(z * res + y) * res + x],
+                            want,
+                            "radius {radius} at ({x}, {y}, {z})"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(grid.near_occupied(1).iter().filter(|&&n| n).count() > cells.iter().filter(|&&c| c != 0).count());
     }
 
     /// Jumping over empty cells finds exactly the samples a test of every step finds, bit for bit: sparse and

@@ -123,6 +123,12 @@ struct MarchPart {
 /// tabletop scene most rays end on the board inside the sphere).
 const BEHIND_MIN_TRANSMITTANCE: f32 = 1e-4;
 
+/// A refresh reads the cells within this many cells of an occupied one; the others (empty space, where
+/// nothing samples the field) only in every [`FAR_SWEEP_EVERY`]-th sweep over the grid: on a scene at 128³
+/// about nine in ten cells.
+const NEAR_CELLS: usize = 4;
+const FAR_SWEEP_EVERY: usize = 4;
+
 /// Rays marched together by one task: enough to amortise its start, few enough to share the cores.
 const MARCH_CHUNK: usize = 64;
 
@@ -812,7 +818,7 @@ impl NeusTrainer {
             // The mean's surface is not any iterate's: every cell again (once the grid is in use at all).
             if self.step >= cfg.occupancy_warmup {
                 for part in 0..4 {
-                    self.refresh_occupancy_part(part);
+                    self.refresh_occupancy_part(part, true);
                 }
             }
         } else if self.step >= cfg.occupancy_warmup && self.step.is_multiple_of(cfg.occupancy_every) {
@@ -851,14 +857,21 @@ impl NeusTrainer {
 
     /// Re-evaluate the SDF at the centres of a quarter of the cells (a
     /// different quarter each time); mark those within reach of the surface.
+    /// Cells far from every occupied one are read in every fourth sweep only.
     pub fn refresh_occupancy(&mut self) {
-        self.refresh_occupancy_part((self.step / self.config.occupancy_every.max(1)) % 4);
+        let refresh = self.step / self.config.occupancy_every.max(1);
+        self.refresh_occupancy_part(refresh % 4, (refresh / 4).is_multiple_of(FAR_SWEEP_EVERY));
     }
 
-    /// Re-evaluate the quarter `part` (0–3) of the occupancy cells.
-    fn refresh_occupancy_part(&mut self, part: usize) {
+    /// Re-evaluate the quarter `part` (0–3) of the occupancy cells: all of them, or those near an occupied
+    /// cell (a grid that starts full is read whole until its empty space shows).
+    fn refresh_occupancy_part(&mut self, part: usize, every_cell: bool) {
         let cells = self.occupancy.cells().len();
-        let idx: Vec<usize> = (part..cells).step_by(4).collect();
+        let near = (!every_cell).then(|| self.occupancy.near_occupied(NEAR_CELLS));
+        let idx: Vec<usize> = (part..cells)
+            .step_by(4)
+            .filter(|&i| near.as_ref().is_none_or(|n| n[i]))
+            .collect();
         let pts: Vec<f32> = idx.iter().flat_map(|&i| self.occupancy.centre(i)).collect();
         let sdf = self.field.sdf_values(&pts, self.config.active_levels(self.step));
         // Within a cell's half-diagonal plus the width of the NeuS density (a few 1/s).
