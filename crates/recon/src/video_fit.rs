@@ -373,12 +373,14 @@ pub fn evaluate_poses(
     others: &[(&ObjectModel, &[Pose<f64>])],
     weights: &ImageLossWeights,
 ) -> Result<Vec<ImageLoss>, FrameError> {
-    let mut composer = Composer::default();
+    // Frames side by side, each with its own composer: a frame's window is a few thousand rays, too few to
+    // keep two cores busy alone.
+    use rayon::prelude::*;
     frames
-        .iter()
+        .par_iter()
         .zip(poses)
         .enumerate()
-        .map(|(k, (f, pose))| {
+        .map_init(Composer::default, |composer, (k, (f, pose))| {
             let mut prepared = PreparedFrame::new(f, scene)?;
             prepared.set_motion(motions.get(k).copied().flatten());
             prepared.set_occluders(
@@ -388,7 +390,7 @@ pub fn evaluate_poses(
                     .collect(),
             );
             Ok(if prepared.has_mask() {
-                prepared.evaluate(&mut composer, object, scene, pose, weights)
+                prepared.evaluate(composer, object, scene, pose, weights)
             } else {
                 ImageLoss::default()
             })

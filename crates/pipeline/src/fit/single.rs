@@ -1001,6 +1001,7 @@ fn finish(
     timings: &Map<String, Value>,
     outcome: &mut FitOutcome,
 ) -> Result<()> {
+    let t_finish = Instant::now();
     let ga = pga.map(|p| p.ga.as_slice());
     let traj = world.simulate(&world.params());
     let n = job.frames.len();
@@ -1039,6 +1040,7 @@ fn finish(
         }
         None => (sim_poses.clone(), vec![ReportedPose::Simulated; n]),
     };
+    let t_scored = t_finish.elapsed().as_secs_f64();
     outcome.reported = Some(vec![reported
         .iter()
         .zip(&source)
@@ -1078,8 +1080,16 @@ fn finish(
         pb.inc(1);
     }
     pb.finish();
+    let t_rendered = t_finish.elapsed().as_secs_f64();
     pganeus_io::write_apng(&job.out.join("animation.png"), &pairs, job.fps)?;
     pganeus_io::write_png(&job.out.join("strip.png"), &strip(&pairs, 6))?;
+    tracing::info!(
+        "outputs: {:.1} s (the simulation and GA's poses scored {t_scored:.1} s, the frames rendered {:.1} s, \
+         the animation and the strip {:.1} s)",
+        t_finish.elapsed().as_secs_f64(),
+        t_rendered - t_scored,
+        t_finish.elapsed().as_secs_f64() - t_rendered
+    );
 
     let mut extra = Map::new();
     extra.insert("frames".into(), json!(rows));
