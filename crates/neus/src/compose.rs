@@ -23,15 +23,11 @@
 
 use crate::background_field::BackgroundScratch;
 use crate::checkpoint::LoadedField;
-use crate::occupancy::{sample_ray, sphere_span};
+use crate::occupancy::{sample_ray, sphere_span, BatchMarch};
 use crate::ray_rounds::RayRounds;
 use crate::render_view::RenderSettings;
 use crate::volume::{composite_alpha_backward, section_alpha_backward};
 use geom::{Camera, Pose, Vec3};
-use rayon::prelude::*;
-
-/// Rays per task of the parallel march.
-const MARCH_CHUNK: usize = 32;
 
 /// One field placed in the world for a render.
 pub struct Layer<'a> {
@@ -216,8 +212,7 @@ struct LayerState {
     all_offsets: Vec<usize>,
     all_t: Vec<f32>,
     all_dt: Vec<f32>,
-    /// One per chunk of the parallel march, kept so that a march allocates nothing once warm.
-    march: Vec<MarchChunk>,
+    march: BatchMarch,
     /// The samples evaluated (`offsets`, `t`, `dt`, `alpha`, …: per ray, front to back).
     eval: RayRounds,
     inv_s: f32,
@@ -226,14 +221,6 @@ struct LayerState {
     d_rgb: Vec<[f32; 3]>,
     d_point: Vec<[f32; 3]>,
     d_dir: Vec<[f32; 3]>,
-}
-
-/// What the march gives for one chunk of rays: where each ray's samples end, and the samples.
-#[derive(Default)]
-struct MarchChunk {
-    ends: Vec<usize>,
-    t: Vec<f32>,
-    dt: Vec<f32>,
 }
 
 /// A sample in a ray's merged depth order.
@@ -374,33 +361,18 @@ impl Composer {
                 st.origins.push(ou);
                 st.dirs.push(du);
             }
-            // Rays marched in parallel chunks, joined in ray order (the same samples as one after another):
-            // on one thread the march was a tenth of a pose fit's time, while the other core waited.
-            let chunks = st.origins.len().div_ceil(MARCH_CHUNK);
-            if st.march.len() < chunks {
-                st.march.resize_with(chunks, MarchChunk::default);
-            }
-            st.march[..chunks]
-                .par_iter_mut()
-                .zip(st.origins.par_chunks(MARCH_CHUNK))
-                .zip(st.dirs.par_chunks(MARCH_CHUNK))
-                .for_each(|((chunk, os), ds)| {
-                    chunk.ends.clear();
-                    chunk.t.clear();
-                    chunk.dt.clear();
-                    for (&ou, &du) in os.iter().zip(ds) {
-                        if layer.meets_unit(ou, du) {
-                            sample_ray(&layer.field.occupancy, ou, du, march, 0.5, &mut chunk.t, &mut chunk.dt);
-                        }
-                        chunk.ends.push(chunk.t.len());
+            let (os, ds) = (&st.origins, &st.dirs);
+            st.march.run(
+                os.len(),
+                |i, t, dt| {
+                    if layer.meets_unit(os[i], ds[i]) {
+                        sample_ray(&layer.field.occupancy, os[i], ds[i], march, 0.5, t, dt);
                     }
-                });
-            for chunk in &st.march[..chunks] {
-                let base = st.all_t.len();
-                st.all_offsets.extend(chunk.ends.iter().map(|e| base + e));
-                st.all_t.extend_from_slice(&chunk.t);
-                st.all_dt.extend_from_slice(&chunk.dt);
-            }
+                },
+                &mut st.all_offsets,
+                &mut st.all_t,
+                &mut st.all_dt,
+            );
             let f = &layer.field.field;
             st.inv_s = f.inv_s();
             st.eval.forward(

@@ -14,7 +14,7 @@ use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
 use crate::field_pass::{FieldPass, ParamGrads, PassSettings, SampleGrads};
 use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
-use crate::occupancy::{sample_ray, Marching, OccupancyGrid};
+use crate::occupancy::{sample_ray, BatchMarch, Marching, OccupancyGrid};
 use crate::param_average::ParamAverage;
 use crate::step_phases::{Lap, StepPhases};
 use crate::stereo::stereo_points;
@@ -99,23 +99,13 @@ struct Scratch {
     bg: BackgroundScratch,
     /// Each ray's jitter along its march, drawn before the rays are marched in parallel.
     march_jitter: Vec<f32>,
-    /// The samples of each chunk of rays, marched in parallel and then joined in ray order.
-    march_parts: Vec<MarchPart>,
+    march: BatchMarch,
     /// The rays whose light gets through their samples to the background, and their origins and directions.
     seen_behind: Vec<usize>,
     behind_o: Vec<[f32; 3]>,
     behind_d: Vec<[f32; 3]>,
     /// The colour behind each ray of the batch.
     behind: Vec<[f32; 3]>,
-}
-
-/// The samples of one chunk of a batch's rays.
-#[derive(Default)]
-struct MarchPart {
-    t: Vec<f32>,
-    dt: Vec<f32>,
-    /// Samples per ray of the chunk.
-    counts: Vec<usize>,
 }
 
 /// A ray whose transmittance through its samples falls below this sees nothing of the background field: its
@@ -128,9 +118,6 @@ const BEHIND_MIN_TRANSMITTANCE: f32 = 1e-4;
 /// about nine in ten cells.
 const NEAR_CELLS: usize = 4;
 const FAR_SWEEP_EVERY: usize = 4;
-
-/// Rays marched together by one task: enough to amortise its start, few enough to share the cores.
-const MARCH_CHUNK: usize = 64;
 
 /// Adam state, gradients and touched hash entries of the background field.
 pub(crate) struct BackgroundOptim {
@@ -496,29 +483,20 @@ impl NeusTrainer {
         for _ in 0..r {
             sc.march_jitter.push(self.rng.next_f64() as f32);
         }
-        let chunks = r.div_ceil(MARCH_CHUNK);
-        sc.march_parts.resize_with(chunks, MarchPart::default);
         let (rays_o, rays_d, jitters, centre_sdf) = (&sc.rays_o, &sc.rays_d, &sc.march_jitter, &self.centre_sdf);
-        sc.march_parts.par_iter_mut().enumerate().for_each(|(c, part)| {
-            part.t.clear();
-            part.dt.clear();
-            part.counts.clear();
-            for i in c * MARCH_CHUNK..((c + 1) * MARCH_CHUNK).min(r) {
-                let from = part.t.len();
-                sample_ray(grid, rays_o[i], rays_d[i], march, jitters[i], &mut part.t, &mut part.dt);
+        sc.march.run(
+            r,
+            |i, t, dt| {
+                let from = t.len();
+                sample_ray(grid, rays_o[i], rays_d[i], march, jitters[i], t, dt);
                 if let Some(reach) = reach {
-                    centre_sdf.keep_near_surface(rays_o[i], rays_d[i], reach, from, &mut part.t, &mut part.dt);
+                    centre_sdf.keep_near_surface(rays_o[i], rays_d[i], reach, from, t, dt);
                 }
-                part.counts.push(part.t.len() - from);
-            }
-        });
-        for part in &sc.march_parts {
-            sc.t.extend_from_slice(&part.t);
-            sc.dt.extend_from_slice(&part.dt);
-            for &n in &part.counts {
-                sc.offsets.push(sc.offsets[sc.offsets.len() - 1] + n);
-            }
-        }
+            },
+            &mut sc.offsets,
+            &mut sc.t,
+            &mut sc.dt,
+        );
         lap.charge(&mut self.phases.march);
         let m = sc.t.len();
         if m == 0 {
