@@ -51,20 +51,21 @@ impl OccupancyGrid {
 
     #[inline]
     pub fn occupied(&self, p: [f32; 3]) -> bool {
+        self.cell_at(p).is_some_and(|(_, idx)| self.cells[idx] != 0)
+    }
+
+    /// The cell coordinates of `p` (in cells, `[0, res)` on each axis) and its cell's index; `None` outside
+    /// the grid.
+    #[inline]
+    fn cell_at(&self, p: [f32; 3]) -> Option<([f32; 3], usize)> {
         let r = self.res as f32;
-        let mut idx = 0usize;
-        let mut mul = 1usize;
-        for &c in &p {
-            // In [0, r) the cast truncates as `floor` would, and x ∈ [0, r) ⇔ ⌊x⌋ ∈ [0, r) for an integer r:
-            // without SSE4.1 `floor` is a libm call, a tenth of a pose fit's time.
-            let g = (c + 1.0) * 0.5 * r;
-            if !(0.0..r).contains(&g) {
-                return false;
-            }
-            idx += g as usize * mul;
-            mul *= self.res;
+        let g = p.map(|c| (c + 1.0) * 0.5 * r);
+        // In [0, r) the cast truncates as `floor` would, and x ∈ [0, r) ⇔ ⌊x⌋ ∈ [0, r) for an integer r:
+        // without SSE4.1 `floor` is a libm call, a tenth of a pose fit's time.
+        if g.iter().any(|v| !(0.0..r).contains(v)) {
+            return None;
         }
-        self.cells[idx] != 0
+        Some((g, g[0] as usize + self.res * (g[1] as usize + self.res * g[2] as usize)))
     }
 
     /// Set cells from SDF values at their centres: occupied when `|sdf| ≤ band`.
@@ -280,7 +281,6 @@ const SKIP_MARGIN: f32 = 1e-3;
 /// in order. A step in
 /// an empty cell jumps past the later steps in that cell (by the ray's exit from it): the steps found are
 /// exactly those a test of every step finds, with a fraction of the lookups (a cell is 4–8 steps wide).
-#[derive(Clone)]
 struct MarchSteps<'a> {
     grid: &'a OccupancyGrid,
     o: [f32; 3],
@@ -353,7 +353,6 @@ impl Iterator for MarchSteps<'_> {
     type Item = f32;
 
     fn next(&mut self) -> Option<f32> {
-        let r = self.grid.res as f32;
         while self.k < self.n {
             let k = self.k;
             let t = self.base + (k as f32 + self.jitter) * self.dt;
@@ -370,14 +369,10 @@ impl Iterator for MarchSteps<'_> {
                 self.o[1] + t * self.d[1],
                 self.o[2] + t * self.d[2],
             ];
-            // The cell coordinates as `OccupancyGrid::occupied` computes them.
-            let g = p.map(|c| (c + 1.0) * 0.5 * r);
-            if g.iter().any(|v| !(0.0..r).contains(v)) {
+            let Some((g, idx)) = self.grid.cell_at(p) else {
                 self.k += 1;
                 continue;
-            }
-            let res = self.grid.res;
-            let idx = g[0] as usize + res * (g[1] as usize + res * g[2] as usize);
+            };
             if self.grid.cells[idx] != 0 {
                 self.k += 1;
                 return Some(t);
