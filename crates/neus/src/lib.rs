@@ -24,6 +24,7 @@ pub mod object_model;
 pub mod occupancy;
 pub mod param_average;
 pub mod ray_rounds;
+pub mod regulariser_points;
 pub mod render_view;
 pub mod step_phases;
 pub mod stereo;

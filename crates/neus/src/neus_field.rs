@@ -89,6 +89,19 @@ pub struct SdfBackwardScratch {
     d_unit01: Vec<f32>,
 }
 
+/// The buffers of an SDF-only pass at a batch of points, forward ([`NeusField::sdf_forward`]) and back
+/// ([`NeusField::sdf_backward`]) with the outputs' gradient in `d_out`: the stereo points' term and the
+/// regulariser points'.
+#[derive(Default)]
+pub struct SdfPassScratch {
+    pub unit01: Vec<f32>,
+    pub enc: Vec<f32>,
+    pub input: Vec<f32>,
+    pub mlp: MlpScratch,
+    pub d_out: Vec<f32>,
+    pub back: SdfBackwardScratch,
+}
+
 /// Input width of the SDF MLP: xyz then the encoding.
 pub const XYZ: usize = 3;
 

@@ -227,12 +227,13 @@ pub struct BatchMarch {
     chunks: Vec<MarchChunk>,
 }
 
-/// What the march gives for one chunk of rays: the samples, and where each ray's end.
+/// What the march gives for one chunk of rays: the samples, where each ray's end, and the points set aside.
 #[derive(Default)]
 struct MarchChunk {
     ends: Vec<usize>,
     t: Vec<f32>,
     dt: Vec<f32>,
+    points: Vec<[f32; 3]>,
 }
 
 /// Rays marched together by one task: enough to amortise its start, few enough to share the cores.
@@ -249,6 +250,21 @@ impl BatchMarch {
         t: &mut Vec<f32>,
         dt: &mut Vec<f32>,
     ) {
+        let mut none = Vec::new();
+        self.run_with_points(rays, |i, t, dt, _| march_ray(i, t, dt), offsets, t, dt, &mut none);
+    }
+
+    /// [`Self::run`], where a ray may also set points aside (`march_ray(i, t, dt, points)` appends them),
+    /// joined in ray order into `points`: a training step's regulariser points among the samples it drops.
+    pub fn run_with_points(
+        &mut self,
+        rays: usize,
+        march_ray: impl Fn(usize, &mut Vec<f32>, &mut Vec<f32>, &mut Vec<[f32; 3]>) + Sync,
+        offsets: &mut Vec<usize>,
+        t: &mut Vec<f32>,
+        dt: &mut Vec<f32>,
+        points: &mut Vec<[f32; 3]>,
+    ) {
         use rayon::prelude::*;
         let chunks = rays.div_ceil(MARCH_CHUNK);
         if self.chunks.len() < chunks {
@@ -258,8 +274,9 @@ impl BatchMarch {
             chunk.ends.clear();
             chunk.t.clear();
             chunk.dt.clear();
+            chunk.points.clear();
             for i in c * MARCH_CHUNK..((c + 1) * MARCH_CHUNK).min(rays) {
-                march_ray(i, &mut chunk.t, &mut chunk.dt);
+                march_ray(i, &mut chunk.t, &mut chunk.dt, &mut chunk.points);
                 chunk.ends.push(chunk.t.len());
             }
         });
@@ -268,6 +285,7 @@ impl BatchMarch {
             offsets.extend(chunk.ends.iter().map(|e| base + e));
             t.extend_from_slice(&chunk.t);
             dt.extend_from_slice(&chunk.dt);
+            points.extend_from_slice(&chunk.points);
         }
     }
 }

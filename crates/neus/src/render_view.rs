@@ -23,8 +23,7 @@ pub struct ViewImage {
     pub samples: usize,
 }
 
-/// Where rendering stops a ray (its transmittance through the field, see [`RenderSettings::stop_transmittance`]).
-pub const STOP_TRANSMITTANCE: f32 = 1e-3;
+pub use crate::volume::STOP_TRANSMITTANCE;
 
 /// Settings for rendering (the trainer's, or finer).
 #[derive(Clone, Copy, Debug)]

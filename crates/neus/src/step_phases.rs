@@ -21,6 +21,8 @@ pub struct StepPhases {
     pub background_backward: f64,
     /// Back through the colour and SDF networks and the grid to the parameters.
     pub field_backward: f64,
+    /// The eikonal and no-overhang terms at the regulariser points set aside among the dropped samples.
+    pub regulariser: f64,
     /// Finding the multi-view stereo points (once, at the first step that uses them).
     pub stereo_start: f64,
     /// The stereo points' term (forward and backward).
@@ -43,6 +45,7 @@ impl StepPhases {
             + self.render
             + self.background_backward
             + self.field_backward
+            + self.regulariser
             + self.stereo_start
             + self.stereo
             + self.adam

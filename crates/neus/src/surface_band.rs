@@ -76,7 +76,9 @@ impl CentreSdf {
     }
 
     /// Drop the samples `t[from..]` (with their `dt`) of the ray `o + t d` whose interpolated SDF lies further
-    /// than `reach` from zero; samples where it is unknown stay.
+    /// than `reach` from zero, telling `dropped` where each lies along the ray (in order); samples where it is
+    /// unknown stay.
+    #[allow(clippy::too_many_arguments)]
     pub fn keep_near_surface(
         &self,
         o: [f32; 3],
@@ -85,6 +87,7 @@ impl CentreSdf {
         from: usize,
         t: &mut Vec<f32>,
         dt: &mut Vec<f32>,
+        mut dropped: impl FnMut(f32),
     ) {
         let mut kept = from;
         for s in from..t.len() {
@@ -93,6 +96,8 @@ impl CentreSdf {
                 t[kept] = t[s];
                 dt[kept] = dt[s];
                 kept += 1;
+            } else {
+                dropped(t[s]);
             }
         }
         t.truncate(kept);
@@ -132,7 +137,8 @@ mod tests {
         assert!(CentreSdf::unknown(4).at([0.0; 3]).is_none());
     }
 
-    /// A ray down through a plane keeps the samples within reach of it and those with no value, in order.
+    /// A ray down through a plane keeps the samples within reach of it and those with no value, in order, and
+    /// tells where the others lay.
     #[test]
     fn a_ray_keeps_its_samples_within_reach_of_the_surface() {
         let c = plane(32, 0.0);
@@ -143,10 +149,12 @@ mod tests {
         let (mut t0, mut dt0) = (vec![7.0], vec![7.0]);
         t0.extend(&t);
         dt0.extend(&dt);
-        c.keep_near_surface(o, d, 0.03, 1, &mut t0, &mut dt0);
+        let mut dropped = Vec::new();
+        c.keep_near_surface(o, d, 0.03, 1, &mut t0, &mut dt0, |t| dropped.push(t));
         assert_eq!(t0, vec![7.0, 0.8, 1.99, 2.02]);
         assert_eq!(dt0, vec![7.0, 0.1, 0.4, 0.5]);
-        c.keep_near_surface(o, d, 1.0, 0, &mut t, &mut dt);
+        assert_eq!(dropped, vec![1.5, 1.95, 2.3], "the others, in order");
+        c.keep_near_surface(o, d, 1.0, 0, &mut t, &mut dt, |_| panic!("nothing is dropped"));
         assert_eq!(t.len(), 6, "everything within a unit of the plane stays");
     }
 }

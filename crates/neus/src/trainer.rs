@@ -13,15 +13,16 @@ use crate::background_field::{BackgroundField, BackgroundGrads, BackgroundScratc
 use crate::config::{CaptureSubject, TrainConfig};
 use crate::dataset::Dataset;
 use crate::field_pass::{FieldPass, ParamGrads, PassSettings, SampleGrads};
-use crate::neus_field::{NeusField, SdfBackwardScratch, SdfGrads};
+use crate::neus_field::{NeusField, SdfGrads, SdfPassScratch};
 use crate::occupancy::{sample_ray, BatchMarch, Marching, OccupancyGrid};
 use crate::param_average::ParamAverage;
+use crate::regulariser_points::{RegulariserPoints, RegulariserWeights, REGULARISER_EVERY};
 use crate::step_phases::{Lap, StepPhases};
 use crate::stereo::stereo_points;
 use crate::surface_band::CentreSdf;
-use crate::volume::{render_ray, render_ray_backward, section_alpha, RayGrads, RayInputs};
+use crate::volume::{render_ray, render_ray_backward, section_alpha, RayGrads, RayInputs, STOP_TRANSMITTANCE};
 use field::ConfigError;
-use field::{Adam, AdamConfig, GradMode, MlpScratch, Touched};
+use field::{Adam, AdamConfig, GradMode, Touched};
 use geom::SplitMix64;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -60,7 +61,7 @@ impl LossTerms {
 }
 
 /// What one step did.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
 pub struct StepStats {
     pub step: usize,
     pub loss: LossTerms,
@@ -100,6 +101,12 @@ struct Scratch {
     /// Each ray's jitter along its march, drawn before the rays are marched in parallel.
     march_jitter: Vec<f32>,
     march: BatchMarch,
+    /// Regulariser points set aside among the samples the band drops (unit coordinates), and their term.
+    regulariser_points: Vec<[f32; 3]>,
+    regulariser: RegulariserPoints,
+    /// Kept to the band, the rays whose march ended inside the surface (as the refresh's SDF at the cells'
+    /// centres places it): the samples deeper in the solid, dropped, would have absorbed what light is left.
+    ended_inside: Vec<std::sync::atomic::AtomicBool>,
     /// The rays whose light gets through their samples to the background, and their origins and directions.
     seen_behind: Vec<usize>,
     behind_o: Vec<[f32; 3]>,
@@ -107,11 +114,6 @@ struct Scratch {
     /// The colour behind each ray of the batch.
     behind: Vec<[f32; 3]>,
 }
-
-/// A ray whose transmittance through its samples falls below this sees nothing of the background field: its
-/// colour there would add less than a ten-thousandth to the pixel, so the field is not run for it (on a
-/// tabletop scene most rays end on the board inside the sphere).
-const BEHIND_MIN_TRANSMITTANCE: f32 = 1e-4;
 
 /// A refresh reads the cells within this many cells of an occupied one; the others (empty space, where
 /// nothing samples the field) only in every [`FAR_SWEEP_EVERY`]-th sweep over the grid: on a scene at 128³
@@ -198,12 +200,7 @@ pub struct NeusTrainer {
 #[derive(Default)]
 struct StereoScratch {
     points: Vec<f32>,
-    unit01: Vec<f32>,
-    enc: Vec<f32>,
-    input: Vec<f32>,
-    mlp: MlpScratch,
-    d_out: Vec<f32>,
-    back: SdfBackwardScratch,
+    pass: SdfPassScratch,
 }
 
 /// Split `s` into consecutive pieces of the given lengths.
@@ -367,26 +364,26 @@ impl NeusTrainer {
         let out = self.field.sdf_forward(
             &sc.points,
             levels,
-            &mut sc.unit01,
-            &mut sc.enc,
-            &mut sc.input,
-            &mut sc.mlp,
+            &mut sc.pass.unit01,
+            &mut sc.pass.enc,
+            &mut sc.pass.input,
+            &mut sc.pass.mlp,
         );
-        sc.d_out.clear();
-        sc.d_out.resize(k * width, 0.0);
+        sc.pass.d_out.clear();
+        sc.pass.d_out.resize(k * width, 0.0);
         let mut sum = 0.0;
         for i in 0..k {
             let f = out[i * width];
             sum += f.abs();
-            sc.d_out[i * width] = weight * f.signum() / k as f32;
+            sc.pass.d_out[i * width] = weight * f.signum() / k as f32;
         }
         let [grid, sdf, ..] = &mut self.grads;
         self.field.sdf_backward(
-            &sc.unit01,
-            &mut sc.mlp,
-            &sc.d_out,
+            &sc.pass.unit01,
+            &mut sc.pass.mlp,
+            &sc.pass.d_out,
             GradMode::Accumulate,
-            &mut sc.back,
+            &mut sc.pass.back,
             Some(SdfGrads {
                 grid,
                 sdf,
@@ -484,18 +481,38 @@ impl NeusTrainer {
             sc.march_jitter.push(self.rng.next_f64() as f32);
         }
         let (rays_o, rays_d, jitters, centre_sdf) = (&sc.rays_o, &sc.rays_d, &sc.march_jitter, &self.centre_sdf);
-        sc.march.run(
+        sc.regulariser_points.clear();
+        sc.ended_inside.clear();
+        sc.ended_inside.resize_with(r, Default::default);
+        let ended_inside = &sc.ended_inside;
+        sc.march.run_with_points(
             r,
-            |i, t, dt| {
+            |i, t, dt, points| {
                 let from = t.len();
-                sample_ray(grid, rays_o[i], rays_d[i], march, jitters[i], t, dt);
+                let (o, d) = (rays_o[i], rays_d[i]);
+                sample_ray(grid, o, d, march, jitters[i], t, dt);
                 if let Some(reach) = reach {
-                    centre_sdf.keep_near_surface(rays_o[i], rays_d[i], reach, from, t, dt);
+                    // Every REGULARISER_EVERY-th dropped sample, from a phase of the ray's own jitter.
+                    let mut k = (jitters[i] * 7919.0).fract() * REGULARISER_EVERY as f32;
+                    let last = t.last().copied();
+                    centre_sdf.keep_near_surface(o, d, reach, from, t, dt, |s| {
+                        if Some(s) == last {
+                            let p = [o[0] + s * d[0], o[1] + s * d[1], o[2] + s * d[2]];
+                            let inside = centre_sdf.at(p).is_some_and(|v| v < -reach);
+                            ended_inside[i].store(inside, std::sync::atomic::Ordering::Relaxed);
+                        }
+                        k += 1.0;
+                        if k >= REGULARISER_EVERY as f32 {
+                            k -= REGULARISER_EVERY as f32;
+                            points.push([o[0] + s * d[0], o[1] + s * d[1], o[2] + s * d[2]]);
+                        }
+                    });
                 }
             },
             &mut sc.offsets,
             &mut sc.t,
             &mut sc.dt,
+            &mut sc.regulariser_points,
         );
         lap.charge(&mut self.phases.march);
         let m = sc.t.len();
@@ -529,15 +546,23 @@ impl NeusTrainer {
         lap.charge(&mut self.phases.field_forward);
 
         // What lies behind each ray's samples: the background field's colour where light gets through them.
+        // A ray whose transmittance falls below rendering's stopping point would add less than a thousandth
+        // (a quarter of an 8-bit step) to its pixel: it takes the constant colour at infinity, as a rendered
+        // ray stopped there does. On a tabletop most rays end on the board inside the sphere.
         let inv_s = self.field.inv_s();
         sc.seen_behind.clear();
         if self.field.background.is_some() {
             let (offsets, sdf0, cos, dt) = (&sc.offsets, &self.pass.sdf, &self.pass.cos, &sc.dt);
+            let ended_inside = &sc.ended_inside;
             sc.seen_behind.extend((0..r).filter(|&i| {
+                let (a, b) = (offsets[i], offsets[i + 1]);
+                if ended_inside[i].load(std::sync::atomic::Ordering::Relaxed) {
+                    return false;
+                }
                 let mut t = 1.0f32;
-                for s in offsets[i]..offsets[i + 1] {
+                for s in a..b {
                     t *= 1.0 - section_alpha(sdf0[s], cos[s], dt[s], inv_s, anneal);
-                    if t < BEHIND_MIN_TRANSMITTANCE {
+                    if t < STOP_TRANSMITTANCE {
                         return false;
                     }
                 }
@@ -706,10 +731,12 @@ impl NeusTrainer {
                 .fold([0.0f32; 3], |a, d| [a[0] + d[0], a[1] + d[1], a[2] + d[2]]),
         };
         lap.charge(&mut self.phases.background_backward);
+        // The eikonal and no-overhang terms are means over the samples marched, those the band dropped
+        // included: each regulariser point stands for REGULARISER_EVERY of them.
+        let n_reg = sc.regulariser_points.len();
+        let m_all = (m + REGULARISER_EVERY * n_reg).max(1);
         loss.rgb /= count;
         loss.mask /= r as f32;
-        loss.eikonal = (eik / m.max(1) as f64) as f32;
-        loss.overhang = (overhang / m.max(1) as f64) as f32;
         let psnr = -10.0 * (sq / count).max(1e-10).log10();
 
         // Back through the colour and SDF networks and the grid to the parameters.
@@ -720,8 +747,8 @@ impl NeusTrainer {
                 sdf: &sc.d_sdf0,
                 cos: &sc.d_cos,
                 rgb: &sc.d_rgb,
-                eikonal: cfg.eikonal_weight / m.max(1) as f32,
-                overhang: cfg.overhang_weight / m.max(1) as f32,
+                eikonal: cfg.eikonal_weight / m_all as f32,
+                overhang: cfg.overhang_weight / m_all as f32,
             },
             Some(ParamGrads {
                 grid,
@@ -732,6 +759,27 @@ impl NeusTrainer {
             None,
         );
         lap.charge(&mut self.phases.field_backward);
+        let [grid, sdf, ..] = &mut self.grads;
+        let per_point = REGULARISER_EVERY as f32 / m_all as f32;
+        let reg = sc.regulariser.run(
+            &self.field,
+            &sc.regulariser_points,
+            levels,
+            eps,
+            RegulariserWeights {
+                eikonal: cfg.eikonal_weight * per_point,
+                overhang: cfg.overhang_weight * per_point,
+            },
+            SdfGrads {
+                grid,
+                sdf,
+                touched: &mut self.touched,
+            },
+        );
+        let every = REGULARISER_EVERY as f64;
+        loss.eikonal = ((eik + every * reg.eikonal) / m_all as f64) as f32;
+        loss.overhang = ((overhang + every * reg.overhang) / m_all as f64) as f32;
+        lap.charge(&mut self.phases.regulariser);
         let stereo_w = cfg.stereo_weight_at(step);
         if stereo_w > 0.0 {
             self.stereo_points();

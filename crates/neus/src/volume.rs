@@ -6,6 +6,11 @@
 //! is the unbiased `α = (Φ_s(s_prev) − Φ_s(s_next)) / Φ_s(s_prev)`, clamped to
 //! [0, 1]. Weights `w_i = T_i α_i`; colour `Σ w_i c_i + T_n c_bg`.
 
+/// Where rendering stops a ray (its transmittance through the field, see
+/// [`crate::render_view::RenderSettings::stop_transmittance`]): what is behind adds less than a thousandth (a
+/// quarter of an 8-bit step) to the pixel. Training skips the background field behind such rays.
+pub const STOP_TRANSMITTANCE: f32 = 1e-3;
+
 /// Inputs of one ray, `n` samples.
 pub struct RayInputs<'a> {
     /// SDF at each midpoint.

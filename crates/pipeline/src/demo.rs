@@ -69,7 +69,7 @@ pub struct DemoArgs {
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
-/// of 2026-12-07 (214aa56 and after; its fits with the object baked, the afternoon's), the large tabletop of
+/// of 2026-12-07 late night (the scene kept to the surface's band with regulariser points), the large tabletop of
 /// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps) with its fits of 2026-12-07 (baked: the
 /// 48-frame slide and drop, 180 and 262 s), `--quick` alone with the test build's binary on 2026-12-07, the
 /// raw preset's synth and import of 2026-12-06. A fit is per body in the video.
@@ -140,11 +140,11 @@ pub(crate) const FULL: Plan = Plan {
         synth: 8.0,
         synth_raw: 92.0,
         import: 8.0,
-        scene: 300.0,
-        object: 66.0,
-        merge: 21.0,
+        scene: 205.0,
+        object: 56.0,
+        merge: 25.0,
         bake: 3.0,
-        fit_per_body: 86.0,
+        fit_per_body: 75.0,
         eval: 2.0,
     },
 };

@@ -35,6 +35,7 @@ pub mod import_session;
 pub mod object_masks;
 mod objects;
 mod observer;
+pub mod off_surface;
 pub mod render;
 pub mod render_trajectory;
 pub mod report_page;

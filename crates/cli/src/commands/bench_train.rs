@@ -1,6 +1,7 @@
 //! Training benchmark on a synthetic object or scene capture: every N steps a JSON line
 //! with wall time, rays/s, samples/s, held-out PSNR and the Chamfer distance
-//! of the zero level to the true mesh; peak memory at the end.
+//! of the zero level to the true mesh (for a scene also its SDF over the free board, `off_surface`); peak memory
+//! at the end.
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -37,6 +38,10 @@ pub struct BenchTrainArgs {
     /// Grid resolution of the zero level for the Chamfer distance.
     #[arg(long, default_value_t = 192)]
     pub mesh_res: usize,
+    /// Start from this run's checkpoint (a run `--out` or `train` wrote) instead of from nothing: with
+    /// `--iterations` at its step, only the figures of the run as it is.
+    #[arg(long)]
+    pub from: Option<PathBuf>,
     /// Also keep the trained run here (checkpoint.safetensors and config.toml,
     /// as `train` writes them), for `bake`, `mesh` or `render`.
     #[arg(long)]
@@ -75,16 +80,34 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
         cfg.iterations = n;
     }
     let iterations = cfg.iterations;
-    let mut t = NeusTrainer::new(cfg, data)?;
+    let mut t = match &a.from {
+        Some(run) => {
+            let mut t = neus::checkpoint::resume(&run.join("checkpoint.safetensors"), data)?;
+            t.config.iterations = iterations;
+            t
+        }
+        None => NeusTrainer::new(cfg, data)?,
+    };
+    let start = t.step;
     let (mut total_secs, mut window_secs, mut rays, mut samples) = (0.0f64, 0.0f64, 0usize, 0usize);
     let wall = std::time::Instant::now();
-    while t.step < iterations {
-        let s = t.step();
+    loop {
+        let s = if t.step < iterations {
+            t.step()
+        } else if t.step == start {
+            // Nothing to train: the figures of the run as it is.
+            neus::StepStats {
+                step: t.step,
+                ..Default::default()
+            }
+        } else {
+            break;
+        };
         total_secs += s.seconds;
         window_secs += s.seconds;
         rays += s.rays;
         samples += s.samples;
-        let done = t.step == iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
+        let done = t.step >= iterations || a.max_seconds.is_some_and(|m| total_secs >= m);
         if t.step % a.every == 0 || done {
             let held_out = holdout(&t);
             let psnr = held_out.psnr;
@@ -108,6 +131,18 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
                     mesh::chamfer(&above(&m, 0.003), &truth_visible, 20000, 1).mean,
                 ),
             };
+            // Where the simulator reads a scene: its SDF 5, 10 and 20 mm over the free board.
+            let off_surface = region.map(|r| {
+                pipeline::off_surface::off_surface(
+                    &t.field,
+                    levels,
+                    t.data.centre,
+                    t.data.radius,
+                    &truth_mesh,
+                    &r,
+                    &[0.005, 0.01, 0.02],
+                )
+            });
             let round = |v: f64, k: f64| (v * k).round() / k;
             println!(
                 "{}",
@@ -122,7 +157,7 @@ pub fn run(a: BenchTrainArgs) -> Result<()> {
                     "chamfer_mm": round(full * 1e3, 100.0), "chamfer_visible_mm": round(visible * 1e3, 100.0),
                     "chamfer_pct_diameter": round(full / diameter * 100.0, 100.0),
                     "chamfer_visible_pct_diameter": round(visible / diameter * 100.0, 100.0),
-                    "loss": s.loss, "inv_s": s.inv_s, "occupied": s.occupied,
+                    "loss": s.loss, "inv_s": s.inv_s, "occupied": s.occupied, "off_surface": off_surface,
                 })
             );
             (window_secs, rays, samples) = (0.0, 0, 0);
