@@ -166,7 +166,8 @@ impl TrainConfig {
                 // terms alone (`neus::regulariser_points`): without them the field a centimetre or two off the
                 // surface, which the simulator reads, was no longer held to a distance (the gradient's length
                 // 0.93 at 20 mm over the demo's board against 1.00; a backdrop slide fitted on such a scene
-                // started 5.3 mm off). With them the demo's scene trains in 194–217 s against 244 (28.05–28.16
+                // started 5.3 mm off). With them the demo's scene trains in 194–217 s against the build
+                // before's 244 (4–14 % less than every sample on this build; 28.05–28.16
                 // against 28.13 dB, Chamfer 1.09–1.13 against 1.07 mm; seed 1: 27.86 against 27.83 dB, 1.14
                 // against 1.16 mm), the gradient 1.00 at 5–20 mm, and the backdrop's slide within 0.89 mm
                 // (profile notebook).
