@@ -76,8 +76,8 @@ impl CentreSdf {
     }
 
     /// Drop the samples `t[from..]` (with their `dt`) of the ray `o + t d` whose interpolated SDF lies further
-    /// than `reach` from zero, telling `dropped` where each lies along the ray (in order); samples where it is
-    /// unknown stay.
+    /// than `reach` from zero, telling `dropped` where each lies along the ray and its interpolated SDF (in
+    /// order); samples where it is unknown stay.
     #[allow(clippy::too_many_arguments)]
     pub fn keep_near_surface(
         &self,
@@ -87,17 +87,18 @@ impl CentreSdf {
         from: usize,
         t: &mut Vec<f32>,
         dt: &mut Vec<f32>,
-        mut dropped: impl FnMut(f32),
+        mut dropped: impl FnMut(f32, f32),
     ) {
         let mut kept = from;
         for s in from..t.len() {
             let p = [o[0] + t[s] * d[0], o[1] + t[s] * d[1], o[2] + t[s] * d[2]];
-            if self.at(p).is_none_or(|v| v.abs() <= reach) {
-                t[kept] = t[s];
-                dt[kept] = dt[s];
-                kept += 1;
-            } else {
-                dropped(t[s]);
+            match self.at(p) {
+                Some(v) if v.abs() > reach => dropped(t[s], v),
+                _ => {
+                    t[kept] = t[s];
+                    dt[kept] = dt[s];
+                    kept += 1;
+                }
             }
         }
         t.truncate(kept);
@@ -150,11 +151,11 @@ mod tests {
         t0.extend(&t);
         dt0.extend(&dt);
         let mut dropped = Vec::new();
-        c.keep_near_surface(o, d, 0.03, 1, &mut t0, &mut dt0, |t| dropped.push(t));
+        c.keep_near_surface(o, d, 0.03, 1, &mut t0, &mut dt0, |t, _| dropped.push(t));
         assert_eq!(t0, vec![7.0, 0.8, 1.99, 2.02]);
         assert_eq!(dt0, vec![7.0, 0.1, 0.4, 0.5]);
         assert_eq!(dropped, vec![1.5, 1.95, 2.3], "the others, in order");
-        c.keep_near_surface(o, d, 1.0, 0, &mut t, &mut dt, |_| panic!("nothing is dropped"));
+        c.keep_near_surface(o, d, 1.0, 0, &mut t, &mut dt, |_, _| panic!("nothing is dropped"));
         assert_eq!(t.len(), 6, "everything within a unit of the plane stays");
     }
 }

@@ -495,11 +495,10 @@ impl NeusTrainer {
                     // Every REGULARISER_EVERY-th dropped sample, from a phase of the ray's own jitter.
                     let mut k = (jitters[i] * 7919.0).fract() * REGULARISER_EVERY as f32;
                     let last = t.last().copied();
-                    centre_sdf.keep_near_surface(o, d, reach, from, t, dt, |s| {
+                    centre_sdf.keep_near_surface(o, d, reach, from, t, dt, |s, sdf| {
                         if Some(s) == last {
-                            let p = [o[0] + s * d[0], o[1] + s * d[1], o[2] + s * d[2]];
-                            let inside = centre_sdf.at(p).is_some_and(|v| v < -reach);
-                            ended_inside[i].store(inside, std::sync::atomic::Ordering::Relaxed);
+                            // The march's last sample, dropped: deeper than the band in the solid, or outside.
+                            ended_inside[i].store(sdf < 0.0, std::sync::atomic::Ordering::Relaxed);
                         }
                         k += 1.0;
                         if k >= REGULARISER_EVERY as f32 {
