@@ -6,9 +6,10 @@
 //! run this one pipeline.
 
 use crate::baked_geometry::BakedGeometry;
-use crate::fd_samples::{fd_gradients, fd_points, FdOut};
+use crate::fd_samples::{fd_gradients, fd_points, FdOut, SAMPLE_CHUNK};
 use crate::neus_field::{drop_view_dependence, NeusField, SdfBackwardScratch, SdfGrads};
 use field::{sh_encode, sh_encode_backward, GradMode, MlpScratch, Touched, SH_DIM};
+use rayon::prelude::*;
 
 /// How a pass evaluates the field.
 #[derive(Clone, Copy, Debug)]
@@ -238,29 +239,44 @@ impl FieldPass {
         // Back to the SDF outputs of the 4 blocks.
         self.d_sdf_out.clear();
         self.d_sdf_out.resize(4 * m * width, 0.0);
-        for s in 0..m {
-            let gr = self.grad[s];
-            let len = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt().max(1e-8);
-            let n = gr.map(|v| v / len);
-            let dn: [f32; 3] = std::array::from_fn(|k| self.d_color_in[s * cin + SH_DIM + k]);
-            let ndn = n[0] * dn[0] + n[1] * dn[1] + n[2] * dn[2];
-            let d = &self.dirs[s * 3..s * 3 + 3];
-            let mut dg = [0.0f32; 3];
-            for k in 0..3 {
-                dg[k] = (dn[k] - n[k] * ndn) / len + g.cos[s] * d[k] + g.eikonal * 2.0 * (len - 1.0) * n[k];
-            }
-            if gr[2] < 0.0 {
-                dg[2] -= g.overhang;
-            }
-            let mut d0 = g.sdf[s];
-            for k in 0..3 {
-                self.d_sdf_out[((k + 1) * m + s) * width] = dg[k] / eps;
-                d0 -= dg[k] / eps;
-            }
-            self.d_sdf_out[s * width] = d0;
-            for f in 0..fdim {
-                self.d_sdf_out[s * width + 1 + f] = self.d_color_in[s * cin + SH_DIM + 3 + f];
-            }
+        {
+            let (b0, rest) = self.d_sdf_out.split_at_mut(m * width);
+            let (b1, rest) = rest.split_at_mut(m * width);
+            let (b2, b3) = rest.split_at_mut(m * width);
+            let (grad, dirs, d_color_in) = (&self.grad, &self.dirs, &self.d_color_in);
+            let cw = SAMPLE_CHUNK * width;
+            b0.par_chunks_mut(cw)
+                .zip(b1.par_chunks_mut(cw))
+                .zip(b2.par_chunks_mut(cw))
+                .zip(b3.par_chunks_mut(cw))
+                .enumerate()
+                .for_each(|(c, (((r0, r1), r2), r3))| {
+                    let mut neighbours = [r1, r2, r3];
+                    for r in 0..r0.len() / width {
+                        let s = c * SAMPLE_CHUNK + r;
+                        let gr = grad[s];
+                        let len = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt().max(1e-8);
+                        let n = gr.map(|v| v / len);
+                        let dn: [f32; 3] = std::array::from_fn(|k| d_color_in[s * cin + SH_DIM + k]);
+                        let ndn = n[0] * dn[0] + n[1] * dn[1] + n[2] * dn[2];
+                        let d = &dirs[s * 3..s * 3 + 3];
+                        let mut dg = [0.0f32; 3];
+                        for k in 0..3 {
+                            dg[k] = (dn[k] - n[k] * ndn) / len + g.cos[s] * d[k] + g.eikonal * 2.0 * (len - 1.0) * n[k];
+                        }
+                        if gr[2] < 0.0 {
+                            dg[2] -= g.overhang;
+                        }
+                        let mut d0 = g.sdf[s];
+                        for (k, block) in neighbours.iter_mut().enumerate() {
+                            block[r * width] = dg[k] / eps;
+                            d0 -= dg[k] / eps;
+                        }
+                        r0[r * width] = d0;
+                        r0[r * width + 1..(r + 1) * width]
+                            .copy_from_slice(&d_color_in[s * cin + SH_DIM + 3..s * cin + SH_DIM + 3 + fdim]);
+                    }
+                });
         }
         let want_inputs = inputs.is_some();
         if want_inputs {

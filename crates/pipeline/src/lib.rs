@@ -21,6 +21,7 @@
 //! kept) live in `recon`; this crate reads and writes the run folders around them. Errors are [`Error`]s
 //! that name the file or the setting; progress goes to an [`Observer`].
 
+pub mod allocator;
 pub mod board;
 pub mod calibrate;
 pub mod cameras;
