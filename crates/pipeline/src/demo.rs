@@ -69,10 +69,9 @@ pub struct DemoArgs {
 }
 
 /// Each stage's expected seconds on two cores, measured alone (only for the ETA): the full tabletop demo
-/// of 2026-12-07 late night (the scene kept to the surface's band with regulariser points), the large tabletop of
-/// 2026-11-27 (/tmp runs of `synth --scale large`, training 1500 steps) with its fits of 2026-12-07 (baked: the
-/// 48-frame slide and drop, 180 and 262 s), `--quick` alone with the test build's binary on 2026-12-07, the
-/// raw preset's synth and import of 2026-12-06. A fit is per body in the video.
+/// and `--quick` of 2026-12-08 (freed memory kept for reuse), the large tabletop of 2026-11-27 (/tmp runs of
+/// `synth --scale large`, training 1500 steps) with its fits of 2026-12-07 (baked: the 48-frame slide and drop,
+/// 180 and 262 s), the raw preset's synth and import of 2026-12-06. A fit is per body in the video.
 pub(crate) struct Expected {
     synth: f64,
     /// synth with the raw footage (`--preset raw`), and its import.
@@ -118,11 +117,11 @@ pub(crate) const QUICK: Plan = Plan {
         synth: 8.0,
         synth_raw: 92.0,
         import: 8.0,
-        scene: 32.0,
-        object: 17.0,
+        scene: 24.0,
+        object: 12.0,
         merge: 17.0,
         bake: 3.0,
-        fit_per_body: 40.0,
+        fit_per_body: 42.0,
         eval: 2.0,
     },
 };
@@ -140,11 +139,11 @@ pub(crate) const FULL: Plan = Plan {
         synth: 8.0,
         synth_raw: 92.0,
         import: 8.0,
-        scene: 205.0,
-        object: 56.0,
-        merge: 25.0,
+        scene: 186.0,
+        object: 50.0,
+        merge: 19.0,
         bake: 3.0,
-        fit_per_body: 75.0,
+        fit_per_body: 62.0,
         eval: 2.0,
     },
 };
