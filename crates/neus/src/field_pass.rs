@@ -130,7 +130,7 @@ impl FieldPass {
                 b.forward_fd(&self.points, m, &mut self.sdf_out);
             }
             None => {
-                let out = field.sdf_forward(
+                field.sdf_forward(
                     &self.points,
                     set.active_levels,
                     &mut self.unit01,
@@ -138,10 +138,14 @@ impl FieldPass {
                     &mut self.sdf_in,
                     &mut self.sdf_mlp,
                 );
-                self.sdf_out.clear();
-                self.sdf_out.extend_from_slice(out);
             }
         }
+        // The network's outputs are read where its MLP left them (no copy); a bake's from `sdf_out`.
+        let sdf_out: &[f32] = if baked.is_some() {
+            &self.sdf_out
+        } else {
+            self.sdf_mlp.output()
+        };
         let cin = SH_DIM + 3 + field.config.feature_dim;
         self.sh.resize(m * SH_DIM, 0.0);
         sh_encode(&self.dirs, &mut self.sh);
@@ -153,7 +157,7 @@ impl FieldPass {
         self.cos.resize(m, 0.0);
         self.color_in.resize(m * cin, 0.0);
         self.eikonal_sum = fd_gradients(
-            &self.sdf_out,
+            sdf_out,
             width,
             set.fd_eps,
             &self.dirs,
@@ -237,7 +241,7 @@ impl FieldPass {
         );
 
         // Back to the SDF outputs of the 4 blocks.
-        self.d_sdf_out.clear();
+        // Every entry is written below (no zero-fill first: it was a serial pass over 4m rows).
         self.d_sdf_out.resize(4 * m * width, 0.0);
         {
             let (b0, rest) = self.d_sdf_out.split_at_mut(m * width);
@@ -270,6 +274,7 @@ impl FieldPass {
                         let mut d0 = g.sdf[s];
                         for (k, block) in neighbours.iter_mut().enumerate() {
                             block[r * width] = dg[k] / eps;
+                            block[r * width + 1..(r + 1) * width].fill(0.0);
                             d0 -= dg[k] / eps;
                         }
                         r0[r * width] = d0;

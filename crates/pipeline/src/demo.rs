@@ -97,6 +97,8 @@ pub(crate) struct Plan {
     fit_config: Option<&'static str>,
     /// `train --config` settings for the scene (none: the scene preset's).
     scene_config: Option<&'static str>,
+    /// `train --config` settings for each object capture (none: the object preset's).
+    object_config: Option<&'static str>,
     /// `merge --field-res` (none: merge's default).
     merge_field_res: Option<usize>,
     expected: Expected,
@@ -112,6 +114,9 @@ pub(crate) const QUICK: Plan = Plan {
     scene_config: Some(
         "# demo --quick: half the rays per step, coarser stereo points\nbatch_rays = 1024\n\n[stereo]\nstride = 2\nhypotheses = 64\n",
     ),
+    // At 120 steps the object preset's occupancy (refined from step 200) is still every cell, too many to bake
+    // for the fit, which then reads the network at every sample.
+    object_config: Some("# demo --quick: the occupancy refined from step 60, so the fit can bake the object\noccupancy_warmup = 60\n"),
     merge_field_res: Some(96),
     expected: Expected {
         synth: 8.0,
@@ -134,6 +139,7 @@ pub(crate) const FULL: Plan = Plan {
     frames: None,
     fit_config: None,
     scene_config: None,
+    object_config: None,
     merge_field_res: None,
     expected: Expected {
         synth: 8.0,
@@ -447,9 +453,14 @@ pub(crate) fn method_stages(plan: &Plan, contents: &Contents, out: &Path) -> Vec
         ];
         let mut job = TrainArgs::new(data.join(&capture), runs.join(&run));
         job.iterations = Some(steps);
-        if run == "scene" && plan.scene_config.is_some() {
-            args.extend(["--config".into(), s(&out.join("train_scene.toml"))]);
-            job.config = Some(out.join("train_scene.toml"));
+        let config = if run == "scene" {
+            plan.scene_config.map(|_| "train_scene.toml")
+        } else {
+            plan.object_config.map(|_| "train_object.toml")
+        };
+        if let Some(file) = config {
+            args.extend(["--config".into(), s(&out.join(file))]);
+            job.config = Some(out.join(file));
         }
         add(&format!("train {run}"), expected, args, StageJob::Train(job));
     }
@@ -688,6 +699,9 @@ pub(crate) fn execute(
     }
     if let Some(cfg) = plan.scene_config {
         pganeus_io::write_atomic(&out.join("train_scene.toml"), cfg.as_bytes())?;
+    }
+    if let Some(cfg) = plan.object_config {
+        pganeus_io::write_atomic(&out.join("train_object.toml"), cfg.as_bytes())?;
     }
     let total_expected: f64 = all.iter().map(|s| s.expected_s).sum();
     // Expected seconds of the stages done or skipped, and of those run here (with the time they took).
