@@ -28,6 +28,7 @@ use crate::ray_rounds::RayRounds;
 use crate::render_view::RenderSettings;
 use crate::volume::{composite_alpha_backward, section_alpha_backward};
 use geom::{Camera, Pose, Vec3};
+use rayon::prelude::*;
 
 /// One field placed in the world for a render.
 pub struct Layer<'a> {
@@ -716,32 +717,6 @@ pub fn render_composed(
     }
     let trace_all = layers.iter().any(|l| l.object.is_none());
     let (mut o, mut d, mut pix, mut under) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut flush =
-        |o: &mut Vec<Vec3<f64>>, d: &mut Vec<Vec3<f64>>, pix: &mut Vec<usize>, under: &mut Vec<ComposedRay>| {
-            if pix.is_empty() {
-                return;
-            }
-            let b = match behind {
-                Behind::Scene(_) => Behind::Scene(under),
-                c => c,
-            };
-            composer.forward(layers, objects, b, o, d);
-            for (j, &p) in pix.iter().enumerate() {
-                let r = &composer.out[j];
-                img.rgb[p] = r.rgb;
-                img.depth[p] = r.depth;
-                img.opacity[p] = r.opacity;
-                img.surface[p] = r.surface;
-                img.object_opacity[p * objects..(p + 1) * objects]
-                    .copy_from_slice(&composer.object_opacity[j * objects..(j + 1) * objects]);
-            }
-            img.traced += pix.len();
-            img.samples += composer.evaluated_samples();
-            o.clear();
-            d.clear();
-            pix.clear();
-            under.clear();
-        };
     for y in 0..h {
         for x in 0..w {
             let r = camera.ray(x as f64 + 0.5, y as f64 + 0.5);
@@ -755,12 +730,51 @@ pub fn render_composed(
             if let Behind::Scene(s) = behind {
                 under.push(s[p].clone());
             }
-            if pix.len() == CHUNK {
-                flush(&mut o, &mut d, &mut pix, &mut under);
-            }
         }
     }
-    flush(&mut o, &mut d, &mut pix, &mut under);
+    // Chunks side by side, one composer each (the caller's and pooled ones): a chunk's pass leaves one core
+    // idle between its parallel kernels. The chunks are the same whatever the threads, and so are the bits.
+    let threads = rayon::current_num_threads().max(1);
+    let mut pooled: Vec<PooledComposer> = (1..threads).map(|_| PooledComposer::take()).collect();
+    let mut composers: Vec<&mut Composer> = std::iter::once(composer)
+        .chain(pooled.iter_mut().map(|p| &mut **p))
+        .collect();
+    let chunks: Vec<std::ops::Range<usize>> = (0..pix.len())
+        .step_by(CHUNK)
+        .map(|a| a..(a + CHUNK).min(pix.len()))
+        .collect();
+    for group in chunks.chunks(threads) {
+        let results: Vec<(Vec<ComposedRay>, Vec<f32>, usize)> = composers
+            .par_iter_mut()
+            .zip(group.par_iter())
+            .map(|(c, range)| {
+                let b = match behind {
+                    Behind::Scene(_) => Behind::Scene(&under[range.clone()]),
+                    c => c,
+                };
+                c.forward(layers, objects, b, &o[range.clone()], &d[range.clone()]);
+                let n = range.len();
+                (
+                    c.out[..n].to_vec(),
+                    c.object_opacity[..n * objects].to_vec(),
+                    c.evaluated_samples(),
+                )
+            })
+            .collect();
+        for (range, (out, object_opacity, samples)) in group.iter().zip(results) {
+            for (j, r) in out.iter().enumerate() {
+                let p = pix[range.start + j];
+                img.rgb[p] = r.rgb;
+                img.depth[p] = r.depth;
+                img.opacity[p] = r.opacity;
+                img.surface[p] = r.surface;
+                img.object_opacity[p * objects..(p + 1) * objects]
+                    .copy_from_slice(&object_opacity[j * objects..(j + 1) * objects]);
+            }
+            img.traced += range.len();
+            img.samples += samples;
+        }
+    }
     img
 }
 
