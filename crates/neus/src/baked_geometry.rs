@@ -13,6 +13,7 @@
 //! colours off (the fit's body sat nearer the camera). Only for fields that
 //! no longer train: nothing flows back to the network's parameters.
 
+use crate::fd_samples::SAMPLE_CHUNK;
 use crate::neus_field::NeusField;
 use crate::occupancy::OccupancyGrid;
 use field::MlpScratch;
@@ -20,8 +21,6 @@ use rayon::prelude::*;
 
 /// Cell index where a cell has no brick.
 const NONE: u32 = u32::MAX;
-/// Samples a parallel task looks up.
-const CHUNK: usize = 1024;
 /// A lattice point's record: the SDF, the normal gradient (3), the curvature (3), then the features.
 const SDF: usize = 0;
 const GRAD: usize = 1;
@@ -395,15 +394,15 @@ impl BakedGeometry {
         let (b0, rest) = out.split_at_mut(m * width);
         let (b1, rest) = rest.split_at_mut(m * width);
         let (b2, b3) = rest.split_at_mut(m * width);
-        b0.par_chunks_mut(CHUNK * width)
-            .zip(b1.par_chunks_mut(CHUNK * width))
-            .zip(b2.par_chunks_mut(CHUNK * width))
-            .zip(b3.par_chunks_mut(CHUNK * width))
+        b0.par_chunks_mut(SAMPLE_CHUNK * width)
+            .zip(b1.par_chunks_mut(SAMPLE_CHUNK * width))
+            .zip(b2.par_chunks_mut(SAMPLE_CHUNK * width))
+            .zip(b3.par_chunks_mut(SAMPLE_CHUNK * width))
             .enumerate()
             .for_each(|(c, (((r0, r1), r2), r3))| {
                 let mut neighbours = [r1, r2, r3];
                 for (r, row) in r0.chunks_exact_mut(width).enumerate() {
-                    let s = c * CHUNK + r;
+                    let s = c * SAMPLE_CHUNK + r;
                     let p = &points[s * 3..s * 3 + 3];
                     let Some(l) = self.locate(p) else {
                         row[0] = self.outside;
@@ -447,15 +446,15 @@ impl BakedGeometry {
         let (g0, rest) = d_points.split_at_mut(m * 3);
         let (g1, rest) = rest.split_at_mut(m * 3);
         let (g2, g3) = rest.split_at_mut(m * 3);
-        g0.par_chunks_mut(CHUNK * 3)
-            .zip(g1.par_chunks_mut(CHUNK * 3))
-            .zip(g2.par_chunks_mut(CHUNK * 3))
-            .zip(g3.par_chunks_mut(CHUNK * 3))
+        g0.par_chunks_mut(SAMPLE_CHUNK * 3)
+            .zip(g1.par_chunks_mut(SAMPLE_CHUNK * 3))
+            .zip(g2.par_chunks_mut(SAMPLE_CHUNK * 3))
+            .zip(g3.par_chunks_mut(SAMPLE_CHUNK * 3))
             .enumerate()
             .for_each(|(c, (((q0, q1), q2), q3))| {
                 let mut neighbours = [q1, q2, q3];
                 for (r, g) in q0.chunks_exact_mut(3).enumerate() {
-                    let s = c * CHUNK + r;
+                    let s = c * SAMPLE_CHUNK + r;
                     let p = &points[s * 3..s * 3 + 3];
                     for block in neighbours.iter_mut() {
                         block[r * 3..r * 3 + 3].fill(0.0);

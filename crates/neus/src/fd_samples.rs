@@ -6,7 +6,7 @@
 use field::SH_DIM;
 use rayon::prelude::*;
 
-/// Samples a parallel task takes. Between the field's own parallel kernels these loops ran on one core (a
+/// Samples a parallel task takes (the finite-difference passes here and in `FieldPass`, a bake's lookups). Between the field's own parallel kernels these loops ran on one core (a
 /// fit's main thread spent a fifth of its time in them and the passes' other serial loops, the second core
 /// idle).
 pub(crate) const SAMPLE_CHUNK: usize = 1024;
@@ -105,4 +105,83 @@ pub(crate) fn fd_gradients(sdf_out: &[f32], width: usize, eps: f32, sample_dirs:
         })
         .collect();
     partial.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Across chunk boundaries, rays that end mid-chunk and rays without samples: every sample's four points
+    /// and direction are its own ray's, and the eikonal sum is the serial one.
+    #[test]
+    fn chunks_find_each_samples_ray() {
+        let mut rng = geom::SplitMix64::new(5);
+        let (mut origins, mut dirs, mut offsets, mut t) = (Vec::new(), Vec::new(), vec![0], Vec::new());
+        while t.len() < 3 * SAMPLE_CHUNK + 100 {
+            origins.push([0; 3].map(|_| rng.range(-1.0, 1.0) as f32));
+            dirs.push([0; 3].map(|_| rng.range(-1.0, 1.0) as f32));
+            // Empty rays too, and some longer than a chunk.
+            let count = match rng.next_u64() % 5 {
+                0 => 0,
+                1 => SAMPLE_CHUNK + 7,
+                _ => (rng.next_u64() % 300) as usize,
+            };
+            t.extend((0..count).map(|_| rng.range(0.0, 2.0) as f32));
+            offsets.push(t.len());
+        }
+        let (eps, m) = (1e-3f32, t.len());
+        let (mut points, mut sample_dirs) = (Vec::new(), Vec::new());
+        fd_points(&origins, &dirs, &offsets, &t, eps, &mut points, &mut sample_dirs);
+        for (i, (o, d)) in origins.iter().zip(&dirs).enumerate() {
+            for s in offsets[i]..offsets[i + 1] {
+                assert_eq!(&sample_dirs[s * 3..s * 3 + 3], d, "sample {s}'s direction");
+                for b in 0..4 {
+                    let want: [f32; 3] =
+                        std::array::from_fn(|k| o[k] + t[s] * d[k] + if b == k + 1 { eps } else { 0.0 });
+                    assert_eq!(
+                        &points[(b * m + s) * 3..(b * m + s) * 3 + 3],
+                        &want,
+                        "sample {s}, block {b}"
+                    );
+                }
+            }
+        }
+        // The gradient pass over made-up outputs (width 2: the SDF and one feature).
+        let width = 2;
+        let sdf_out: Vec<f32> = (0..4 * m * width).map(|_| rng.range(-1.0, 1.0) as f32 * 1e-3).collect();
+        let sh = vec![0.0; m * SH_DIM];
+        let (mut grad, mut sdf0, mut cos) = (vec![[0.0; 3]; m], vec![0.0; m], vec![0.0; m]);
+        let mut color_in = vec![0.0; m * (SH_DIM + 3 + 1)];
+        let eik = fd_gradients(
+            &sdf_out,
+            width,
+            eps,
+            &sample_dirs,
+            &sh,
+            FdOut {
+                grad: &mut grad,
+                sdf0: &mut sdf0,
+                cos: &mut cos,
+                color_in: &mut color_in,
+            },
+        );
+        let serial: f64 = grad
+            .iter()
+            .map(|g| {
+                let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
+                ((len - 1.0) * (len - 1.0)) as f64
+            })
+            .sum();
+        assert!((eik - serial).abs() <= 1e-9 * serial.max(1.0), "{eik} against {serial}");
+        for s in [0, SAMPLE_CHUNK - 1, SAMPLE_CHUNK, m - 1] {
+            let want: [f32; 3] =
+                std::array::from_fn(|k| (sdf_out[((k + 1) * m + s) * width] - sdf_out[s * width]) / eps);
+            assert_eq!(grad[s], want, "sample {s}'s gradient");
+            assert_eq!(
+                color_in[s * (SH_DIM + 4) + SH_DIM + 3],
+                sdf_out[s * width + 1],
+                "sample {s}'s feature"
+            );
+        }
+    }
 }

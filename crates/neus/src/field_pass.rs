@@ -56,6 +56,7 @@ pub struct FieldPass {
     enc: Vec<f32>,
     sdf_in: Vec<f32>,
     sdf_mlp: MlpScratch,
+    /// A bake's outputs (the network's are read from `sdf_mlp`).
     sdf_out: Vec<f32>,
     sh: Vec<f32>,
     color_in: Vec<f32>,

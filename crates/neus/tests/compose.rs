@@ -640,3 +640,32 @@ fn a_body_held_fixed_renders_as_its_layer_drawn_again() {
     assert_eq!(got, want);
     assert!(got.iter().any(|&x| x != 0.0));
 }
+
+/// A frame of more chunks than threads renders the same bits on one thread and on three (the chunks side by
+/// side, a composer each; a scene layer and a posed object over a pre-rendered scene).
+#[test]
+fn a_many_chunk_frame_renders_the_same_on_any_number_of_threads() {
+    let r = rig();
+    let pose = Pose::new(Quat::exp(Vec3::new(0.2, 0.1, -0.4)), Vec3::new(0.0, 0.0, 0.03));
+    // 96 × 72 = 6,912 rays: four chunks of 2,048, the last one short.
+    let cam = camera(Vec3::new(0.25, -0.2, 0.2), Vec3::new(0.0, 0.0, 0.03), 96, 72);
+    let render = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let pre = prerender_scene(&r.scene, &cam, &mut Composer::default());
+            let object = Layer::object(&r.object, &r.capture_from_body, &pose, 0);
+            let img = render_composed(&[object], 1, Behind::Scene(&pre), &cam, &mut Composer::default());
+            (pre, img.rgb, img.depth, img.object_opacity, img.traced, img.samples)
+        })
+    };
+    let one = render(1);
+    let three = render(3);
+    assert_eq!(one.0.len(), 96 * 72);
+    assert!(one.4 > 2048, "more than one chunk traced: {}", one.4);
+    assert!(one.0 == three.0, "the pre-rendered scene differs with the thread count");
+    assert!(
+        one.1 == three.1 && one.2 == three.2 && one.3 == three.3,
+        "the frame differs with the thread count"
+    );
+    assert_eq!((one.4, one.5), (three.4, three.5));
+}
